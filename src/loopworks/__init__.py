@@ -1,0 +1,56 @@
+"""loopworks: industrial PID control loops.
+
+Faithful vendor PID blocks, plant models, closed-loop simulation and historian replay, all built
+on one block model (:mod:`loopworks.blocks`).
+
+    >>> import loopworks
+    >>> pid = loopworks.create_block("pid", k=2.0, ti=10.0)
+    >>> pid.step(0.1, sp=50.0, pv=40.0)["out"].value
+    20.2
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+__version__ = "0.1.0"
+
+__all__ = ["Module", "Signal", "__version__", "block_class", "create_block", "kinds"]
+
+if TYPE_CHECKING:
+    from loopworks.blocks.block import Block
+    from loopworks.blocks.status import Signal
+    from loopworks.sim.module import Module
+
+
+def create_block(kind: str, **params: Any) -> Block:
+    """Make a block of ``kind`` (see ``loopworks blocks``) with validated parameters."""
+    from loopworks.blocks.registry import create_block as _create
+
+    return _create(kind, **params)
+
+
+def kinds() -> list[str]:
+    """Every registered block kind."""
+    from loopworks.blocks.registry import kinds as _kinds
+
+    return _kinds()
+
+
+def block_class(kind: str) -> type[Block]:
+    """The class of a block kind."""
+    from loopworks.blocks.registry import block_class as _bc
+
+    return _bc(kind)
+
+
+def __getattr__(name: str) -> Any:
+    if name == "Signal":
+        from loopworks.blocks.status import Signal
+
+        return Signal
+    if name == "Module":
+        from loopworks.sim.module import Module
+
+        return Module
+    raise AttributeError(f"module 'loopworks' has no attribute {name!r}")

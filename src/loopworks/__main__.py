@@ -1,0 +1,3 @@
+from loopworks.cli import main
+
+main()

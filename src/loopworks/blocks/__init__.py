@@ -1,0 +1,1 @@
+"""The block model, status, the generic PID and shared primitives."""

@@ -1,0 +1,395 @@
+r"""The generic ``pid`` block: loopworks' own controller with the modern feature set.
+
+Equations (Åström & Hägglund, *Advanced PID Control*, ISA 2006, ch. 3; Åström & Murray,
+*Feedback Systems*, 2nd ed., sec. 11.3), with s = +1 for reverse action (e = SP - PV) and
+s = -1 for direct action (e = PV - SP)::
+
+    ideal     u = K·[ (b·SP - PV) + 1/(Ti·p)·e + Td·p/(1 + Tf·p)·(c·SP - PV) ]·s + ff + bias
+    parallel  u = [ kp·(b·SP - PV) + ki/p·e + kd·p/(1 + Tf·p)·(c·SP - PV) ]·s + ff + bias
+    series    K'(1 + 1/(Ti'·p))(1 + Td'·p), run as the ideal form with the textbook conversion
+              K = K'(1 + Td'/Ti'), Ti = Ti' + Td', Td = Ti'·Td'/(Ti' + Td')  (plant-and-tuning 3.5)
+
+Internally every form is kp = K, ki = K/Ti, kd = K·Td. The derivative filter time constant is
+``tf`` when given, else Tf = Td/N (``n``, default 10; ``n = inf`` = no filter).
+
+Discretisation, per scan of length dt (k = this scan):
+
+    P_k = s·kp·(b·SP_k - PV_k)
+    D_k = (Tf·D_{k-1} + s·kd·(d_k - d_{k-1})) / (Tf + dt),   d = c·SP - PV   (backward Euler)
+    ΔI_k = s·ki·dt·(SP_k - PV_k)                                               (backward Euler)
+
+positional:  I_k = I_{k-1} + ΔI_k [+ dt/Tt·(u_{k-1} - v_{k-1}) with back-calculation]
+             v_k = P_k + I_k + D_k + ff_k + bias
+velocity:    v_k = A_{k-1} + (P_k - P_{k-1}) + ΔI_k + (D_k - D_{k-1}) + (ff_k - ff_{k-1}),
+             A_k = u_k (clamping: the accumulator is the limited output) or v_k (none)
+both:        u_k = ratelimit(clamp(v_k, out_lo, out_hi), u_{k-1}, rate_limit·dt)
+
+At the first scan the memories are zero, the accumulator is ``bias`` and d_{k-1} = d_k, so the
+two algorithms give the same output while nothing limits it.
+
+Anti-windup (positional): ``clamping`` skips ΔI when the output is limited (clamp or rate) and
+ΔI pushes further into the limit (conditional integration); ``back_calculation`` adds the
+tracking term with time constant Tt (``tt``; default sqrt(Ti·Td) when Td > 0, else Ti,
+Åström & Hägglund 2006 sec. 3.5); ``none`` integrates regardless. The velocity algorithm
+supports ``clamping`` and ``none``.
+
+Dead bands: ``i_deadband`` freezes the integral while abs(e) < i_deadband. ``e_deadband`` is a
+gap: while abs(e) < e_deadband the output is held at its last value (no P, I or D action).
+
+Modes (input ``mode``): MAN (0) puts ``man_out`` on the output (limited to out_lo..out_hi; NaN
+= no operator write, the output holds); AUTO (1) controls to ``sp``; CAS (2) controls to
+``cas_sp``. ``track`` > 0.5 puts ``track_value`` on the output in any mode. Rate limiting acts
+in AUTO and CAS only. Any scan that does not compute the output (MAN, tracking, bad input, the
+error gap) re-initialises the controller at the next computing scan: the integral (or the
+velocity accumulator) is set so that the output continues from where it was and d_{k-1} = d_k,
+so every return to control is bumpless. With no integral action (ti = inf, ki = 0) the
+re-initialised integral is a frozen manual reset.
+
+Bad input: a non-finite or Bad-status ``pv`` (and likewise the working setpoint or ``ff``) in
+AUTO/CAS makes the block hold its last output (``bad_pv = "hold"``, status Uncertain: last
+usable value, 0x47) or go to ``safe_out`` (``bad_pv = "safe"``, status Uncertain: substitute,
+0x4B); the limit bits say Constant. Uncertain inputs are used, and ``out`` becomes Uncertain.
+The ``out`` status is otherwise Good non-cascade (128), with the high/low limited bits
+(130/129) when the output sits at ``out_hi``/``out_lo`` and Constant (131) in MAN or tracking
+(Fieldbus convention, spec vendor-blocks 4.6).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.primitives import clamp, finite, rate_limit
+from loopworks.blocks.registry import register
+from loopworks.blocks.status import (
+    BAD,
+    CONSTANT,
+    GOOD_NC,
+    HIGH_LIMITED,
+    LOW_LIMITED,
+    UNCERTAIN,
+    UNCERTAIN_LAST_USABLE_VALUE,
+    UNCERTAIN_NON_SPECIFIC,
+    UNCERTAIN_SUBSTITUTE,
+)
+from loopworks.errors import ParameterError
+
+# Coefficient layout (p)
+KP, KI, KD, TF, B, C, SIGN, VELOCITY, AW, TT_INV, LO, HI, RATE, IDB, EDB, BIAS, SAFE, BADPV = \
+    range(18)
+AW_NONE, AW_CLAMPING, AW_BACK_CALCULATION = 0, 1, 2
+BAD_HOLD, BAD_SAFE = 0, 1
+# Inputs (u, us)
+SP, PV, FF, MODE, MAN_OUT, CAS_SP, TRACK, TRACK_VALUE = range(8)
+MAN, AUTO, CAS = 0, 1, 2
+# Outputs (y, ys)
+OUT, P_TERM, I_TERM, D_TERM = range(4)
+# State (x)
+(S_I, S_D, S_DPREV, S_U, S_V, S_ACC, S_PPREV, S_DOUTPREV, S_FFPREV, S_FIRST, S_INIT) = range(11)
+
+
+def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+               y: FloatArray, ys: IntArray) -> None:
+    """One scan of the generic PID (equations in the module docstring)."""
+    lo = p[LO]
+    hi = p[HI]
+    u_prev = x[S_U]
+    mode = u[MODE]
+    out = u_prev
+    status = GOOD_NC | CONSTANT
+    computed = False
+    if u[TRACK] > 0.5:  # output tracking, any mode
+        if finite(u[TRACK_VALUE]) and (us[TRACK_VALUE] & 0xC0) != BAD:
+            out = clamp(u[TRACK_VALUE], lo, hi)
+        else:
+            status = UNCERTAIN_LAST_USABLE_VALUE | CONSTANT
+    elif mode == MAN:
+        if finite(u[MAN_OUT]) and (us[MAN_OUT] & 0xC0) != BAD:
+            out = clamp(u[MAN_OUT], lo, hi)
+    else:
+        isp = CAS_SP if mode == CAS else SP
+        sp = u[isp]
+        pv = u[PV]
+        ff = u[FF]
+        q_sp = us[isp] & 0xC0
+        q_pv = us[PV] & 0xC0
+        q_ff = us[FF] & 0xC0
+        bad = (not (mode == AUTO or mode == CAS) or not finite(sp) or not finite(pv)
+               or not finite(ff) or q_sp == BAD or q_pv == BAD or q_ff == BAD)
+        if bad:
+            if p[BADPV] == BAD_SAFE:
+                out = p[SAFE]
+                status = UNCERTAIN_SUBSTITUTE | CONSTANT
+            else:
+                status = UNCERTAIN_LAST_USABLE_VALUE | CONSTANT
+        else:
+            computed = True
+            s = p[SIGN]
+            e = s * (sp - pv)
+            pterm = s * p[KP] * (p[B] * sp - pv)
+            d = s * (p[C] * sp - pv)
+            init = x[S_INIT] != 0.0
+            if init or x[S_FIRST] != 0.0:
+                x[S_DPREV] = d
+                x[S_D] = 0.0
+            dterm = (p[TF] * x[S_D] + p[KD] * (d - x[S_DPREV])) / (p[TF] + dt)
+            x[S_D] = dterm
+            x[S_DPREV] = d
+            if init:  # bumpless return: continue from the last output
+                x[S_I] = u_prev - pterm - dterm - ff - p[BIAS]
+                x[S_ACC] = u_prev
+                x[S_V] = u_prev
+                x[S_PPREV] = pterm
+                x[S_DOUTPREV] = dterm
+                x[S_FFPREV] = ff
+            velocity = p[VELOCITY] != 0.0
+            if abs(e) < p[EDB]:  # error gap: hold the output, re-initialise on leaving
+                out = u_prev
+                x[S_INIT] = 1.0
+                x[S_FIRST] = 0.0
+                y[OUT] = out
+                ys[OUT] = GOOD_NC | CONSTANT
+                y[P_TERM] = pterm
+                y[I_TERM] = out - pterm - dterm - ff - p[BIAS]
+                y[D_TERM] = dterm
+                return
+            di = 0.0
+            if p[KI] > 0.0 and abs(e) >= p[IDB]:
+                di = p[KI] * dt * e
+            if p[AW] == AW_BACK_CALCULATION:
+                di += dt * p[TT_INV] * (u_prev - x[S_V])
+            if velocity:
+                base = (x[S_ACC] + (pterm - x[S_PPREV]) + (dterm - x[S_DOUTPREV])
+                        + (ff - x[S_FFPREV]))
+            else:
+                base = pterm + x[S_I] + dterm + ff + p[BIAS]
+            first = x[S_FIRST] != 0.0
+            v = base + di
+            out = clamp(v, lo, hi)
+            if not first:
+                out = rate_limit(out, u_prev, p[RATE] * dt)
+            if p[AW] == AW_CLAMPING and ((out < v and di > 0.0) or (out > v and di < 0.0)):
+                di = 0.0
+                v = base
+                out = clamp(v, lo, hi)
+                if not first:
+                    out = rate_limit(out, u_prev, p[RATE] * dt)
+            if velocity:
+                x[S_ACC] = out if p[AW] == AW_CLAMPING else v
+                iterm = x[S_ACC] - pterm - dterm - ff - p[BIAS]
+            else:
+                x[S_I] = x[S_I] + di
+                iterm = x[S_I]
+            x[S_V] = v
+            x[S_PPREV] = pterm
+            x[S_DOUTPREV] = dterm
+            x[S_FFPREV] = ff
+            x[S_FIRST] = 0.0
+            x[S_INIT] = 0.0
+            status = GOOD_NC
+            if q_sp == UNCERTAIN or q_pv == UNCERTAIN or q_ff == UNCERTAIN:
+                status = UNCERTAIN_NON_SPECIFIC
+            if out >= hi:
+                status |= HIGH_LIMITED
+            elif out <= lo:
+                status |= LOW_LIMITED
+            y[P_TERM] = pterm
+            y[I_TERM] = iterm
+            y[D_TERM] = dterm
+    if not computed:
+        x[S_INIT] = 1.0
+        x[S_FIRST] = 0.0
+        x[S_V] = out
+        y[P_TERM] = 0.0
+        y[I_TERM] = 0.0
+        y[D_TERM] = 0.0
+    x[S_U] = out
+    y[OUT] = out
+    ys[OUT] = status
+
+
+_GAINS_IDEAL = ("k", "ti", "td")
+_GAINS_PARALLEL = ("kp", "ki", "kd")
+
+
+@register
+class PID(Block):
+    """Generic PID: ideal, parallel or series form; positional or velocity algorithm."""
+
+    kind = "pid"
+    summary = "generic PID (ideal/parallel/series, positional/velocity, anti-windup, modes)"
+    kernel = staticmethod(pid_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("form", "ideal", "", "controller form", "choice",
+              choices=("ideal", "parallel", "series")),
+        Param("k", None, "out/pv", "gain K (ideal and series forms)", lo=0.0,
+              default_text="1.0"),
+        Param("ti", None, "s", "integral time (ideal and series); inf = no integral action",
+              lo=0.0, hi_open=False, default_text="inf"),
+        Param("td", None, "s", "derivative time (ideal and series); 0 = none", lo=0.0,
+              lo_open=False, default_text="0.0"),
+        Param("kp", None, "out/pv", "proportional gain (parallel form)", lo=0.0, lo_open=False,
+              default_text="1.0"),
+        Param("ki", None, "out/(pv·s)", "integral gain (parallel form)", lo=0.0, lo_open=False,
+              default_text="0.0"),
+        Param("kd", None, "out·s/pv", "derivative gain (parallel form)", lo=0.0, lo_open=False,
+              default_text="0.0"),
+        Param("action", "reverse", "", "reverse: e = sp - pv; direct: e = pv - sp", "choice",
+              choices=("reverse", "direct")),
+        Param("b", 1.0, "", "setpoint weight in the proportional term", lo=0.0, hi=1.0,
+              lo_open=False, hi_open=False),
+        Param("c", 0.0, "", "setpoint weight in the derivative term (0 = derivative on PV)",
+              lo=0.0, hi=1.0, lo_open=False, hi_open=False),
+        Param("n", None, "", "derivative filter: Tf = Td/n; inf = no filter", lo=0.0,
+              hi_open=False, default_text="10.0"),
+        Param("tf", None, "s", "derivative filter time constant (instead of n); 0 = none",
+              lo=0.0, lo_open=False, default_text="Td/n"),
+        Param("algorithm", "positional", "", "positional or velocity (incremental)", "choice",
+              choices=("positional", "velocity")),
+        Param("antiwindup", "clamping", "", "anti-windup strategy", "choice",
+              choices=("clamping", "back_calculation", "none")),
+        Param("tt", None, "s", "tracking time constant for back_calculation", lo=0.0,
+              default_text="sqrt(Ti·Td) if Td > 0 else Ti"),
+        Param("out_lo", 0.0, "out", "output low limit"),
+        Param("out_hi", 100.0, "out", "output high limit (> out_lo)"),
+        Param("rate_limit", math.inf, "out/s", "output rate limit (AUTO/CAS); inf = none",
+              lo=0.0, hi_open=False),
+        Param("i_deadband", 0.0, "pv", "integral frozen while abs(e) < i_deadband", lo=0.0,
+              lo_open=False),
+        Param("e_deadband", 0.0, "pv", "output held while abs(e) < e_deadband", lo=0.0,
+              lo_open=False),
+        Param("bias", 0.0, "out", "output bias added in the positional sum"),
+        Param("bad_pv", "hold", "", "on Bad or non-finite pv: hold the output or go to "
+              "safe_out", "choice", choices=("hold", "safe")),
+        Param("safe_out", None, "out", "output when bad_pv = safe (in out_lo..out_hi)",
+              default_text="out_lo"),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("sp", 0.0, "pv", "setpoint (AUTO)", status=True),
+        Port("pv", 0.0, "pv", "process variable", status=True),
+        Port("ff", 0.0, "out", "feedforward, added to the output", status=True),
+        Port("mode", float(AUTO), "", "MAN (0), AUTO (1) or CAS (2)",
+             choices=("MAN", "AUTO", "CAS")),
+        Port("man_out", math.nan, "out", "operator output in MAN (NaN = hold)", status=True),
+        Port("cas_sp", math.nan, "pv", "cascade setpoint (CAS)", status=True),
+        Port("track", 0.0, "", "output tracking switch (> 0.5 = track)"),
+        Port("track_value", math.nan, "out", "output while tracking", status=True),
+    )
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("out", 0.0, "out", "controller output", status=True),
+        Port("p_term", 0.0, "out", "proportional contribution"),
+        Port("i_term", 0.0, "out", "integral contribution"),
+        Port("d_term", 0.0, "out", "derivative contribution"),
+    )
+    STATES: ClassVar[tuple[str, ...]] = (
+        "i", "d", "d_prev", "u_prev", "v_prev", "acc", "p_prev", "d_out_prev", "ff_prev",
+        "first", "init")
+
+    def gains(self) -> tuple[float, float, float]:
+        """(kp, ki, kd) of the equivalent parallel form."""
+        return self.p[KP], self.p[KI], self.p[KD]
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        given = set(self.given)
+        form = prm["form"]
+        if form == "parallel":
+            wrong = given & set(_GAINS_IDEAL)
+            if wrong:
+                raise ParameterError(
+                    f"pid: parameter '{sorted(wrong)[0]}' is for the ideal and series forms; "
+                    "form 'parallel' takes kp, ki, kd")
+            kp = _or(prm["kp"], 1.0)
+            ki = _or(prm["ki"], 0.0)
+            kd = _or(prm["kd"], 0.0)
+            ti = kp / ki if ki > 0.0 else math.inf
+            td = kd / kp if kp > 0.0 else math.inf
+        else:
+            wrong = given & set(_GAINS_PARALLEL)
+            if wrong:
+                raise ParameterError(
+                    f"pid: parameter '{sorted(wrong)[0]}' is for the parallel form; "
+                    f"form '{form}' takes k, ti, td")
+            k = _or(prm["k"], 1.0)
+            ti = _or(prm["ti"], math.inf)
+            td = _or(prm["td"], 0.0)
+            if form == "series" and td > 0.0:
+                k, ti, td = series_to_ideal(k, ti, td)
+            kp, ki, kd = k, (k / ti if ti < math.inf else 0.0), k * td
+        if "n" in given and "tf" in given:
+            raise ParameterError("pid: give either 'n' or 'tf' for the derivative filter, not both")
+        if prm["tf"] is not None:
+            tf = float(prm["tf"])
+        else:
+            n = _or(prm["n"], 10.0)
+            if kd > 0.0 and not td < math.inf:
+                raise ParameterError("pid: with kp = 0 the filter cannot be Td/n; give 'tf' (s)")
+            tf = 0.0 if kd == 0.0 or n == math.inf else td / n
+        lo, hi = float(prm["out_lo"]), float(prm["out_hi"])
+        if not lo < hi:
+            raise ParameterError(
+                f"pid: parameter 'out_hi' = {hi:g} must be greater than out_lo = {lo:g}")
+        velocity = prm["algorithm"] == "velocity"
+        aw = {"none": AW_NONE, "clamping": AW_CLAMPING,
+              "back_calculation": AW_BACK_CALCULATION}[prm["antiwindup"]]
+        if velocity and aw == AW_BACK_CALCULATION:
+            raise ParameterError(
+                "pid: antiwindup = 'back_calculation' needs algorithm = 'positional'; the "
+                "velocity algorithm takes 'clamping' (accumulate the limited output) or 'none'")
+        tt_inv = 0.0
+        if aw == AW_BACK_CALCULATION:
+            if prm["tt"] is not None:
+                tt = float(prm["tt"])
+            elif ki == 0.0:
+                tt = math.inf
+            else:
+                tt = math.sqrt(ti * td) if 0.0 < td < math.inf else ti
+            tt_inv = 1.0 / tt
+        safe = lo if prm["safe_out"] is None else float(prm["safe_out"])
+        if not lo <= safe <= hi:
+            raise ParameterError(
+                f"pid: parameter 'safe_out' = {safe:g} is out of range: allowed "
+                f"[{lo:g}, {hi:g}] (out_lo..out_hi)")
+        coeffs = [0.0] * 18
+        coeffs[KP], coeffs[KI], coeffs[KD], coeffs[TF] = kp, ki, kd, tf
+        coeffs[B], coeffs[C] = float(prm["b"]), float(prm["c"])
+        coeffs[SIGN] = 1.0 if prm["action"] == "reverse" else -1.0
+        coeffs[VELOCITY] = 1.0 if velocity else 0.0
+        coeffs[AW], coeffs[TT_INV] = float(aw), tt_inv
+        coeffs[LO], coeffs[HI] = lo, hi
+        coeffs[RATE] = float(prm["rate_limit"])
+        coeffs[IDB] = float(prm["i_deadband"])
+        coeffs[EDB] = float(prm["e_deadband"])
+        coeffs[BIAS] = float(prm["bias"])
+        coeffs[SAFE] = safe
+        coeffs[BADPV] = float(BAD_SAFE if prm["bad_pv"] == "safe" else BAD_HOLD)
+        return coeffs
+
+    def initial_state(self) -> list[float]:
+        x = [0.0] * len(self.STATES)
+        bias = self.p[BIAS]
+        x[S_U] = min(max(bias, self.p[LO]), self.p[HI])
+        x[S_V] = x[S_U]
+        x[S_ACC] = bias
+        x[S_FIRST] = 1.0
+        return x
+
+
+def _or(value: Any, default: float) -> float:
+    return default if value is None else float(value)
+
+
+def series_to_ideal(k: float, ti: float, td: float) -> tuple[float, float, float]:
+    """Series (K', Ti', Td') to ideal (K, Ti, Td), plant-and-tuning 3.5:
+
+        K = K'(1 + Td'/Ti'),  Ti = Ti' + Td',  Td = Ti'·Td'/(Ti' + Td')
+
+    Ti' = inf (no integral) gives K = K', Ti = inf, Td = Td'.
+    """
+    if ti == math.inf:
+        return k, math.inf, td
+    return k * (1.0 + td / ti), ti + td, ti * td / (ti + td)

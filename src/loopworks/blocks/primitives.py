@@ -1,0 +1,51 @@
+"""Shared numeric primitives that kernels call: each equation written once.
+
+All are :func:`~loopworks.blocks.kernel.primitive` functions of plain floats, so they run
+interpreted and compile with numba inside a kernel.
+"""
+
+from __future__ import annotations
+
+import math
+
+from loopworks.blocks.kernel import primitive
+
+
+@primitive
+def finite(x: float) -> bool:
+    """True unless x is NaN or infinite."""
+    return not (math.isnan(x) or math.isinf(x))
+
+
+@primitive
+def clamp(x: float, lo: float, hi: float) -> float:
+    """min(max(x, lo), hi)."""
+    if x > hi:
+        return hi
+    if x < lo:
+        return lo
+    return x
+
+
+@primitive
+def rate_limit(x: float, previous: float, max_step: float) -> float:
+    """Limit the move from ``previous`` to ``x`` to ``max_step`` (= rate · dt) either way."""
+    if x > previous + max_step:
+        return previous + max_step
+    if x < previous - max_step:
+        return previous - max_step
+    return x
+
+
+@primitive
+def lag_step(y: float, target: float, dt: float, time_constant: float) -> float:
+    """Exact (zero-order-hold) step of a first-order lag T·dy/dt = target - y over ``dt``:
+
+        y_k = y_{k-1} + (1 - exp(-dt/T))·(target - y_{k-1})
+
+    (Åström & Wittenmark, Computer-Controlled Systems, ch. 2: ZOH sampling of 1/(Ts+1)).
+    T = 0 passes the target through.
+    """
+    if time_constant <= 0.0:
+        return target
+    return y + (1.0 - math.exp(-dt / time_constant)) * (target - y)

@@ -1,0 +1,229 @@
+"""The ``loopworks`` command line: thin; parses, calls the API, prints and writes files.
+
+Every user error (bad parameter, unknown kind, malformed file) prints one line starting with
+``error:`` on standard error and exits with code 2; nothing prints a traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any, TypeVar
+
+import typer
+
+app = typer.Typer(
+    name="loopworks",
+    help="Industrial PID control loops: vendor blocks, simulation and historian replay.",
+    add_completion=False,
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+)
+
+
+def _fail(message: str) -> None:
+    typer.echo(f"error: {message}", err=True)
+    raise typer.Exit(2)
+
+
+F = TypeVar("F", bound=Callable[..., None])
+
+
+def _user_errors(fn: F) -> F:
+    """Turn loopworks' user errors into one ``error:`` line and exit code 2."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> None:
+        from loopworks.errors import LoopworksError
+
+        try:
+            fn(*args, **kwargs)
+        except LoopworksError as exc:
+            _fail(str(exc))
+
+    return wrapper  # type: ignore[return-value]
+
+
+@app.command()
+@_user_errors
+def simulate(
+    scenario: Annotated[Path | None, typer.Argument(
+        help="scenario TOML file; omit to run the built-in scenario")] = None,
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", help="write every signal to this CSV file")] = None,
+    plot: Annotated[Path | None, typer.Option(
+        "--plot", help="save a plot of the run to this PNG file")] = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """Run a closed-loop scenario and print a metrics table for each controller."""
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+    from rich.table import Table
+
+    from loopworks.sim.metrics import loop_metrics
+    from loopworks.sim.scenario import load_scenario
+
+    sc = load_scenario(scenario)
+    console = Console()
+    title = sc.title or sc.source
+    if quiet:
+        result = sc.module.run(sc.duration, sc.dt)
+    else:
+        with Progress("[progress.description]{task.description}", BarColumn(),
+                      MofNCompleteColumn(), TimeRemainingColumn(), console=console,
+                      transient=True) as bar:
+            task = bar.add_task(f"simulating {title}", total=None)
+
+            def tick(done: int, total: int) -> None:
+                bar.update(task, completed=done, total=total)
+
+            result = sc.module.run(sc.duration, sc.dt, progress=tick)
+    controllers = [n for n, b in sc.module.blocks.items()
+                   if {"sp", "pv"} <= set(b._in_index) and b.OUTPUTS]
+    table = Table(title=f"{title}: {sc.duration:g} s in scans of {sc.dt:g} s")
+    table.add_column("metric")
+    rows: dict[str, list[str]] = {}
+    for name in controllers:
+        out = sc.module.blocks[name].OUTPUTS[0].name
+        table.add_column(f"{name} ({sc.module.blocks[name].kind})", justify="right")
+        m = loop_metrics(result.t, result[f"{name}.sp"], result[f"{name}.pv"],
+                         result[f"{name}.{out}"])
+        for key, value in m.items():
+            rows.setdefault(key, []).append("n/a" if math.isnan(value) else f"{value:.4g}")
+    for key, cells in rows.items():
+        table.add_row(key, *cells)
+    if controllers:
+        console.print(table)
+    else:
+        console.print(f"{title}: {len(result.t)} scans (no controller with sp and pv to score)")
+    if output is not None:
+        result.to_csv(output)
+        console.print(f"wrote {len(result.t)} rows of {len(result.names)} signals to {output}")
+    if plot is not None:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        axes = result.plot()
+        axes[0].figure.suptitle(title)
+        axes[0].figure.savefig(plot, dpi=100)
+        plt.close(axes[0].figure)
+        console.print(f"wrote the plot to {plot}")
+
+
+@app.command()
+@_user_errors
+def blocks(
+    kind: Annotated[str | None, typer.Argument(help="a block kind to describe")] = None,
+) -> None:
+    """List the block kinds, or describe one: parameters, inputs and outputs."""
+    from rich.console import Console
+    from rich.table import Table
+
+    from loopworks.blocks.registry import block_class, kinds
+
+    console = Console()
+    if kind is None:
+        table = Table(title="block kinds")
+        table.add_column("kind")
+        table.add_column("what it is")
+        for k in kinds():
+            table.add_row(k, block_class(k).describe())
+        console.print(table)
+        return
+    cls = block_class(kind)
+    console.print(f"[bold]{cls.kind}[/bold]: {cls.describe()}")
+    params = Table(title="parameters")
+    for col in ("name", "unit", "default", "range", "meaning"):
+        params.add_column(col)
+    for p in cls.PARAMS:
+        default = p.default_text or ("" if p.default is None else _show(p.default))
+        params.add_row(p.name, p.unit, default, p.range_text(), p.meaning)
+    console.print(params)
+    for title, ports in (("inputs", cls.INPUTS), ("outputs", cls.OUTPUTS)):
+        table = Table(title=title)
+        for col in ("name", "unit", "default" if title == "inputs" else "status", "meaning"):
+            table.add_column(col)
+        for port in ports:
+            third = _show(port.default) if title == "inputs" else ("yes" if port.status else "")
+            if title == "inputs" and port.choices:
+                third = port.choices[int(port.default)]
+            meaning = port.meaning + (" (has .ST status)" if port.status and title == "inputs"
+                                      else "")
+            table.add_row(port.name, port.unit, third, meaning)
+        console.print(table)
+
+
+def _show(value: Any) -> str:
+    if isinstance(value, float):
+        return "nan" if math.isnan(value) else ("inf" if value == math.inf else f"{value:g}")
+    return str(value)
+
+
+@app.command()
+@_user_errors
+def replay(
+    kind: Annotated[str, typer.Argument(help="block kind, e.g. pid")],
+    input_csv: Annotated[Path, typer.Argument(metavar="INPUT.csv", help="recorded inputs")],
+    param: Annotated[list[str] | None, typer.Option(
+        "--param", "-p", metavar="NAME=VALUE", help="a block parameter (repeatable)")] = None,
+    params: Annotated[Path | None, typer.Option(
+        "--params", metavar="FILE.toml", help="block parameters from a TOML table")] = None,
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", metavar="OUT.csv", help="output CSV (default: standard output)")] = None,
+    dt: Annotated[float | None, typer.Option(
+        "--dt", help="scan time in seconds, when the CSV has no t or dt column")] = None,
+) -> None:
+    """Run recorded inputs from a CSV file through one block and write its outputs."""
+    from loopworks.blocks.registry import block_class
+    from loopworks.sim.replay import replay as run_replay
+
+    cls = block_class(kind)
+    values: dict[str, Any] = {}
+    if params is not None:
+        values.update(read_params_file(params, cls.kind))
+    for item in param or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            _fail(f"-p {item!r}: expected NAME=VALUE")
+        values[name.strip()] = value.strip()
+    block = cls(**values)
+    summary = run_replay(block, input_csv, output)
+    if output is not None:
+        typer.echo(f"replayed {summary.rows} rows (t = {summary.t_start:g}..{summary.t_end:g} s) "
+                   f"through {cls.kind}; wrote {output}", err=True)
+
+
+def read_params_file(path: Path, kind: str) -> dict[str, Any]:
+    """Parameters from a TOML file: a flat table, optionally with ``kind`` (which must match)."""
+    from loopworks.errors import FileFormatError
+
+    try:
+        with open(path, "rb") as fh:
+            table = tomllib.load(fh)
+    except OSError as exc:
+        raise FileFormatError(f"{path}: cannot read the parameters: {exc.strerror}") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise FileFormatError(f"{path}: invalid TOML: {exc}") from None
+    given_kind = table.pop("kind", None)
+    if given_kind is not None and str(given_kind).lower() != kind:
+        raise FileFormatError(f"{path}: kind = {given_kind!r} does not match the block kind "
+                              f"{kind!r}")
+    for key, value in table.items():
+        if isinstance(value, dict | list):
+            raise FileFormatError(f"{path}: '{key}' is a table or array: expected a flat table "
+                                  "of parameter = value")
+    return table
+
+
+def main() -> None:
+    """Entry point of the ``loopworks`` console script."""
+    app()
+
+
+if __name__ == "__main__":
+    main()

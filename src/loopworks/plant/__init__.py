@@ -1,0 +1,1 @@
+"""Plant models: processes, valves, sensors. They are blocks too."""

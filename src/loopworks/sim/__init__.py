@@ -1,0 +1,1 @@
+"""Module execution, scenarios, replay and metrics."""

@@ -1,0 +1,107 @@
+"""The result of a module run: time-indexed arrays for every port and its status."""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+@dataclass
+class SimResult:
+    """``t`` (s, the time of each scan); ``values["block.port"]`` and ``status["block.port"]``
+    for every input and output of every block; ``kinds`` maps block names to kinds."""
+
+    t: np.ndarray
+    values: dict[str, np.ndarray]
+    status: dict[str, np.ndarray]
+    kinds: dict[str, str] = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        """``result["pid.out"]``; ``result["pid.out.ST"]`` gives the status array."""
+        if name.upper().endswith(".ST") and name[:-3] in self.status:
+            return self.status[name[:-3]]
+        try:
+            return self.values[name]
+        except KeyError:
+            raise KeyError(f"no signal '{name}'; signals: {', '.join(self.values)}") from None
+
+    @property
+    def names(self) -> list[str]:
+        """Every signal name, ``block.port``."""
+        return list(self.values)
+
+    def to_pandas(self) -> Any:
+        """A pandas DataFrame indexed by ``t`` (s), with a ``NAME.ST`` column per signal.
+        pandas is optional: ``pip install loopworks[pandas]``."""
+        try:
+            import pandas as pd
+        except ImportError:
+            raise ImportError("to_pandas() needs pandas: pip install pandas") from None
+        data: dict[str, np.ndarray] = {}
+        for name, v in self.values.items():
+            data[name] = v
+            data[f"{name}.ST"] = self.status[name]
+        return pd.DataFrame(data, index=pd.Index(self.t, name="t"))
+
+    def to_csv(self, path: str | Path) -> None:
+        """Write ``t``, every signal and its ``.ST`` status column."""
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            names = list(self.values)
+            w.writerow(["t", *names, *(f"{n}.ST" for n in names)])
+            cols = [self.t, *(self.values[n] for n in names)]
+            stats = [self.status[n] for n in names]
+            for k in range(len(self.t)):
+                w.writerow([*(repr(float(c[k])) for c in cols), *(int(s[k]) for s in stats)])
+
+    def plot(self, signals: list[str] | None = None, ax: Any = None) -> Any:
+        """Plot signals against time; by default one panel per block with its outputs.
+
+        Returns the matplotlib Axes (a list when several panels are drawn)."""
+        import matplotlib.pyplot as plt
+
+        if signals is not None or ax is not None:
+            if ax is None:
+                _, ax = plt.subplots(figsize=(9, 4))
+            for name in signals or self.names:
+                ax.plot(self.t, self[name], label=name)
+            ax.set_xlabel("t (s)")
+            ax.legend(loc="best")
+            ax.grid(True, alpha=0.3)
+            return ax
+        groups = self._panels()
+        fig, axes = plt.subplots(len(groups), 1, sharex=True, figsize=(9, 2.6 * len(groups)),
+                                 squeeze=False)
+        for a, (title, names) in zip(axes[:, 0], groups, strict=True):
+            for name in names:
+                a.plot(self.t, self.values[name], label=name)
+            a.set_title(title, fontsize=10)
+            a.legend(loc="best", fontsize=8)
+            a.grid(True, alpha=0.3)
+        axes[-1, 0].set_xlabel("t (s)")
+        fig.tight_layout()
+        return list(axes[:, 0])
+
+    def _panels(self) -> list[tuple[str, list[str]]]:
+        """Controllers get an SP/PV panel and an OUT panel; other blocks their outputs."""
+        from loopworks.blocks.registry import block_class
+
+        panels: list[tuple[str, list[str]]] = []
+        for name, kind in self.kinds.items():
+            cls = block_class(kind)
+            ins = {p.name for p in cls.INPUTS}
+            outs = [p.name for p in cls.OUTPUTS]
+            if {"sp", "pv"} <= ins:
+                panels.append((f"{name} ({kind}): setpoint and PV", [f"{name}.sp", f"{name}.pv"]))
+                panels.append((f"{name} ({kind}): output", [f"{name}.{outs[0]}"]))
+            else:
+                panels.append((f"{name} ({kind})", [f"{name}.{o}" for o in outs]))
+        return panels
+
+    def _repr_html_(self) -> str:
+        return (f"<b>SimResult</b>: {len(self.t)} scans, t = {self.t[0]:g}..{self.t[-1]:g} s, "
+                f"blocks {', '.join(f'{n} ({k})' for n, k in self.kinds.items())}")
