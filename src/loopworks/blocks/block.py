@@ -136,8 +136,11 @@ class Block:
                 u[i] = value
                 us[i] = st.GOOD_NC
             elif isinstance(value, tuple):
-                u[i] = float(value[0])
-                us[i] = st.check_byte(value[1], f"{self.kind}: status of input '{name}'")
+                try:
+                    us[i] = st.check_byte(value[1], f"{self.kind}: status of input '{name}'")
+                    u[i] = float(value[0])
+                except (TypeError, ValueError, IndexError) as exc:
+                    raise InputError(str(exc)) from None
             else:
                 try:
                     u[i] = self.INPUTS[i].parse(value)

@@ -9,7 +9,8 @@ with t measured from the start of the analysed window. For a setpoint step of si
 
     overshoot      = max over the window of (y - y_∞)·sign(Δr) / |Δr| · 100 %   (y_∞ = last PV)
     rise time      = first time y crosses y_0 + 0.9·Δr minus first time it crosses y_0 + 0.1·Δr
-    settling time  = last time |y - y_∞| > band·|Δr| (band 2 %), measured from the step
+    settling time  = last time |y - y_∞| > band·|Δr| (band 2 %), measured from the step;
+                     NaN unless at least the last 5 % of the window lies inside the band
     travel         = Σ |Δu_k| of the controller output
 """
 
@@ -66,9 +67,10 @@ def step_metrics(t: np.ndarray, y: np.ndarray, r: float, band: float = 0.02) -> 
     i90 = np.flatnonzero(frac >= 0.9)
     rise = float(t[i90[0]] - t[i10[0]]) if len(i10) and len(i90) else math.nan
     outside = np.flatnonzero(np.abs(y - yinf) > band * abs(dr))
+    tail = max(2, len(y) // 20)  # settled means the last 5 % of the window stays in the band
     if len(outside) == 0:
         settle = 0.0
-    elif outside[-1] == len(y) - 1:
+    elif outside[-1] >= len(y) - tail:
         settle = math.nan
     else:
         settle = float(t[outside[-1] + 1] - t[0])

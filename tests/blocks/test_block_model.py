@@ -1,0 +1,201 @@
+"""The block model: registry, validation, inputs, state save/resume, and kernels under numba."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+import loopworks
+from loopworks.blocks import status as st
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import compiled
+from loopworks.errors import InputError, ParameterError, UnknownKindError
+
+# Parameter sets that exercise the branches of each kind's kernel.
+VARIANTS: dict[str, list[dict[str, object]]] = {
+    "pid": [
+        {},
+        {"k": 2.0, "ti": 5.0, "td": 1.0, "c": 1.0, "b": 0.5},
+        {"form": "parallel", "kp": 1.5, "ki": 0.3, "kd": 0.2, "tf": 0.05,
+         "antiwindup": "back_calculation", "rate_limit": 20.0},
+        {"form": "series", "k": 0.8, "ti": 8.0, "td": 2.0, "algorithm": "velocity",
+         "i_deadband": 1.0, "bad_pv": "safe", "safe_out": 10.0},
+        {"k": 1.0, "ti": 3.0, "algorithm": "velocity", "antiwindup": "none", "e_deadband": 2.0,
+         "action": "direct", "bias": 30.0, "out_lo": -50.0, "out_hi": 50.0},
+        {"k": 3.0, "ti": 2.0, "antiwindup": "none", "n": math.inf, "td": 0.5},
+    ],
+    "process.first_order": [{}, {"gain": -2.0, "time_constant": 3.0, "y0": 5.0},
+                            {"time_constant": 0.0}],
+}
+
+
+def random_inputs(block: Block, rng: np.random.Generator) -> dict[str, object]:
+    """Random values for every input: occasional NaN/inf and non-Good statuses."""
+    inputs: dict[str, object] = {}
+    for port in block.INPUTS:
+        if port.choices:
+            value = float(rng.integers(0, len(port.choices)))
+        elif port.name == "track":
+            value = float(rng.random() < 0.1)
+        else:
+            value = float(rng.uniform(-20.0, 120.0))
+            r = rng.random()
+            if r < 0.03:
+                value = math.nan
+            elif r < 0.04:
+                value = math.inf
+        if port.status:
+            status = int(rng.choice([128, 128, 128, 128, 0, 0x40, 0x44, 0xC0, 130]))
+            inputs[port.name] = (value, status)
+        else:
+            inputs[port.name] = value
+    return inputs
+
+
+def test_every_registered_kind_has_variants_here() -> None:
+    assert set(loopworks.kinds()) <= set(VARIANTS), "add parameter variants for new kinds"
+
+
+@pytest.mark.parametrize("kind", sorted(VARIANTS))
+def test_compiled_kernel_matches_interpreted_run(kind: str) -> None:
+    """numba.njit(kernel) and the plain Python kernel agree to 1e-12 on random inputs."""
+    rng = np.random.default_rng(12345)
+    for params in VARIANTS[kind]:
+        py = loopworks.create_block(kind, jit=False, **params)
+        nb = loopworks.create_block(kind, jit=False, **params)
+        fast = compiled(type(py).kernel)
+        for _ in range(3000):
+            dt = float(rng.uniform(0.01, 2.0))
+            inputs = random_inputs(py, rng)
+            py.set_inputs(inputs)
+            nb.set_inputs(inputs)
+            type(py).kernel(dt, py.p, py.x, py.u, py.us, py.y, py.ys)
+            fast(dt, nb.p, nb.x, nb.u, nb.us, nb.y, nb.ys)
+            np.testing.assert_allclose(nb.y, py.y, rtol=1e-12, atol=1e-12, equal_nan=True)
+            np.testing.assert_array_equal(nb.ys, py.ys)
+            np.testing.assert_allclose(nb.x, py.x, rtol=1e-12, atol=1e-12, equal_nan=True)
+
+
+@pytest.mark.parametrize("kind", sorted(VARIANTS))
+def test_step_with_jit_matches_step_without(kind: str) -> None:
+    """The block API gives the same outputs with the compiled entry point and without."""
+    rng = np.random.default_rng(7)
+    for params in VARIANTS[kind]:
+        a = loopworks.create_block(kind, jit=True, **params)
+        b = loopworks.create_block(kind, jit=False, **params)
+        for _ in range(500):
+            dt = float(rng.uniform(0.05, 1.0))
+            inputs = random_inputs(a, rng)
+            ra, rb = a.step(dt, **inputs), b.step(dt, **inputs)
+            for name in ra:
+                assert ra[name].status == rb[name].status
+                assert ra[name].value == pytest.approx(rb[name].value, abs=1e-12, nan_ok=True)
+
+
+@pytest.mark.parametrize("kind", sorted(VARIANTS))
+def test_resume_from_saved_state_equals_uninterrupted_run(kind: str) -> None:
+    """Save mid-run (through JSON), restore into a fresh block, continue: identical outputs."""
+    for params in VARIANTS[kind]:
+        rng = np.random.default_rng(99)
+        steps = [(float(rng.uniform(0.05, 1.0)), None) for _ in range(400)]
+        whole = loopworks.create_block(kind, **params)
+        first = loopworks.create_block(kind, **params)
+        seq = []
+        for dt, _ in steps:
+            seq.append((dt, random_inputs(whole, rng)))
+        expected = [dict(whole.step(dt, **inp)) for dt, inp in seq]
+        for dt, inp in seq[:200]:
+            first.step(dt, **inp)
+        saved = json.loads(json.dumps(first.state_dict()))
+        resumed = loopworks.create_block(saved["kind"], **saved["params"])
+        resumed.load_state(saved)
+        assert resumed.state() == pytest.approx(first.state(), nan_ok=True)
+        got = [dict(resumed.step(dt, **inp)) for dt, inp in seq[200:]]
+        for e, g in zip(expected[200:], got, strict=True):
+            for name in e:
+                assert g[name].status == e[name].status
+                assert g[name].value == e[name].value or (math.isnan(g[name].value)
+                                                          and math.isnan(e[name].value))
+
+
+def test_reset_returns_to_the_state_after_construction() -> None:
+    pid = loopworks.create_block("pid", k=2.0, ti=10.0)
+    fresh = pid.state_dict()
+    pid.step(0.1, sp=50.0, pv=40.0, mode="MAN", man_out=30.0)
+    assert pid.state_dict() != fresh
+    pid.reset()
+    assert json.dumps(pid.state_dict()) == json.dumps(fresh)  # NaN-safe comparison
+
+
+def test_load_state_of_another_kind_is_an_error() -> None:
+    pid = loopworks.create_block("pid")
+    proc = loopworks.create_block("process.first_order")
+    with pytest.raises(InputError, match=r"process\.first_order"):
+        pid.load_state(proc.state_dict())
+
+
+def test_inputs_latch_until_given_again() -> None:
+    """An input keeps its last value: a second step without sp/pv repeats the error."""
+    pid = loopworks.create_block("pid", k=1.0, ti=10.0)
+    first = pid.step(1.0, sp=10.0, pv=4.0)["out"].value
+    second = pid.step(1.0)["out"].value
+    assert first == pytest.approx(6.0 + 0.6)
+    assert second == pytest.approx(6.0 + 1.2)
+
+
+def test_input_names_in_any_letter_case_and_signal_pairs() -> None:
+    pid = loopworks.create_block("PID", K=1.0)
+    out = pid.step(1.0, SP=10.0, Pv=loopworks.Signal(4.0, st.GOOD_NC))
+    assert out["out"].value == pytest.approx(6.0)
+
+
+def test_unknown_input_lists_the_valid_ones() -> None:
+    pid = loopworks.create_block("pid")
+    with pytest.raises(InputError, match=r"unknown input 'spp'.*sp, pv, ff, mode"):
+        pid.step(1.0, spp=1.0)
+
+
+def test_bad_input_value_names_the_input() -> None:
+    pid = loopworks.create_block("pid")
+    with pytest.raises(InputError, match="mode"):
+        pid.step(1.0, mode="SEMIAUTO")
+    with pytest.raises(InputError, match="status"):
+        pid.step(1.0, pv=(1.0, 300))
+
+
+@pytest.mark.parametrize("dt", [0.0, -0.1, math.nan, math.inf])
+def test_non_positive_or_non_finite_dt_is_an_error(dt: float) -> None:
+    pid = loopworks.create_block("pid")
+    with pytest.raises(InputError, match="dt"):
+        pid.step(dt, sp=1.0, pv=0.0)
+
+
+def test_unknown_kind_lists_the_known_kinds() -> None:
+    with pytest.raises(UnknownKindError, match=r"unknown block kind 'pidd'.*pid"):
+        loopworks.create_block("pidd")
+
+
+def test_parameter_errors_name_parameter_value_and_range() -> None:
+    with pytest.raises(ParameterError, match=r"'ti' = -1 is out of range: allowed \(0, inf\] s"):
+        loopworks.create_block("pid", ti=-1)
+    with pytest.raises(ParameterError, match=r"'k' = 'abc' must be a number"):
+        loopworks.create_block("pid", k="abc")
+    with pytest.raises(ParameterError, match=r"'form' = 'pi' is not allowed: expected one of"):
+        loopworks.create_block("pid", form="pi")
+    with pytest.raises(ParameterError, match=r"'time_constant' = nan is out of range"):
+        loopworks.create_block("process.first_order", time_constant=math.nan)
+
+
+def test_parameters_from_strings_as_a_cli_gives_them() -> None:
+    pid = loopworks.create_block("pid", k="2", ti="inf", action="DIRECT", out_hi="1e3")
+    assert pid.params["ti"] == math.inf
+    assert pid.params["action"] == "direct"
+    assert pid.params["out_hi"] == 1000.0
+
+
+def test_repr_round_trips_the_constructor() -> None:
+    pid = loopworks.create_block("pid", k=2.0, ti=10.0)
+    assert repr(pid) == "create_block('pid', k=2.0, ti=10.0)"

@@ -1,0 +1,88 @@
+"""Scenario files: TOML to module, the built-in scenario, and located errors."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from loopworks.errors import FileFormatError
+from loopworks.sim.scenario import load_scenario, parse_scenario
+
+GOOD = """
+[simulation]
+dt = 0.5
+duration = 20.0
+
+[blocks.process]
+kind = "process.first_order"
+GAIN = 2.0
+time_constant = 10.0
+
+[blocks.pid]
+kind = "pid"
+k = 1.0
+ti = 10.0
+SP = 4.0
+
+[wires]
+"process.u" = "pid.out"
+"pid.pv" = "process.y"
+
+[[events]]
+t = 10.0
+set = "pid.sp"
+value = 6.0
+"""
+
+
+def test_tables_build_the_module_in_file_order() -> None:
+    sc = parse_scenario(GOOD, "good.toml")
+    assert sc.module.order == ["process", "pid"]
+    assert sc.dt == 0.5 and sc.duration == 20.0
+    assert sc.module.blocks["process"].params["gain"] == 2.0      # any letter case
+    result = sc.module.run(sc.duration, sc.dt)
+    assert len(result.t) == 40
+    assert (result["pid.sp"][:20] == 4.0).all() and (result["pid.sp"][20:] == 6.0).all()
+    # process runs first, so at scan 0 it sees the pid's initial output (0): y stays 0
+    assert result["process.y"][0] == 0.0
+    np.testing.assert_array_equal(result["process.u"][1:], result["pid.out"][:-1])
+
+
+def test_order_option_overrides_file_order() -> None:
+    text = GOOD.replace("duration = 20.0", 'duration = 20.0\norder = ["pid", "process"]')
+    assert parse_scenario(text).module.order == ["pid", "process"]
+
+
+def test_built_in_scenario_runs_and_controls() -> None:
+    sc = load_scenario()
+    result = sc.module.run(sc.duration, sc.dt)
+    assert abs(result["pid.sp"][-1] - result["pid.pv"][-1]) < 0.05
+
+
+def test_load_from_file(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(GOOD)
+    assert load_scenario(path).source == str(path)
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    (GOOD.replace("dt = 0.5", "dt = 0.5 0.6"), r"bad\.toml: invalid TOML: .*line 3"),
+    (GOOD.replace("dt = 0.5", "dt = -0.5"), r"bad\.toml: simulation\.dt: .*greater than 0"),
+    (GOOD.replace("dt = 0.5", "dtt = 0.5"), r"simulation\.dtt: Extra inputs"),
+    (GOOD.replace('kind = "pid"', 'kind = "pidd"'), r"\[blocks\.pid\]: unknown block kind"),
+    (GOOD.replace("ti = 10.0", "tii = 10.0"), r"\[blocks\.pid\]: pid: unknown parameter 'tii'"),
+    (GOOD.replace("ti = 10.0", "ti = -10.0"), r"\[blocks\.pid\]: pid: parameter 'ti' = -10"),
+    (GOOD.replace('"pid.pv" = "process.y"', '"pid.pv" = "process.yy"'), r"no output 'yy'"),
+    (GOOD.replace('set = "pid.sp"', 'set = "pid.pv"'), r"conflicts with its wire"),
+    (GOOD.replace("SP = 4.0", 'SP = "high"'), r"input 'sp' = 'high'"),
+])
+def test_errors_name_the_file_and_place(text: str, message: str) -> None:
+    with pytest.raises(FileFormatError, match=message):
+        parse_scenario(text, "bad.toml")
+
+
+def test_missing_file_is_a_clear_error(tmp_path: Path) -> None:
+    with pytest.raises(FileFormatError, match="cannot read the scenario"):
+        load_scenario(tmp_path / "nope.toml")
