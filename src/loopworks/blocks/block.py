@@ -21,32 +21,53 @@ from typing import Any, ClassVar, cast
 import numpy as np
 
 from loopworks.blocks import status as st
-from loopworks.blocks.kernel import FloatArray, IntArray, Kernel, entry_point, jit_enabled
+from loopworks.blocks.kernel import (
+    FloatArray,
+    IntArray,
+    Kernel,
+    entry_point,
+    jit_enabled,
+    packed_entry,
+)
 from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.status import Signal
 from loopworks.errors import InputError
 
 
-class Outputs(Mapping[str, Signal]):
-    """The outputs of one scan, by port name: ``result["out"]`` is a :class:`Signal`."""
+class Outputs(tuple, Mapping[str, Signal]):  # type: ignore[type-arg]
+    """The outputs of one scan, by port name: ``result["out"]`` is a :class:`Signal`.
 
-    __slots__ = ("_index", "_y", "_ys")
+    A snapshot of the values and statuses when the scan ended; the :class:`Signal` pairs are
+    built only when read, so ``step()`` stays cheap."""
 
-    def __init__(self, index: dict[str, int], y: Any, ys: Any) -> None:
-        self._index, self._y, self._ys = index, y, ys
+    __slots__ = ()
 
-    def __getitem__(self, name: str) -> Signal:
-        i = self._index[name]
-        return Signal(self._y[i], self._ys[i])
+    def __getitem__(self, name: str) -> Signal:  # type: ignore[override]
+        index, y, ys = tuple.__getitem__(self, 0), tuple.__getitem__(self, 1), \
+            tuple.__getitem__(self, 2)
+        i = index[name]
+        return Signal(y[i], ys[i])
 
-    def __iter__(self) -> Iterator[str]:
-        return iter(self._index)
+    def __iter__(self) -> Iterator[str]:  # type: ignore[override]
+        return iter(tuple.__getitem__(self, 0))
 
     def __len__(self) -> int:
-        return len(self._index)
+        return len(tuple.__getitem__(self, 0))
+
+    def __contains__(self, name: object) -> bool:
+        return name in tuple.__getitem__(self, 0)
+
+    def __eq__(self, other: object) -> bool:
+        return isinstance(other, Mapping) and dict(self.items()) == dict(other.items())
+
+    def __hash__(self) -> int:
+        return id(self)
 
     def __repr__(self) -> str:
-        return "Outputs(" + ", ".join(f"{k}={self[k]}" for k in self._index) + ")"
+        return "Outputs(" + ", ".join(f"{k}={self[k]}" for k in self) + ")"
+
+
+_new_outputs = tuple.__new__
 
 
 class Block:
@@ -72,17 +93,28 @@ class Block:
         self.jit = jit_enabled() if jit is None else jit
         self._in_index = {port.name: i for i, port in enumerate(self.INPUTS)}
         self._out_index = {port.name: i for i, port in enumerate(self.OUTPUTS)}
-        self._run: Kernel = entry_point(type(self).kernel) if self.jit else type(self).kernel
-        self.x: FloatArray = np.zeros(len(self.STATES))
-        self.u: FloatArray = np.zeros(len(self.INPUTS))
-        self.us: IntArray = np.zeros(len(self.INPUTS), dtype=np.int64)
-        self.y: FloatArray = np.zeros(len(self.OUTPUTS))
-        self.ys: IntArray = np.zeros(len(self.OUTPUTS), dtype=np.int64)
+        n_p, n_x, n_u, n_y = len(self.p), len(self.STATES), len(self.INPUTS), len(self.OUTPUTS)
+        # One float buffer [p | x | u | y] and one int buffer [us | ys]; the named arrays are
+        # views into them, so the compiled step unboxes two arrays instead of six.
+        self._F: FloatArray = np.zeros(n_p + n_x + n_u + n_y)
+        self._S: IntArray = np.zeros(n_u + n_y, dtype=np.int64)
+        self._F[:n_p] = self.p
+        self.p = self._F[:n_p]
+        self.x: FloatArray = self._F[n_p:n_p + n_x]
+        self.u: FloatArray = self._F[n_p + n_x:n_p + n_x + n_u]
+        self.y: FloatArray = self._F[n_p + n_x + n_u:]
+        self.us: IntArray = self._S[:n_u]
+        self.ys: IntArray = self._S[n_u:]
+        kernel = type(self).kernel
+        self._run: Kernel = entry_point(kernel) if self.jit else kernel
+        self._packed: Any = (packed_entry(kernel, n_p, n_x, n_u, n_y) if self.jit
+                             else self._packed_interpreted)
         # memoryviews on the same buffers: item access from Python is several times cheaper
         self._um: Any = memoryview(cast(Any, self.u))
         self._usm: Any = memoryview(cast(Any, self.us))
         self._ym: Any = memoryview(cast(Any, self.y))
         self._ysm: Any = memoryview(cast(Any, self.ys))
+        self._all_good = True  # every input status is Good NC (128): the fast path skips them
         self.reset()
 
     # -- to be provided by subclasses -------------------------------------------------------
@@ -95,11 +127,15 @@ class Block:
         return [0.0] * len(self.STATES)
 
     # -- the block API ------------------------------------------------------------------------
+    def _packed_interpreted(self, dt: float, F: FloatArray, S: IntArray) -> None:
+        type(self).kernel(dt, self.p, self.x, self.u, self.us, self.y, self.ys)
+
     def reset(self) -> None:
         """Return to the state right after construction (inputs to their defaults)."""
         self.x[:] = self.initial_state()
         self.u[:] = [port.default for port in self.INPUTS]
         self.us[:] = st.GOOD_NC
+        self._all_good = True
         self.y[:] = 0.0
         self.ys[:] = st.GOOD_NC
 
@@ -110,16 +146,18 @@ class Block:
             raise InputError(
                 f"{self.kind}: dt = {dt!r} s is not allowed: dt must be > 0 and finite")
         if inputs:
-            index, u, us = self._in_index, self._um, self._usm
+            index, u = self._in_index, self._um
+            good = self._all_good
             for name, value in inputs.items():
                 i = index.get(name)
                 if i is not None and type(value) is float:  # the fast path
                     u[i] = value
-                    us[i] = 128
+                    if not good:
+                        self._usm[i] = 128
                 else:
                     self.set_inputs({name: value})
-        self._run(float(dt), self.p, self.x, self.u, self.us, self.y, self.ys)
-        return Outputs(self._out_index, self._ym, self._ysm)
+        self._packed(dt, self._F, self._S)
+        return _new_outputs(Outputs, (self._out_index, self._ym.tolist(), self._ysm.tolist()))
 
     def set_inputs(self, inputs: Mapping[str, Any]) -> None:
         """Latch input values (and statuses) without running a scan."""
@@ -141,6 +179,8 @@ class Block:
                     u[i] = float(value[0])
                 except (TypeError, ValueError, IndexError) as exc:
                     raise InputError(str(exc)) from None
+                if us[i] != st.GOOD_NC:
+                    self._all_good = False
             else:
                 try:
                     u[i] = self.INPUTS[i].parse(value)
@@ -150,7 +190,7 @@ class Block:
 
     def outputs(self) -> Outputs:
         """The outputs of the last scan."""
-        return Outputs(self._out_index, self._ym, self._ysm)
+        return _new_outputs(Outputs, (self._out_index, self._ym.tolist(), self._ysm.tolist()))
 
     def state(self) -> dict[str, float]:
         """The named state variables, for inspection."""
@@ -183,6 +223,7 @@ class Block:
                 value, status = saved[key][port.name]
                 arr[i] = float(value)
                 sarr[i] = st.check_byte(status)
+        self._all_good = bool((self.us == st.GOOD_NC).all())
 
     @classmethod
     def describe(cls) -> str:

@@ -50,9 +50,15 @@ def jit_enabled() -> bool:
     return os.environ.get("LOOPWORKS_JIT", "1").strip().lower() not in ("0", "false", "no", "off")
 
 
-def compiled(kernel: Any) -> Any:
-    """The numba-compiled version of ``kernel`` (compiled once, cached on disk when possible)."""
-    fn = _compiled.get(kernel)
+def compiled(kernel: Any, inline: bool = False) -> Any:
+    """The numba-compiled version of ``kernel`` (compiled once per process).
+
+    ``inline=True`` gives a variant that numba inlines into its caller (the packed step and the
+    row runner), which saves the per-call reference counting of six array arguments. The plain
+    variant is cached on disk when possible.
+    """
+    key = (kernel, inline)
+    fn = _compiled.get(key)
     if fn is None:
         import numba
 
@@ -60,13 +66,16 @@ def compiled(kernel: Any) -> Any:
         for name in kernel.__code__.co_names:
             obj = kernel.__globals__.get(name)
             if obj is not kernel and getattr(obj, "_lw_primitive", False):
-                linked[name] = compiled(obj)
+                linked[name] = compiled(obj, inline=True)
         copy = types.FunctionType(kernel.__code__, linked, kernel.__name__,
                                   kernel.__defaults__, kernel.__closure__)
         copy.__qualname__ = kernel.__qualname__
         copy.__module__ = kernel.__module__
-        fn = numba.njit(cache=True, nogil=True)(copy)
-        _compiled[kernel] = fn
+        if inline:
+            fn = numba.njit(inline="always", nogil=True)(copy)
+        else:
+            fn = numba.njit(cache=True, nogil=True)(copy)
+        _compiled[key] = fn
     return fn
 
 
@@ -92,6 +101,33 @@ def entry_point(kernel: Any) -> Any:
 _entries: dict[Any, Any] = {}
 
 
+def _packed_template(dt: float, F: FloatArray, S: IntArray) -> None:
+    KERNEL(dt, F[:A], F[A:B], F[B:C], S[:NU], F[C:D], S[NU:NUY])  # type: ignore[name-defined] # noqa: F821
+
+
+def packed_entry(kernel: Any, n_p: int, n_x: int, n_u: int, n_y: int) -> Any:
+    """A compiled ``step(dt, F, S)`` over one float buffer F = [p | x | u | y] and one int
+    buffer S = [us | ys], calling ``kernel`` on views of them.
+
+    Two arrays to unbox instead of six make a single step from Python markedly cheaper. The
+    sizes are compile-time constants of the wrapper, so each (kernel, sizes) compiles once.
+    """
+    key = (kernel, n_p, n_x, n_u, n_y)
+    fn = _entries.get(key)
+    if fn is None:
+        import numba
+
+        consts = {"KERNEL": compiled(kernel, inline=True), "A": n_p, "B": n_p + n_x,
+                  "C": n_p + n_x + n_u, "D": n_p + n_x + n_u + n_y, "NU": n_u, "NUY": n_u + n_y}
+        wrapper = types.FunctionType(_packed_template.__code__, consts,
+                                     f"packed_{kernel.__name__}")
+        disp = numba.njit(nogil=True)(wrapper)
+        disp.compile("none(float64, float64[::1], int64[::1])")
+        fn = disp.overloads[disp.signatures[-1]].entry_point
+        _entries[key] = fn
+    return fn
+
+
 def _run_rows(kernel: Kernel, dts: FloatArray, p: FloatArray, x: FloatArray, U: FloatArray,
               US: IntArray, Y: FloatArray, YS: IntArray) -> None:
     """Step a kernel over rows: row k of U/US are the inputs of scan k, Y/YS receive outputs."""
@@ -112,7 +148,7 @@ def run_rows(kernel: Kernel, dts: FloatArray, p: FloatArray, x: FloatArray, U: F
     if runner is None:
         import numba
 
-        inner = compiled(kernel)
+        inner = compiled(kernel, inline=True)
 
         @numba.njit(nogil=True)
         def runner_fn(dts: FloatArray, p: FloatArray, x: FloatArray, U: FloatArray, US: IntArray,

@@ -66,6 +66,7 @@ class Module:
             dblock, dport = self._port(dest, "input")
             sblock, sport = self._port(src, "output")
             self.wires[dest] = src
+            self.blocks[dblock]._all_good = False  # the scan writes its input statuses
             self._links[dblock].append((self.blocks[dblock]._in_index[dport],
                                         self.blocks[sblock], self.blocks[sblock]._out_index[sport]))
         self.constants: dict[str, dict[str, Any]] = {}
@@ -107,6 +108,8 @@ class Module:
             block.reset()
             if name in self.constants:
                 block.set_inputs(self.constants[name])
+            if self._links[name]:
+                block._all_good = False  # the scan writes its input statuses
         self.t = 0.0
         self.k = 0
         self._next_event = 0
