@@ -48,7 +48,7 @@ class Outputs(tuple, Mapping[str, Signal]):  # type: ignore[type-arg]
         i = index[name]
         return Signal(y[i], ys[i])
 
-    def __iter__(self) -> Iterator[str]:  # type: ignore[override]
+    def __iter__(self) -> Iterator[str]:
         return iter(tuple.__getitem__(self, 0))
 
     def __len__(self) -> int:

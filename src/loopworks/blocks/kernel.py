@@ -121,7 +121,7 @@ def packed_entry(kernel: Any, n_p: int, n_x: int, n_u: int, n_y: int) -> Any:
                   "C": n_p + n_x + n_u, "D": n_p + n_x + n_u + n_y, "NU": n_u, "NUY": n_u + n_y}
         wrapper = types.FunctionType(_packed_template.__code__, consts,
                                      f"packed_{kernel.__name__}")
-        disp = numba.njit(nogil=True)(wrapper)
+        disp: Any = numba.njit(nogil=True)(wrapper)
         disp.compile("none(float64, float64[::1], int64[::1])")
         fn = disp.overloads[disp.signatures[-1]].entry_point
         _entries[key] = fn
