@@ -119,11 +119,14 @@ def simulate(
 @_user_errors
 def blocks(
     kind: Annotated[str | None, typer.Argument(help="a block kind to describe")] = None,
+    markdown: Annotated[bool, typer.Option(
+        "--markdown", help="print the kind's reference page in Markdown (docs/blocks/)")] = False,
 ) -> None:
     """List the block kinds, or describe one: parameters, inputs and outputs."""
     from rich.console import Console
     from rich.table import Table
 
+    from loopworks.blocks import reference
     from loopworks.blocks.registry import block_class, kinds
 
     console = Console()
@@ -136,32 +139,23 @@ def blocks(
         console.print(table)
         return
     cls = block_class(kind)
+    if markdown:
+        typer.echo(reference.markdown(cls), nl=False)
+        return
     console.print(f"[bold]{cls.kind}[/bold]: {cls.describe()}")
-    params = Table(title="parameters")
-    for col in ("name", "unit", "default", "range", "meaning"):
-        params.add_column(col)
-    for p in cls.PARAMS:
-        default = p.default_text or ("" if p.default is None else _show(p.default))
-        params.add_row(p.name, p.unit, default, p.range_text(), p.meaning)
-    console.print(params)
-    for title, ports in (("inputs", cls.INPUTS), ("outputs", cls.OUTPUTS)):
+    sections: list[tuple[str, tuple[str, ...], list[Any]]] = [
+        ("parameters", ("name", "unit", "default", "range", "meaning"),
+         list(reference.parameter_rows(cls))),
+        ("inputs", ("name", "unit", "default", "meaning"), list(reference.input_rows(cls))),
+        ("outputs", ("name", "unit", "status", "meaning"), list(reference.output_rows(cls))),
+    ]
+    for title, header, rows in sections:
         table = Table(title=title)
-        for col in ("name", "unit", "default" if title == "inputs" else "status", "meaning"):
-            table.add_column(col)
-        for port in ports:
-            third = _show(port.default) if title == "inputs" else ("yes" if port.status else "")
-            if title == "inputs" and port.choices:
-                third = port.choices[int(port.default)]
-            meaning = port.meaning + (" (has .ST status)" if port.status and title == "inputs"
-                                      else "")
-            table.add_row(port.name, port.unit, third, meaning)
+        for col in header:
+            table.add_column(col, overflow="fold")
+        for row in rows:
+            table.add_row(*row)
         console.print(table)
-
-
-def _show(value: Any) -> str:
-    if isinstance(value, float):
-        return "nan" if math.isnan(value) else ("inf" if value == math.inf else f"{value:g}")
-    return str(value)
 
 
 @app.command()
