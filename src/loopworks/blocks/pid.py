@@ -27,18 +27,26 @@ both:        u_k = ratelimit(clamp(v_k, out_lo, out_hi), u_{k-1}, rate_limit·dt
 At the first scan the memories are zero, the accumulator is ``bias`` and d_{k-1} = d_k, so the
 two algorithms give the same output while nothing limits it.
 
-Anti-windup (positional): ``clamping`` skips ΔI when the output is limited (clamp or rate) and
-ΔI pushes further into the limit (conditional integration); ``back_calculation`` adds the
-tracking term with time constant Tt (``tt``; default sqrt(Ti·Td) when Td > 0, else Ti,
-Åström & Hägglund 2006 sec. 3.5); ``none`` integrates regardless. The velocity algorithm
-supports ``clamping`` and ``none``.
+The effective limits of a scan are [max(out_lo, u_{k-1} - rate_limit·dt),
+min(out_hi, u_{k-1} + rate_limit·dt)] (the rate terms from the second scan on); u_k is v_k
+clamped to them.
 
-Dead bands: ``i_deadband`` freezes the integral while abs(e) < i_deadband. ``e_deadband`` is a
-gap: while abs(e) < e_deadband the output is held at its last value (no P, I or D action).
+Anti-windup (positional): ``clamping`` integrates conditionally: ΔI is cut so that v_k does not
+pass the effective limit in the direction ΔI moves (and is zero when v is already beyond it),
+so the output reaches its limit and the integral stops there (Åström & Hägglund 2006,
+sec. 3.5, conditional integration); ``back_calculation`` adds the tracking term with time
+constant Tt (``tt``; default sqrt(Ti·Td) when Td > 0, else Ti, same source); ``none``
+integrates regardless. The velocity algorithm supports ``clamping`` (its accumulator is the
+limited output) and ``none`` (its accumulator is v, which can wind up).
+
+Dead bands: ``i_deadband`` freezes the integral (tracking term included) while
+abs(e) < i_deadband. ``e_deadband`` is a gap: while abs(e) < e_deadband the output is held at
+its last value (no P, I or D action; status Good with the Constant limit bits, 131).
 
 Modes (input ``mode``): MAN (0) puts ``man_out`` on the output (limited to out_lo..out_hi; NaN
 = no operator write, the output holds); AUTO (1) controls to ``sp``; CAS (2) controls to
-``cas_sp``. ``track`` > 0.5 puts ``track_value`` on the output in any mode. Rate limiting acts
+``cas_sp``. ``track`` > 0.5 puts ``track_value`` on the output in any mode (a Bad or
+non-finite ``track_value`` holds the output, status 0x47). Rate limiting acts
 in AUTO and CAS only. Any scan that does not compute the output (MAN, tracking, bad input, the
 error gap) re-initialises the controller at the next computing scan: the integral (or the
 velocity accumulator) is set so that the output continues from where it was and d_{k-1} = d_k,
@@ -62,7 +70,7 @@ from typing import Any, ClassVar
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray
 from loopworks.blocks.params import Param, Port
-from loopworks.blocks.primitives import clamp, finite, rate_limit
+from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import (
     BAD,
@@ -157,26 +165,29 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
                 y[D_TERM] = dterm
                 return
             di = 0.0
-            if p[KI] > 0.0 and abs(e) >= p[IDB]:
+            if abs(e) >= p[IDB]:  # inside the integral dead band the integral is frozen
                 di = p[KI] * dt * e
-            if p[AW] == AW_BACK_CALCULATION:
-                di += dt * p[TT_INV] * (u_prev - x[S_V])
+                if p[AW] == AW_BACK_CALCULATION:
+                    di += dt * p[TT_INV] * (u_prev - x[S_V])
             if velocity:
                 base = (x[S_ACC] + (pterm - x[S_PPREV]) + (dterm - x[S_DOUTPREV])
                         + (ff - x[S_FFPREV]))
             else:
                 base = pterm + x[S_I] + dterm + ff + p[BIAS]
             first = x[S_FIRST] != 0.0
-            v = base + di
-            out = clamp(v, lo, hi)
+            upper = hi
+            lower = lo
             if not first:
-                out = rate_limit(out, u_prev, p[RATE] * dt)
-            if p[AW] == AW_CLAMPING and ((out < v and di > 0.0) or (out > v and di < 0.0)):
-                di = 0.0
-                v = base
-                out = clamp(v, lo, hi)
-                if not first:
-                    out = rate_limit(out, u_prev, p[RATE] * dt)
+                upper = min(hi, u_prev + p[RATE] * dt)
+                lower = max(lo, u_prev - p[RATE] * dt)
+            if p[AW] == AW_CLAMPING and not velocity:
+                # the integral moves only as far as keeps v inside the effective limits
+                if di > 0.0 and base + di > upper:
+                    di = max(0.0, upper - base)
+                elif di < 0.0 and base + di < lower:
+                    di = min(0.0, lower - base)
+            v = base + di
+            out = clamp(v, lower, upper)
             if velocity:
                 x[S_ACC] = out if p[AW] == AW_CLAMPING else v
                 iterm = x[S_ACC] - pterm - dterm - ff - p[BIAS]
@@ -348,6 +359,10 @@ class PID(Block):
                 tt = math.inf
             else:
                 tt = math.sqrt(ti * td) if 0.0 < td < math.inf else ti
+                if not tt > 0.0:
+                    raise ParameterError(
+                        "pid: antiwindup = 'back_calculation' with kp = 0 has no default "
+                        "tracking time (Ti = kp/ki = 0): give 'tt' (s)")
             tt_inv = 1.0 / tt
         safe = lo if prm["safe_out"] is None else float(prm["safe_out"])
         if not lo <= safe <= hi:

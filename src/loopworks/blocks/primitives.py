@@ -28,16 +28,6 @@ def clamp(x: float, lo: float, hi: float) -> float:
 
 
 @primitive
-def rate_limit(x: float, previous: float, max_step: float) -> float:
-    """Limit the move from ``previous`` to ``x`` to ``max_step`` (= rate · dt) either way."""
-    if x > previous + max_step:
-        return previous + max_step
-    if x < previous - max_step:
-        return previous - max_step
-    return x
-
-
-@primitive
 def lag_step(y: float, target: float, dt: float, time_constant: float) -> float:
     """Exact (zero-order-hold) step of a first-order lag T·dy/dt = target - y over ``dt``:
 
