@@ -186,7 +186,23 @@ def replay(
             _fail(f"-p {item!r}: expected NAME=VALUE")
         values[name.strip()] = value.strip()
     block = cls(**values)
-    summary = run_replay(block, input_csv, output)
+    from rich.console import Console
+
+    console = Console(stderr=True)
+    if output is None or not console.is_terminal:
+        summary = run_replay(block, input_csv, output, dt=dt)
+    else:  # a row counter on the terminal while a long file streams
+        from rich.progress import Progress, SpinnerColumn, TextColumn
+
+        with Progress(SpinnerColumn(), TextColumn("{task.description}"), transient=True,
+                      console=console) as bar:
+            task = bar.add_task(f"replaying {input_csv.name} through {cls.kind}")
+
+            def tick(rows: int) -> None:
+                bar.update(task, description=f"replaying {input_csv.name} through {cls.kind}: "
+                                             f"{rows} rows")
+
+            summary = run_replay(block, input_csv, output, dt=dt, progress=tick)
     if output is not None:
         typer.echo(f"replayed {summary.rows} rows (t = {summary.t_start:g}..{summary.t_end:g} s) "
                    f"through {cls.kind}; wrote {output}", err=True)

@@ -1,0 +1,476 @@
+"""The ``loopworks`` command line: replay, blocks and simulate.
+
+In-process tests use ``typer.testing.CliRunner``. In this typer version ``result.output`` mixes
+standard output and standard error, while ``result.stdout`` and ``result.stderr`` are separate;
+the tests read the two separately. Expected numbers are computed by hand from the pid equations.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from loopworks.blocks.pid import PID
+from loopworks.cli import app
+
+OUT_HEADER = ["t", "out", "p_term", "i_term", "d_term", "out.ST"]
+
+SCENARIO = """\
+[simulation]
+dt = 0.1
+duration = 20.0
+
+[blocks.pid]
+kind = "pid"
+k = 1.0
+ti = 20.0
+sp = 50.0
+
+[blocks.process]
+kind = "process.first_order"
+gain = 2.0
+time_constant = 20.0
+
+[wires]
+"process.u" = "pid.out"
+"pid.pv" = "process.y"
+"""
+
+
+def invoke(*args: str, columns: int | None = None):
+    env = {"COLUMNS": str(columns)} if columns is not None else None
+    return CliRunner().invoke(app, list(args), env=env)
+
+
+def write_csv(path: Path, header: list[str], rows: list[list[object]]) -> Path:
+    with open(path, "w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+    return path
+
+
+def table(text: str) -> tuple[list[str], list[list[str]]]:
+    rows = list(csv.reader(io.StringIO(text)))
+    return rows[0], rows[1:]
+
+
+def column(header: list[str], rows: list[list[str]], name: str) -> list[float]:
+    i = header.index(name)
+    return [float(r[i]) for r in rows]
+
+
+def assert_user_error(result, *needles: str) -> str:
+    """Exit code 2, exactly one ``error:`` line on stderr, no traceback; return the line."""
+    assert result.exit_code == 2, (result.exit_code, result.output)
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1, result.stderr
+    assert lines[0].startswith("error: ")
+    assert "Traceback" not in result.output
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    return lines[0]
+
+
+@pytest.fixture
+def simple_csv(tmp_path: Path) -> Path:
+    return write_csv(tmp_path / "in.csv", ["t", "sp", "pv"],
+                     [[0.0, 50, 40], [0.1, 50, 40], [0.2, 50, 41]])
+
+
+# -- replay: results ---------------------------------------------------------------------------
+
+
+def test_replay_to_stdout_matches_hand_computed_values(simple_csv: Path) -> None:
+    result = invoke("replay", "pid", str(simple_csv), "-p", "k=2", "-p", "ti=10")
+    assert result.exit_code == 0, result.output
+    header, rows = table(result.stdout)
+    assert header == OUT_HEADER
+    dt = 0.1
+    i0 = (2 / 10) * dt * 10
+    i1 = i0 + (2 / 10) * dt * 10
+    i2 = i1 + (2 / 10) * dt * 9
+    assert column(header, rows, "out") == pytest.approx([20 + i0, 20 + i1, 18 + i2], abs=1e-12)
+    assert column(header, rows, "out")[0] == pytest.approx(2 * (50 - 40) + (2 / 10) * dt * 10)
+    assert column(header, rows, "p_term") == pytest.approx([20.0, 20.0, 18.0])
+    assert column(header, rows, "t") == [0.0, 0.1, 0.2]
+    assert [r[-1] for r in rows] == ["128"] * 3
+
+
+def test_replay_to_a_file(simple_csv: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out.csv"
+    result = invoke("replay", "pid", str(simple_csv), "-p", "k=2", "-p", "ti=10", "-o", str(out))
+    assert result.exit_code == 0, result.output
+    assert result.stdout == ""  # the data goes to the file, the summary to stderr
+    assert "3 rows" in result.stderr
+    header, rows = table(out.read_text(encoding="utf-8"))
+    assert header == OUT_HEADER
+    assert column(header, rows, "out") == pytest.approx([20.2, 20.4, 18.58])
+
+
+def test_replay_column_names_in_any_case(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["T", "Sp", "PV"], [[0, 50, 40], [1, 50, 42]])
+    result = invoke("replay", "pid", str(path), "-p", "k=2", "-p", "ti=10")
+    assert result.exit_code == 0, result.output
+    header, rows = table(result.stdout)
+    # 2·10 + 0.2·1·10 = 22; 2·8 + 2 + 0.2·1·8 = 19.6
+    assert column(header, rows, "out") == pytest.approx([22.0, 19.6])
+
+
+def test_replay_status_column_bad_pv_holds(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["t", "sp", "pv", "pv.ST"],
+                     [[0, 50, 40, 128], [1, 50, 45, 0], [2, 50, 45, 128]])
+    result = invoke("replay", "pid", str(path), "-p", "k=2", "-p", "ti=10")
+    assert result.exit_code == 0, result.output
+    header, rows = table(result.stdout)
+    assert column(header, rows, "out") == pytest.approx([22.0, 22.0, 23.0])
+    assert [int(r[header.index("out.ST")]) for r in rows] == [128, 71, 128]
+
+
+def test_replay_mode_names(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["t", "sp", "pv", "Mode", "man_out"],
+                     [[0, 50, 40, "AUTO", "nan"], [1, 50, 40, "MAN", 30],
+                      [2, 50, 40, "AUTO", "nan"]])
+    result = invoke("replay", "pid", str(path), "-p", "k=2", "-p", "ti=10")
+    assert result.exit_code == 0, result.output
+    header, rows = table(result.stdout)
+    # AUTO: 22; MAN: 30 (Constant, 131); AUTO again: 20 + (30 - 20) + 0.2·1·10 = 32
+    assert column(header, rows, "out") == pytest.approx([22.0, 30.0, 32.0])
+    assert [int(r[-1]) for r in rows] == [128, 131, 128]
+
+
+def test_replay_timing_from_dt_column(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["dt", "sp", "pv"], [[0.5, 50, 40], [0.25, 50, 40]])
+    result = invoke("replay", "pid", str(path), "-p", "k=2", "-p", "ti=10")
+    assert result.exit_code == 0, result.output
+    header, rows = table(result.stdout)
+    assert column(header, rows, "t") == pytest.approx([0.0, 0.25])
+    # ΔI = 0.2·dt·10 = 2·dt: 1.0, then 0.5
+    assert column(header, rows, "out") == pytest.approx([21.0, 21.5])
+
+
+def test_replay_timing_from_dt_option(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["sp", "pv"], [[50, 40], [50, 40], [50, 40]])
+    result = invoke("replay", "pid", str(path), "-p", "k=2", "-p", "ti=10", "--dt", "0.5")
+    assert result.exit_code == 0, result.output
+    header, rows = table(result.stdout)
+    assert column(header, rows, "t") == pytest.approx([0.0, 0.5, 1.0])
+    assert column(header, rows, "out") == pytest.approx([21.0, 22.0, 23.0])
+
+
+def test_replay_dt_option_with_t_column_is_timing_twice(simple_csv: Path) -> None:
+    result = invoke("replay", "pid", str(simple_csv), "--dt", "0.1")
+    assert_user_error(result, "timing given twice")
+
+
+def test_replay_dt_option_must_be_positive(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["sp", "pv"], [[50, 40], [50, 40]])
+    result = invoke("replay", "pid", str(path), "--dt", "0")
+    assert_user_error(result, "dt must be > 0")
+
+
+def test_replay_params_file_and_p_override(tmp_path: Path, simple_csv: Path) -> None:
+    params = tmp_path / "pid.toml"
+    params.write_text('kind = "pid"\nk = 2.0\nti = 10.0\nout_hi = 30.0\n', encoding="utf-8")
+    result = invoke("replay", "pid", str(simple_csv), "--params", str(params))
+    assert result.exit_code == 0, result.output
+    header, rows = table(result.stdout)
+    assert column(header, rows, "out") == pytest.approx([20.2, 20.4, 18.58])
+
+    # -p overrides the file: k = 4 gives 40 + 0.4·0.1·10 = 40.4, clamped at out_hi = 30
+    result = invoke("replay", "pid", str(simple_csv), "--params", str(params), "-p", "k=4",
+                    "-p", "out_hi=100")
+    assert result.exit_code == 0, result.output
+    header, rows = table(result.stdout)
+    assert column(header, rows, "out")[0] == pytest.approx(40.4)
+    assert column(header, rows, "p_term")[0] == pytest.approx(40.0)
+
+    result = invoke("replay", "pid", str(simple_csv), "--params", str(params), "-p", "k=4")
+    header, rows = table(result.stdout)
+    assert column(header, rows, "out")[0] == 30.0  # out_hi from the file still applies
+    assert int(rows[0][-1]) == 130
+
+
+def test_replay_params_file_unknown_parameter(tmp_path: Path, simple_csv: Path) -> None:
+    params = tmp_path / "pid.toml"
+    params.write_text("k = 2.0\ngain = 3.0\n", encoding="utf-8")
+    result = invoke("replay", "pid", str(simple_csv), "--params", str(params))
+    line = assert_user_error(result, "gain")
+    for p in PID.PARAMS:
+        assert p.name in line
+
+
+def test_replay_params_file_wrong_kind(tmp_path: Path, simple_csv: Path) -> None:
+    params = tmp_path / "p.toml"
+    params.write_text('kind = "process.first_order"\ngain = 3.0\n', encoding="utf-8")
+    result = invoke("replay", "pid", str(simple_csv), "--params", str(params))
+    assert_user_error(result, str(params), "kind")
+
+
+def test_replay_ten_thousand_rows(tmp_path: Path) -> None:
+    n = 10_000
+    path = tmp_path / "big.csv"
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("t,sp,pv\n")
+        fh.writelines(f"{k * 0.1:.1f},{50 + k % 11},{45 + k % 7}\n" for k in range(n))
+    out = tmp_path / "out.csv"
+    result = invoke("replay", "pid", str(path), "-p", "k=2", "-p", "ti=10", "-o", str(out))
+    assert result.exit_code == 0, result.output
+    assert f"{n} rows" in result.stderr
+    header, rows = table(out.read_text(encoding="utf-8"))
+    assert header == OUT_HEADER
+    assert len(rows) == n
+    values = [[float(c) for c in r] for r in rows]
+    assert all(math.isfinite(v) for r in values for v in r)
+    assert [r[0] for r in values] == [round(k * 0.1, 1) for k in range(n)]
+    # first row by hand: e = 5, dt = 0.1: 2·5 + 0.2·0.1·5
+    assert values[0][1] == pytest.approx(10.1)
+
+
+# -- replay: errors ----------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("text", "needles"), [
+    pytest.param("t,sp,pv,foo\n0,1,2,3\n",
+                 ["unknown column 'foo'", "t, dt, sp, pv", "pv.ST"], id="unknown-column"),
+    pytest.param("t,sp,pv\n0,50,40\n0.1,50,abc\n", ["line 3", "'pv'", "abc"], id="non-numeric"),
+    pytest.param("t,sp,pv\n0,50,40\n0.1,,40\n", ["line 3", "'sp'"], id="empty-cell"),
+    pytest.param("", ["empty"], id="empty-file"),
+    pytest.param("t,sp,pv\n", ["no data rows"], id="header-only"),
+    pytest.param("sp,pv\n50,40\n", ["no timing"], id="no-timing"),
+    pytest.param("t,dt,sp,pv\n0,1,50,40\n", ["timing given twice"], id="timing-twice"),
+    pytest.param("t,sp,pv\n0,50,40\n1,50,40\n1,50,40\n", ["line 4", "does not increase"],
+                 id="t-not-increasing"),
+    pytest.param("t,sp,pv\n0,50,40\n1,50,40\n0.5,50,40\n", ["line 4", "does not increase"],
+                 id="t-decreasing"),
+    pytest.param("dt,sp,pv\n0.1,50,40\n0,50,40\n", ["line 3", "dt must be > 0"], id="dt-zero"),
+    pytest.param("dt,sp,pv\n-0.1,50,40\n", ["line 2", "dt must be > 0"], id="dt-negative"),
+    pytest.param("t,sp,pv,pv.ST\n0,50,40,128\n1,50,40,256\n", ["line 3", "pv.ST", "0..255"],
+                 id="status-256"),
+    pytest.param("t,sp,pv,pv.ST\n0,50,40,-1\n", ["line 2", "pv.ST", "0..255"],
+                 id="status-negative"),
+    pytest.param("t,sp,pv,mode\n0,50,40,MANUAL\n", ["line 2", "'mode'", "MAN, AUTO, CAS"],
+                 id="bad-mode"),
+    pytest.param("t,sp,pv\n0,50,40\n1,50\n", ["line 3", "cells"], id="short-row"),
+])
+def test_replay_file_errors(tmp_path: Path, text: str, needles: list[str]) -> None:
+    path = tmp_path / "in.csv"
+    path.write_text(text, encoding="utf-8")
+    result = invoke("replay", "pid", str(path))
+    assert_user_error(result, "in.csv", *needles)
+
+
+def test_replay_unknown_parameter_lists_valid_names(simple_csv: Path) -> None:
+    line = assert_user_error(invoke("replay", "pid", str(simple_csv), "-p", "gain=2"), "'gain'")
+    for p in PID.PARAMS:
+        assert p.name in line
+
+
+def test_replay_parameter_out_of_range(simple_csv: Path) -> None:
+    assert_user_error(invoke("replay", "pid", str(simple_csv), "-p", "k=-1"), "'k'")
+
+
+def test_replay_out_lo_not_below_out_hi(simple_csv: Path) -> None:
+    result = invoke("replay", "pid", str(simple_csv), "-p", "out_lo=50", "-p", "out_hi=50")
+    assert_user_error(result, "out_hi", "out_lo")
+
+
+def test_replay_malformed_p_option(simple_csv: Path) -> None:
+    assert_user_error(invoke("replay", "pid", str(simple_csv), "-p", "k"), "NAME=VALUE")
+
+
+def test_replay_unknown_block_kind(simple_csv: Path) -> None:
+    assert_user_error(invoke("replay", "nosuch", str(simple_csv)), "nosuch", "pid",
+                      "process.first_order")
+
+
+def test_replay_missing_input_file(tmp_path: Path) -> None:
+    missing = tmp_path / "missing.csv"
+    assert_user_error(invoke("replay", "pid", str(missing)), "missing.csv")
+
+
+@pytest.mark.parametrize("bad_row", [1, 9000])
+def test_failed_replay_leaves_no_output_file(tmp_path: Path, bad_row: int) -> None:
+    path = tmp_path / "in.csv"
+    with open(path, "w", encoding="utf-8") as fh:
+        fh.write("t,sp,pv\n")
+        for k in range(10_000):
+            fh.write(f"{k * 0.1:.1f},50,{'x' if k == bad_row else 40}\n")
+    out = tmp_path / "out.csv"
+    result = invoke("replay", "pid", str(path), "-o", str(out))
+    assert_user_error(result, f"line {bad_row + 2}", "'pv'")
+    assert not out.exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["in.csv"]
+
+
+def test_failed_replay_before_reading_rows_leaves_no_output_file(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["t", "sp", "bogus"], [[0, 1, 2]])
+    out = tmp_path / "out.csv"
+    assert_user_error(invoke("replay", "pid", str(path), "-o", str(out)), "bogus")
+    assert not out.exists()
+
+
+def test_user_error_in_a_subprocess_is_one_line(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["t", "sp", "pv", "temperature"], [[0, 1, 2, 3]])
+    proc = subprocess.run([sys.executable, "-m", "loopworks", "replay", "pid", str(path)],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 2
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("error:")
+    assert "temperature" in lines[0] and "valid columns" in lines[0]
+    assert "Traceback" not in proc.stderr
+
+
+def test_replay_in_a_subprocess(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["t", "sp", "pv"], [[0, 50, 40], [1, 50, 40]])
+    proc = subprocess.run([sys.executable, "-m", "loopworks", "replay", "pid", str(path),
+                           "-p", "k=2", "-p", "ti=10"],
+                          capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    header, rows = table(proc.stdout)
+    assert header == OUT_HEADER
+    assert column(header, rows, "out") == pytest.approx([22.0, 24.0])
+
+
+# -- blocks ------------------------------------------------------------------------------------
+
+
+def test_blocks_lists_kinds() -> None:
+    result = invoke("blocks")
+    assert result.exit_code == 0, result.output
+    assert "pid" in result.stdout.split()
+    assert "process.first_order" in result.stdout
+
+
+def parse_tables(text: str) -> dict[str, dict[str, list[str]]]:
+    """Rich tables (title line, then │-separated rows, wrapped cells continued on lines with an
+    empty first cell) as {title: {name: [cell, ...]}} with wrapped fragments joined."""
+    tables: dict[str, dict[str, list[str]]] = {}
+    current: dict[str, list[str]] | None = None
+    name = ""
+    for line in text.splitlines():
+        stripped = line.strip()
+        if stripped in ("parameters", "inputs", "outputs"):
+            current = tables.setdefault(stripped, {})
+            continue
+        if current is None or not stripped.startswith("│"):
+            continue
+        cells = [c.strip() for c in stripped.strip("│").split("│")]
+        if cells[0]:
+            name = cells[0]
+            current[name] = cells
+        else:
+            current[name] = [(a + " " + b).strip() for a, b in zip(current[name], cells,
+                                                                   strict=True)]
+    return tables
+
+
+def check_pid_description(text: str, folded: bool = False) -> None:
+    """Every parameter with its unit and range, every input and output. ``folded``: the cells
+    may be folded across lines (compare without whitespace), but nothing may be cut off."""
+    def same(a: str, b: str) -> bool:
+        return "".join(a.split()) == "".join(b.split()) if folded else a == b
+
+    tables = parse_tables(text)
+    params = tables["parameters"]
+    assert list(params) == [p.name for p in PID.PARAMS]
+    for p in PID.PARAMS:
+        _name, unit, _default, rng, _meaning = params[p.name]
+        assert same(unit, p.unit), (p.name, unit)
+        assert same(rng, p.range_text()), (p.name, rng)
+    assert list(tables["inputs"]) == [port.name for port in PID.INPUTS]
+    assert list(tables["outputs"]) == [port.name for port in PID.OUTPUTS]
+    assert tables["outputs"]["out"][2] == "yes"  # out carries status
+
+
+def test_blocks_pid_describes_every_parameter_wide_terminal() -> None:
+    result = invoke("blocks", "pid", columns=250)
+    assert result.exit_code == 0, result.output
+    check_pid_description(result.stdout)
+
+
+def test_blocks_pid_describes_every_parameter_80_columns() -> None:
+    """At the standard 80 columns (also what a pipe or a file gets), nothing is cut off."""
+    result = invoke("blocks", "pid", columns=80)
+    assert result.exit_code == 0, result.output
+    assert "…" not in result.stdout
+    check_pid_description(result.stdout, folded=True)
+
+
+def test_blocks_any_letter_case() -> None:
+    result = invoke("blocks", "PID", columns=250)
+    assert result.exit_code == 0, result.output
+    check_pid_description(result.stdout)
+
+
+def test_blocks_first_order() -> None:
+    result = invoke("blocks", "process.first_order", columns=250)
+    assert result.exit_code == 0, result.output
+    tables = parse_tables(result.stdout)
+    assert list(tables["parameters"]) == ["gain", "time_constant", "y0"]
+    assert list(tables["inputs"]) == ["u"]
+    assert list(tables["outputs"]) == ["y"]
+
+
+def test_blocks_unknown_kind() -> None:
+    assert_user_error(invoke("blocks", "nosuch"), "nosuch", "pid", "process.first_order")
+
+
+# -- simulate ----------------------------------------------------------------------------------
+
+
+def test_simulate_builtin_scenario() -> None:
+    result = invoke("simulate", columns=120)
+    assert result.exit_code == 0, result.output
+    assert "IAE" in result.stdout
+    assert "overshoot" in result.stdout
+    assert "pid" in result.stdout
+    assert result.stderr == ""
+
+
+def test_simulate_file_writes_csv_and_plot(tmp_path: Path) -> None:
+    scenario = tmp_path / "loop.toml"
+    scenario.write_text(SCENARIO, encoding="utf-8")
+    out = tmp_path / "out.csv"
+    png = tmp_path / "run.png"
+    result = invoke("simulate", str(scenario), "-o", str(out), "--plot", str(png), "-q",
+                    columns=120)
+    assert result.exit_code == 0, result.output
+    assert "IAE" in result.stdout
+    header, rows = table(out.read_text(encoding="utf-8"))
+    assert header[0] == "t"
+    assert "pid.out" in header and "process.y" in header
+    assert len(rows) == 200  # 20 s in scans of 0.1 s
+    t = column(header, rows, "t")
+    assert t[1] - t[0] == pytest.approx(0.1)
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.parametrize(("edit", "needle"), [
+    pytest.param(("[simulation]", "[simulation"), "invalid TOML", id="syntax"),
+    pytest.param(("k = 1.0", "kk = 1.0"), "kk", id="unknown-parameter"),
+    pytest.param(('"pid.out"', '"pid.outt"'), "outt", id="unknown-wire-port"),
+    pytest.param(("dt = 0.1", "dt = 0.0"), "dt", id="dt-zero"),
+    pytest.param(("dt = 0.1", "dt = -0.1"), "dt", id="dt-negative"),
+])
+def test_simulate_scenario_errors(tmp_path: Path, edit: tuple[str, str], needle: str) -> None:
+    text = SCENARIO.replace(*edit, 1)
+    assert text != SCENARIO
+    scenario = tmp_path / "broken_scenario.toml"
+    scenario.write_text(text, encoding="utf-8")
+    out = tmp_path / "out.csv"
+    result = invoke("simulate", str(scenario), "-q", "-o", str(out))
+    assert_user_error(result, "broken_scenario.toml", needle)
+    assert not out.exists()
+
+
+def test_simulate_missing_scenario_file(tmp_path: Path) -> None:
+    assert_user_error(invoke("simulate", str(tmp_path / "nope.toml"), "-q"), "nope.toml")
