@@ -19,6 +19,7 @@ from typer.testing import CliRunner
 
 from loopworks.blocks.pid import PID
 from loopworks.cli import app
+from tests.csvfiles import write_csv
 
 OUT_HEADER = ["t", "out", "p_term", "i_term", "d_term", "out.ST"]
 
@@ -47,14 +48,6 @@ time_constant = 20.0
 def invoke(*args: str, columns: int | None = None):
     env = {"COLUMNS": str(columns)} if columns is not None else None
     return CliRunner().invoke(app, list(args), env=env)
-
-
-def write_csv(path: Path, header: list[str], rows: list[list[object]]) -> Path:
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        w.writerows(rows)
-    return path
 
 
 def table(text: str) -> tuple[list[str], list[list[str]]]:
@@ -474,3 +467,13 @@ def test_simulate_scenario_errors(tmp_path: Path, edit: tuple[str, str], needle:
 
 def test_simulate_missing_scenario_file(tmp_path: Path) -> None:
     assert_user_error(invoke("simulate", str(tmp_path / "nope.toml"), "-q"), "nope.toml")
+
+
+def test_help_does_not_import_the_heavy_libraries() -> None:
+    """`loopworks --help` stays fast: numba, scipy, matplotlib and numpy load only when used."""
+    code = ("import sys\nfrom loopworks.cli import app\n"
+            "print(sorted(m for m in ('numba', 'scipy', 'matplotlib', 'numpy', 'pandas')"
+            " if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, check=True)
+    assert proc.stdout.strip() == "[]"

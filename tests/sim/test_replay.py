@@ -21,16 +21,9 @@ import pytest
 from loopworks import create_block
 from loopworks.errors import FileFormatError, InputError
 from loopworks.sim.replay import replay
+from tests.csvfiles import write_csv
 
 OUT_HEADER = ["t", "out", "p_term", "i_term", "d_term", "out.ST"]
-
-
-def write_csv(path: Path, header: list[str], rows: list[list[object]]) -> Path:
-    with open(path, "w", newline="", encoding="utf-8") as fh:
-        w = csv.writer(fh)
-        w.writerow(header)
-        w.writerows(rows)
-    return path
 
 
 def run(block, path: Path, **kwargs) -> tuple[list[str], list[list[str]], object]:
