@@ -162,6 +162,9 @@ def test_bad_input_value_names_the_input() -> None:
     pid = loopworks.create_block("pid")
     with pytest.raises(InputError, match="mode"):
         pid.step(1.0, mode="SEMIAUTO")
+    for code in (5, 1.5, -1.0, math.nan):
+        with pytest.raises(InputError, match=r"'mode' = .*codes 0\.\.2"):
+            pid.step(1.0, mode=code)
     with pytest.raises(InputError, match="status"):
         pid.step(1.0, pv=(1.0, 300))
 

@@ -92,6 +92,9 @@ class Block:
         self.p: FloatArray = np.asarray(self.coefficients(), dtype=np.float64)
         self.jit = jit_enabled() if jit is None else jit
         self._in_index = {port.name: i for i, port in enumerate(self.INPUTS)}
+        # inputs a plain float may be written to directly (enumerated ones are checked)
+        self._fast_index = {port.name: i for i, port in enumerate(self.INPUTS)
+                            if not port.choices}
         self._out_index = {port.name: i for i, port in enumerate(self.OUTPUTS)}
         n_p, n_x, n_u, n_y = len(self.p), len(self.STATES), len(self.INPUTS), len(self.OUTPUTS)
         # One float buffer [p | x | u | y] and one int buffer [us | ys]; the named arrays are
@@ -146,7 +149,7 @@ class Block:
             raise InputError(
                 f"{self.kind}: dt = {dt!r} s is not allowed: dt must be > 0 and finite")
         if inputs:
-            index, u = self._in_index, self._um
+            index, u = self._fast_index, self._um
             good = self._all_good
             for name, value in inputs.items():
                 i = index.get(name)
@@ -170,7 +173,7 @@ class Block:
                     raise InputError(
                         f"{self.kind}: unknown input '{name}'; valid inputs: "
                         + ", ".join(index))
-            if type(value) is float or type(value) is int:
+            if (type(value) is float or type(value) is int) and not self.INPUTS[i].choices:
                 u[i] = value
                 us[i] = st.GOOD_NC
             elif isinstance(value, tuple):

@@ -132,18 +132,22 @@ class Port:
     choices: tuple[str, ...] = ()
 
     def parse(self, value: Any) -> float:
-        """A float for this port; an enumerated port also takes its names (any case)."""
+        """A float for this port; an enumerated port takes its names (any case) or codes."""
+        expected = (f"one of {', '.join(self.choices)} or their codes 0..{len(self.choices) - 1}"
+                    if self.choices else "a number")
         if isinstance(value, str):
             text = value.strip()
             if self.choices and text.upper() in self.choices:
                 return float(self.choices.index(text.upper()))
             try:
-                return float(text)
+                x = float(text)
             except ValueError:
-                expected = (f"a number or one of {', '.join(self.choices)}" if self.choices
-                            else "a number")
                 raise ValueError(f"input '{self.name}' = {value!r}: expected {expected}") from None
-        return float(value)
+        else:
+            x = float(value)
+        if self.choices and x not in range(len(self.choices)):
+            raise ValueError(f"input '{self.name}' = {value!r}: expected {expected}")
+        return x
 
 
 def validate(kind: str, specs: tuple[Param, ...], given: dict[str, Any]) -> dict[str, ParamValue]:
