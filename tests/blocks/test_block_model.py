@@ -202,3 +202,19 @@ def test_parameters_from_strings_as_a_cli_gives_them() -> None:
 def test_repr_round_trips_the_constructor() -> None:
     pid = loopworks.create_block("pid", k=2.0, ti=10.0)
     assert repr(pid) == "create_block('pid', k=2.0, ti=10.0)"
+
+
+def test_a_held_result_keeps_the_scan_that_produced_it() -> None:
+    """step() returns the scan's outputs even when read after later scans, resets or loads."""
+    pid = loopworks.create_block("pid", k=1.0)
+    first = pid.step(1.0, sp=10.0, pv=4.0)
+    saved = pid.state_dict()
+    second = pid.step(1.0, pv=7.0)
+    assert first["out"].value == 6.0 and second["out"].value == 3.0
+    pid.reset()
+    assert second["out"] == (3.0, 128)
+    third = pid.step(1.0, sp=10.0, pv=9.0)
+    pid.load_state(saved)
+    assert third["out"].value == 1.0
+    assert dict(first) == {"out": (6.0, 128), "p_term": (6.0, 128), "i_term": (0.0, 128),
+                           "d_term": (0.0, 128)}

@@ -15,6 +15,7 @@ parameters into the flat ``p`` array the kernel reads. Everything else is here:
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Iterator, Mapping
 from typing import Any, ClassVar, cast
 
@@ -34,40 +35,47 @@ from loopworks.blocks.status import Signal
 from loopworks.errors import InputError
 
 
-class Outputs(tuple, Mapping[str, Signal]):  # type: ignore[type-arg]
+class Outputs(list, Mapping[str, Signal]):  # type: ignore[type-arg]
     """The outputs of one scan, by port name: ``result["out"]`` is a :class:`Signal`.
 
-    A snapshot of the values and statuses when the scan ended; the :class:`Signal` pairs are
-    built only when read, so ``step()`` stays cheap."""
+    It reads the block's output buffers directly while it is the newest result; if it is still
+    held when the block scans again (or is reset or loaded), it first takes a copy, so a result
+    always shows the scan that produced it. The :class:`Signal` pairs are built when read."""
 
     __slots__ = ()
 
     def __getitem__(self, name: str) -> Signal:  # type: ignore[override]
-        index, y, ys = tuple.__getitem__(self, 0), tuple.__getitem__(self, 1), \
-            tuple.__getitem__(self, 2)
-        i = index[name]
-        return Signal(y[i], ys[i])
+        get = list.__getitem__
+        i = get(self, 0)[name]
+        return Signal(get(self, 1)[i], get(self, 2)[i])
+
+    def _freeze(self) -> None:
+        """Copy the values out of the block's buffers before they change."""
+        get, put = list.__getitem__, list.__setitem__
+        put(self, 1, get(self, 1).tolist())
+        put(self, 2, get(self, 2).tolist())
 
     def __iter__(self) -> Iterator[str]:
-        return iter(tuple.__getitem__(self, 0))
+        return iter(list.__getitem__(self, 0))
 
     def __len__(self) -> int:
-        return len(tuple.__getitem__(self, 0))
+        return len(list.__getitem__(self, 0))
 
     def __contains__(self, name: object) -> bool:
-        return name in tuple.__getitem__(self, 0)
+        return name in list.__getitem__(self, 0)
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Mapping) and dict(self.items()) == dict(other.items())
 
-    def __hash__(self) -> int:
+    def __hash__(self) -> int:  # type: ignore[override]
         return id(self)
 
     def __repr__(self) -> str:
         return "Outputs(" + ", ".join(f"{k}={self[k]}" for k in self) + ")"
 
 
-_new_outputs = tuple.__new__
+_refcount = sys.getrefcount
+_INF = math.inf
 
 
 class Block:
@@ -118,6 +126,7 @@ class Block:
         self._ym: Any = memoryview(cast(Any, self.y))
         self._ysm: Any = memoryview(cast(Any, self.ys))
         self._all_good = True  # every input status is Good NC (128): the fast path skips them
+        self._last: Outputs | None = None  # the newest step() result, read from the buffers
         self.reset()
 
     # -- to be provided by subclasses -------------------------------------------------------
@@ -135,6 +144,7 @@ class Block:
 
     def reset(self) -> None:
         """Return to the state right after construction (inputs to their defaults)."""
+        self._release_last()
         self.x[:] = self.initial_state()
         self.u[:] = [port.default for port in self.INPUTS]
         self.us[:] = st.GOOD_NC
@@ -145,9 +155,12 @@ class Block:
     def step(self, dt: float, **inputs: Any) -> Outputs:
         """Advance one scan of ``dt`` seconds. Inputs are floats, :class:`Signal` pairs
         ``(value, status)``, or for enumerated inputs their names (``mode="MAN"``)."""
-        if not 0.0 < dt < math.inf:
+        if not 0.0 < dt < _INF:
             raise InputError(
                 f"{self.kind}: dt = {dt!r} s is not allowed: dt must be > 0 and finite")
+        last = self._last
+        if last is not None and _refcount(last) > 3:  # held by the caller: copy it first
+            last._freeze()
         if inputs:
             index, u = self._fast_index, self._um
             good = self._all_good
@@ -160,7 +173,8 @@ class Block:
                 else:
                     self.set_inputs({name: value})
         self._packed(dt, self._F, self._S)
-        return _new_outputs(Outputs, (self._out_index, self._ym.tolist(), self._ysm.tolist()))
+        self._last = result = Outputs((self._out_index, self._ym, self._ysm))
+        return result
 
     def set_inputs(self, inputs: Mapping[str, Any]) -> None:
         """Latch input values (and statuses) without running a scan."""
@@ -192,8 +206,16 @@ class Block:
                 us[i] = st.GOOD_NC
 
     def outputs(self) -> Outputs:
-        """The outputs of the last scan."""
-        return _new_outputs(Outputs, (self._out_index, self._ym.tolist(), self._ysm.tolist()))
+        """The outputs of the last scan (a copy)."""
+        result = Outputs((self._out_index, self._ym, self._ysm))
+        result._freeze()
+        return result
+
+    def _release_last(self) -> None:
+        """Before the output buffers change outside a step: let a held result copy them."""
+        if self._last is not None:
+            self._last._freeze()
+            self._last = None
 
     def state(self) -> dict[str, float]:
         """The named state variables, for inspection."""
@@ -219,6 +241,7 @@ class Block:
         if names != set(self.STATES):
             raise InputError(f"{self.kind}: saved state names {sorted(names)} do not match "
                              f"{sorted(self.STATES)}")
+        self._release_last()
         self.x[:] = [float(saved["state"][n]) for n in self.STATES]
         for arr, sarr, ports, key in ((self.u, self.us, self.INPUTS, "inputs"),
                                       (self.y, self.ys, self.OUTPUTS, "outputs")):

@@ -147,6 +147,8 @@ class Module:
             raise InputError(f"duration = {duration!r} s is not allowed: must be > 0 and finite")
         if reset:
             self.reset()
+        for block in self.blocks.values():
+            block._release_last()
         n = round(duration / dt)
         if n < 1:
             raise InputError(f"duration = {duration} s is shorter than one scan of dt = {dt} s")

@@ -107,6 +107,7 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
         if timing > 1:
             raise FileFormatError(f"{source}: timing given twice: use one of a 't' column, a "
                                   "'dt' column and --dt")
+        block._release_last()
         chunks = _chunks(reader, max(chunk, 2))  # the first scan's dt needs the second row
         first_chunk = next(chunks, None)
         if first_chunk is None:
