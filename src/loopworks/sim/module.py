@@ -12,7 +12,9 @@ Wires go from destination to source, as in a scenario file's ``[wires]`` table::
            inputs={"pid": {"sp": 50.0}})
 
 An unwired input takes the constant given for it in ``inputs`` (a scenario block table's
-``sp = 50.0``), else its port default. Events set an unwired input at a given time.
+``sp = 50.0``), else its port default. Events set an unwired input at a given time. A block
+with an input named ``clock`` (a controller clock in seconds, as GE's PID measures its own dt)
+gets the module time t_k there, unless it is wired or given.
 """
 
 from __future__ import annotations
@@ -74,6 +76,11 @@ class Module:
             for port, value in values.items():
                 self._check_unwired(f"{name}.{port}", "a constant")
                 self.constants.setdefault(name, {})[port.lower()] = value
+        # blocks that read the controller clock (an input named "clock", s) get the module time
+        self._clocks: dict[str, int] = {
+            name: b._in_index["clock"] for name, b in self.blocks.items()
+            if "clock" in b._in_index and f"{name}.clock" not in self.wires
+            and "clock" not in self.constants.get(name, {})}
         self.events: list[Event] = sorted(events or [], key=lambda e: e.t)
         for ev in self.events:
             self._check_unwired(ev.target, "an event")
@@ -130,6 +137,8 @@ class Module:
             for i, src, j in self._links[name]:
                 u[i] = src.y[j]
                 us[i] = src.ys[j]
+            if name in self._clocks:
+                u[self._clocks[name]] = self.t
             block._run(dt, block.p, block.x, u, us, block.y, block.ys)
         self.k += 1
         self.t = self.k * dt

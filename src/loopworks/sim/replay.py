@@ -6,6 +6,8 @@ Input CSV (architecture contract):
 * timing from a ``t`` column (s, increasing: the scan at row k has dt = t_k - t_{k-1}, and the
   first row takes t_1 - t_0), or a ``dt`` column (s, per row), or the ``dt`` argument;
 * ``NAME.ST`` columns give an input's integer status byte (Good non-cascade, 128, when absent);
+* a block with a ``clock`` input (a controller clock, s) gets the row's time there (the ``t``
+  column, or the accumulated time) unless the file has a ``clock`` column;
 * ``nan`` is a legal value (a missing measurement: the block handles it as its vendor does);
   an empty or non-numeric cell is an error naming its line and column.
 
@@ -100,6 +102,9 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
             raise FileFormatError(f"{source}: the file is empty: expected a header row naming "
                                   f"the inputs of {block.kind} ({', '.join(block._in_index)})")
         mapping, t_col, dt_col = _columns(block, header, source)
+        clock = block._in_index.get("clock")
+        if clock is not None and ("u", clock) in mapping.values():
+            clock = None  # the file gives the clock itself
         timing = sum(x is not None for x in (t_col, dt_col, dt))
         if timing == 0:
             raise FileFormatError(f"{source}: no timing: give a 't' column (s), a 'dt' column "
@@ -175,6 +180,8 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
                         t_clock = t_clock + step if rows + r > 0 else 0.0
                         ts[r] = t_clock
                         dts[r] = step
+                if clock is not None:
+                    U[:, clock] = ts
                 if rows == 0 and math.isnan(dts[0]):
                     if n < 2:
                         raise FileFormatError(f"{source}: a single row with a 't' column gives "
