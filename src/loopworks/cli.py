@@ -109,8 +109,10 @@ def simulate(
         import matplotlib.pyplot as plt
 
         axes = result.plot()
-        axes[0].figure.suptitle(title)
-        axes[0].figure.savefig(plot, dpi=100)
+        fig = axes[0].figure
+        fig.suptitle(title)
+        fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
+        fig.savefig(plot, dpi=100)
         plt.close(axes[0].figure)
         console.print(f"wrote the plot to {plot}")
 
