@@ -15,6 +15,9 @@ from loopworks.errors import UnknownKindError
 BLOCK_MODULES: tuple[str, ...] = (
     "loopworks.blocks.pid",
     "loopworks.plant.process",
+    "loopworks.vendors.ge_pacsystems",
+    "loopworks.vendors.siemens_s5",
+    "loopworks.vendors.emerson_e2",
 )
 
 _REGISTRY: dict[str, type[Block]] = {}

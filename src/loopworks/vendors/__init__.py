@@ -1,0 +1,1 @@
+"""Faithful vendor PID blocks, one module per vendor, each readable beside its manual."""

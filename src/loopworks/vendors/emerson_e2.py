@@ -1,0 +1,470 @@
+r"""The Emerson (formerly CPC) E2 RX/BX/CX controller PID: kind ``e2.pid``.
+
+The E2 runs one shared PID algorithm in many applications (Loop/Sequence Control, suction and
+pressure control, EEPR/EEV circuits, the CC-100 case controllers, condenser fans). This block is
+its PID cell followed by its Filter and Override cells (spec vendor-blocks section 3; seed 001 =
+E2 I&O manual 026-1610 Rev 13, Appendix D). Output stages (Sequencer, PWM) are separate cells and
+are not part of this block; :func:`pwm_times` gives the PWM on/off split of spec 3.7.
+
+Equations
+---------
+
+Every PID update k (spec 3.3, incremental or "velocity" form; gains are per update)::
+
+    e_k    = input - setpoint                           error_sign [A], spec 3.3
+    Padj_k = kp · (e_k - e_{k-1}) · 100 % / TR           [V] spec 3.3; TR = throttling_range
+    Iadj_k = ki · e_k        if abs(e_k) > MAE           [V as printed] spec 3.3, 3.5
+           = 0               if abs(e_k) <= MAE          inclusive; MAE = min_accumulated_error
+    Dadj_k = kd · (e_k - 2·e_{k-1} + e_{k-2})                      d_form = second_difference [A]
+           = kd · (e_k - 2·e_{k-1}/t_{-1} + e_{k-2}/t_{-2})        d_form = as_printed
+    OUT_k  = clamp(OUT_{k-1} + Padj_k + Iadj_k + Dadj_k, output_min, output_max)   spec 3.4
+
+With ``i_tr_normalise`` (``d_tr_normalise``) Iadj (Dadj) is also multiplied by 100 %/TR. In the
+``as_printed`` D form, t_{-1} is the time from update k-1 to update k and t_{-2} the time from
+update k-2 to update k-1, both in minutes (the manual calls the ratios rates per minute; the
+form adds an error to an error per minute, which is not dimensionally consistent [D]). They are
+the times the emulation actually measured between updates (whole scans); the first update takes
+both as ``update_interval``, the second takes t_{-2} = ``update_interval``.
+
+Filter cell ("valve filtering", spec 3.6), every ``filter_period`` seconds::
+
+    F_n = F_{n-1} + f · (OUT - F_{n-1}),   f = filter_percentage / 100
+
+where OUT is the PID's (unfiltered) output at that moment. ``filter_period = 0`` turns the
+filter off: F = OUT. The vendor example holds exactly: F = 50, the PID asks for 58, f = 75 %:
+F = 56, then 57.5, 57.875, 57.96875 (spec 3.8 E6).
+
+Override cell (spec 3.7): while the ``override`` input is finite (and its status is not Bad),
+``out`` is the override value. The override cell comes after the PID cell, so Output at
+Minimum/Maximum do not apply to it; it is limited to 0..100 % (``override_limits``). By default
+the PID keeps running underneath and ``out`` returns to the filter output when the override
+ends (``override_updates_pid``).
+
+Outputs: ``out`` = override, else F (after the filter); ``pid_out`` = OUT (the PID cell's
+stored output, before the filter); ``p_adj``, ``i_adj``, ``d_adj`` = the adjustments of the
+latest PID update (held between updates).
+
+Timing: how the update schedules run on arbitrary scans
+-------------------------------------------------------
+
+The PID updates every ``update_interval`` seconds and the filter every ``filter_period``
+seconds, each on its own timer (spec 3.3, 3.6), whatever the scan time dt of the block:
+
+* The first scan starts both timers at 0 and runs one PID update and one filter update (the
+  controller starts computing at once).
+* Each later scan adds dt to each timer. A cell updates when its timer >= its interval (with a
+  relative tolerance of 1e-9, so that ten scans of 0.1 s make one 1 s interval despite binary
+  rounding); it then subtracts the interval from its timer. The cell therefore updates at the
+  first scan at or after each multiple of its interval, and a 0.3 s scan with a 1 s interval
+  gives updates at t = 0, 1.2, 2.1, 3.0, 4.2, ... s.
+* At most one update per cell per scan: if the timer is still due after subtracting (the scan
+  was longer than the interval), it is set to 0 and the missed updates are dropped.
+* In one scan the cells run in the E2's cell order: PID, then Filter, then Override (spec 3.7).
+
+Start-up (spec 3.9, [?]): the PID's stored output and the filter start at ``initial_output``
+(default Output at Setpoint, clamped to the output limits), and the previous errors
+e_{k-1} = e_{k-2} = 0, as if the input had been at setpoint with the output at Output at
+Setpoint. So the first update places the output at Output at Setpoint + kp·e·100/TR: with TR 10,
+kp 1, OAS 50 and SP 29, input 24 gives 0 % and input 34 gives 100 % (spec 3.8 E2).
+
+Bad input (E2 has no Fieldbus status; [A]): a NaN/inf ``pv`` or ``sp``, or one with a Bad
+status byte, makes the PID cell skip its update (the due update is lost, not retried), so its
+output, error memories and adjustments hold; the filter keeps running on the held PID output.
+``out`` carries status 0x47 (Uncertain, last usable value, constant) while the input is bad; with
+``bad_input = "failsafe"`` ``out`` is ``failsafe_output`` instead (0x4B, Uncertain, substitute,
+constant). When the input returns, the next scheduled update continues from the stored error, so
+the P window is not shifted by the gap. Finite inputs beyond ±1e12 EU saturate there (a guard
+against float overflow, far beyond any real measurement); an update whose arithmetic still
+gives NaN (extreme gains) is skipped like a bad input. Uncertain inputs are used and make
+``out`` Uncertain (0x40). Otherwise ``out`` is Good non-cascade (128), with the limit bits
+high (130) / low (129) when ``out`` is at ``output_max`` / ``output_min``, and constant (131)
+while overridden.
+
+Options for the spec's [A]/[?] points
+-------------------------------------
+
+Each is a parameter; the default is the spec's choice.
+
+* ``error_sign``: ``input_minus_setpoint`` (default [A]: the output rises with the input, the
+  cooling sense of the vendor examples) or ``setpoint_minus_input``. Spec 3.3, 3.9, 7.
+* ``i_tr_normalise``: ``false`` (default, Iadj = ki·e as printed) or ``true``
+  (Iadj = ki·e·100/TR) [?]. Spec 3.3.
+* ``d_form``: ``second_difference`` (default [A]) or ``as_printed``. Spec 3.3.
+* ``d_tr_normalise``: ``false`` (default, D not scaled by 100 %/TR, like I) or ``true`` [?].
+  Spec 3.3.
+* ``initial_output``: the PID and filter output at start-up; default Output at Setpoint [?].
+  Spec 3.9.
+* ``startup_errors``: ``zero`` (default [?]: e_{k-1} = e_{k-2} = 0 before the first update, as
+  if the input had been at setpoint) or ``current`` (both = the first error: no P or D kick at
+  start-up). Spec 3.2 (meaning of Output at Setpoint), 3.9, E2.
+* ``old_output``: ``unfiltered`` (default [A]: the PID adds to its own unfiltered output) or
+  ``filtered`` (OUT_{k-1} = F). Spec 3.6.
+* ``override_updates_pid``: ``false`` (default [?]: the PID's stored output is not set from the
+  override) or ``true`` (OUT and F take the override value while it is active, so the release
+  is bumpless). Spec 3.7.
+* ``override_limits``: ``percent`` (default [A]: the override is limited to 0..100 %) or
+  ``output_limits`` (output_min..output_max). Spec 3.7.
+* ``bad_input``: ``hold`` (default [A]) or ``failsafe`` (``out`` = ``failsafe_output``). The
+  E2 has no status (spec 3.2, 7).
+
+The defaults of the settings themselves are [?] (spec 3.2, 3.9: the setting screens were not
+retrieved): kp 1.00, ki 0.30, kd 0.00 and min_accumulated_error 0.10 are the EEPR field defaults
+[R33]; throttling_range 10, output_at_setpoint 50 % and the 0/100 % clamps follow the manual's
+examples; update_interval 2 s is the low end of the typical 2-6 s.
+
+Vendor quirks reproduced
+------------------------
+
+* Increments that would push past a clamp are lost (spec 3.4), so saturation slides the
+  throttling range window: TR 10, kp 1, SP 29, OAS 50: inputs 34, 36, 35 give 100, 100, 90 %
+  (spec 3.8 E7), and an output held at Output at Minimum leaves it as soon as an adjustment
+  raises it (E3).
+* The I Mode ignores errors up to and including MAE (spec 3.5, E4, E5); P and D keep acting, so
+  the loop may settle anywhere within SP ± MAE.
+* ki and kd are per update, not per second: changing ``update_interval`` changes the effective
+  I and D strength (spec 3.3 [D]).
+* The filter is a first-order step towards the PID demand once per filter period, measured from
+  the filtered output (spec 3.6; the vendor example rules out differencing two PID samples).
+
+Example
+-------
+
+Python (P only, the vendor's throttling-range example)::
+
+    import loopworks
+    pid = loopworks.create_block("e2.pid", throttling_range=10.0, kp=1.0, ki=0.0,
+                                 output_at_setpoint=50.0, update_interval=1.0)
+    for pv in (24.0, 25.0, 26.0):
+        print(pid.step(1.0, sp=29.0, pv=pv)["out"].value)   # 0.0, 10.0, 20.0
+
+Replay (``loopworks replay e2.pid e2.csv -p ki=0 -p update_interval=1``), with ``e2.csv``::
+
+    t,sp,pv,override
+    0,29,24,nan
+    1,29,25,nan
+    2,29,26,70
+    3,29,27,nan
+
+gives ``out`` 0, 10, 70 (overridden), 30 and ``pid_out`` 0, 10, 20, 30.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.primitives import clamp, finite
+from loopworks.blocks.registry import register
+from loopworks.blocks.status import (
+    BAD,
+    CONSTANT,
+    GOOD_NC,
+    HIGH_LIMITED,
+    LOW_LIMITED,
+    UNCERTAIN,
+    UNCERTAIN_LAST_USABLE_VALUE,
+    UNCERTAIN_NON_SPECIFIC,
+    UNCERTAIN_SUBSTITUTE,
+)
+from loopworks.errors import InputError, ParameterError
+
+# Coefficient layout (p)
+(TR, KP, KI, KD, LO, HI, MAE, UPDATE, FPERIOD, FFRAC, SIGN, I_NORM, D_FORM, D_NORM,
+ STARTUP, OLD_OUT, OVR_UPDATES, OVR_LO, OVR_HI, BAD_INPUT, FAILSAFE) = range(21)
+D_SECOND_DIFFERENCE, D_AS_PRINTED = 0.0, 1.0
+STARTUP_ZERO, STARTUP_CURRENT = 0.0, 1.0
+OLD_UNFILTERED, OLD_FILTERED = 0.0, 1.0
+BAD_HOLD, BAD_FAILSAFE = 0.0, 1.0
+# Inputs (u, us)
+PV, SP, OVERRIDE = range(3)
+# Outputs (y, ys)
+OUT, PID_OUT, P_ADJ, I_ADJ, D_ADJ = range(5)
+# State (x)
+(S_OUT, S_F, S_E1, S_E2, S_PADJ, S_IADJ, S_DADJ, S_PID_TIMER, S_FILTER_TIMER, S_SINCE, S_T1,
+ S_UPDATED, S_STARTED) = range(13)
+
+DUE_TOLERANCE = 1e-9  # relative: a timer within 1e-9·interval of the interval is due
+EU_LIMIT = 1e12  # pv and sp saturate here (EU), so the error arithmetic cannot overflow
+
+
+@primitive
+def timer_due(elapsed: float, interval: float) -> bool:
+    """True when ``elapsed`` has reached ``interval`` (relative tolerance 1e-9, so that binary
+    rounding of accumulated scan times, e.g. ten scans of 0.1 s, does not delay an update)."""
+    return elapsed >= interval * (1.0 - DUE_TOLERANCE)
+
+
+@primitive
+def advance_timer(elapsed: float, dt: float, interval: float) -> float:
+    """The timer after a scan of ``dt``: ``elapsed + dt``, less one ``interval`` if that made it
+    due, and 0 if it is still due after that (at most one update per scan; missed ones are
+    dropped). The caller tests :func:`timer_due` on ``elapsed + dt`` for the update itself."""
+    t = elapsed + dt
+    if timer_due(t, interval):
+        t -= interval
+        if timer_due(t, interval):
+            t = 0.0
+    return t
+
+
+def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                  y: FloatArray, ys: IntArray) -> None:
+    """One scan of the E2 PID, Filter and Override cells (equations in the module docstring)."""
+    lo = p[LO]
+    hi = p[HI]
+    interval = p[UPDATE]
+    period = p[FPERIOD]
+    # -- timers (spec 3.3, 3.6): the first scan runs both cells, later scans when due ---------
+    if x[S_STARTED] == 0.0:
+        x[S_STARTED] = 1.0
+        pid_due = True
+        filter_due = True
+        x[S_PID_TIMER] = 0.0
+        x[S_FILTER_TIMER] = 0.0
+    else:
+        x[S_SINCE] = x[S_SINCE] + dt
+        pid_due = timer_due(x[S_PID_TIMER] + dt, interval)
+        x[S_PID_TIMER] = advance_timer(x[S_PID_TIMER], dt, interval)
+        filter_due = False
+        if period > 0.0:
+            filter_due = timer_due(x[S_FILTER_TIMER] + dt, period)
+            x[S_FILTER_TIMER] = advance_timer(x[S_FILTER_TIMER], dt, period)
+    # -- input quality (no status in the E2: NaN/inf or a Bad status byte = bad input, [A]) ----
+    pv = u[PV]
+    sp = u[SP]
+    q_pv = us[PV] & 0xC0
+    q_sp = us[SP] & 0xC0
+    bad = not finite(pv) or not finite(sp) or q_pv == BAD or q_sp == BAD
+    e = 0.0
+    if not bad:  # spec 3.3: e = input - setpoint [A]; inputs saturated at ±EU_LIMIT
+        e = p[SIGN] * (clamp(pv, -EU_LIMIT, EU_LIMIT) - clamp(sp, -EU_LIMIT, EU_LIMIT))
+    # -- PID cell (spec 3.3-3.5) ----------------------------------------------------------------
+    if pid_due and not bad:
+        if x[S_UPDATED] == 0.0:  # first update: no measured times yet (spec 3.9 [?])
+            if p[STARTUP] == STARTUP_CURRENT:
+                x[S_E1] = e
+                x[S_E2] = e
+            t1 = interval
+            t2 = interval
+        else:
+            t1 = x[S_SINCE]
+            t2 = x[S_T1]
+        e1 = x[S_E1]
+        e2 = x[S_E2]
+        padj = p[KP] * (e - e1) * 100.0 / p[TR]
+        iadj = 0.0
+        if abs(e) > p[MAE]:  # spec 3.5: no I adjustment while abs(e) <= MAE
+            iadj = p[KI] * e
+            if p[I_NORM] != 0.0:
+                iadj = iadj * 100.0 / p[TR]
+        if p[D_FORM] == D_AS_PRINTED:  # times in minutes, as printed (026-1614 p.D-4)
+            dadj = p[KD] * (e - 2.0 * e1 / (t1 / 60.0) + e2 / (t2 / 60.0))
+        else:
+            dadj = p[KD] * (e - 2.0 * e1 + e2)
+        if p[D_NORM] != 0.0:
+            dadj = dadj * 100.0 / p[TR]
+        old = x[S_OUT]
+        if p[OLD_OUT] == OLD_FILTERED:
+            old = clamp(x[S_F], lo, hi)
+        v = old + padj + iadj + dadj
+        if math.isnan(v):  # overflowing inputs: skip the update like a bad input
+            bad = True
+        else:
+            x[S_OUT] = clamp(v, lo, hi)  # spec 3.4: increments past a clamp are lost
+            x[S_E2] = e1
+            x[S_E1] = e
+            x[S_T1] = t1
+            x[S_SINCE] = 0.0
+            x[S_UPDATED] = 1.0
+            x[S_PADJ] = padj
+            x[S_IADJ] = iadj
+            x[S_DADJ] = dadj
+    # -- Filter cell (spec 3.6) -------------------------------------------------------------------
+    if period > 0.0:
+        if filter_due:
+            x[S_F] = x[S_F] + p[FFRAC] * (x[S_OUT] - x[S_F])
+    else:
+        x[S_F] = x[S_OUT]
+    # -- Override cell (spec 3.7) and status ------------------------------------------------------
+    ov = u[OVERRIDE]
+    if finite(ov) and (us[OVERRIDE] & 0xC0) != BAD:
+        out = clamp(ov, p[OVR_LO], p[OVR_HI])
+        status = GOOD_NC | CONSTANT
+        if p[OVR_UPDATES] != 0.0:
+            x[S_OUT] = clamp(ov, lo, hi)
+            x[S_F] = out
+    elif bad:
+        if p[BAD_INPUT] == BAD_FAILSAFE:
+            out = p[FAILSAFE]
+            status = UNCERTAIN_SUBSTITUTE | CONSTANT
+        else:
+            out = x[S_F]
+            status = UNCERTAIN_LAST_USABLE_VALUE | CONSTANT
+    else:
+        out = x[S_F]
+        status = GOOD_NC
+        if q_pv == UNCERTAIN or q_sp == UNCERTAIN:
+            status = UNCERTAIN_NON_SPECIFIC
+        if out >= hi:
+            status = status | HIGH_LIMITED
+        elif out <= lo:
+            status = status | LOW_LIMITED
+    y[OUT] = out
+    ys[OUT] = status
+    y[PID_OUT] = x[S_OUT]
+    y[P_ADJ] = x[S_PADJ]
+    y[I_ADJ] = x[S_IADJ]
+    y[D_ADJ] = x[S_DADJ]
+
+
+def pwm_times(percent: float, period: float) -> tuple[float, float]:
+    """The E2 PWM output stage (spec 3.7, E8): (on, off) seconds of one ``period`` for a PID
+    output of ``percent`` %: on = period·percent/100, off = period - on; the percentage is
+    limited to 0..100. 60 % of a 10 s period gives 6 s on and 4 s off.
+
+    The PWM cell is an output stage after the Override cell, not part of the PID block."""
+    if not period > 0.0 or not math.isfinite(period):
+        raise ParameterError(f"e2 pwm: period = {period!r} s is out of range: allowed (0, inf) s")
+    if math.isnan(percent):
+        raise InputError("e2 pwm: percent = nan is not a number")
+    on = period * min(max(percent, 0.0), 100.0) / 100.0
+    return on, period - on
+
+
+_PCT = "%"
+
+
+@register
+class E2PID(Block):
+    """Emerson E2 PID cell with its Filter and Override cells (spec vendor-blocks 3)."""
+
+    kind = "e2.pid"
+    summary = "Emerson E2 RX/BX/CX PID: incremental, throttling range, MAE, valve filter, override"
+    kernel = staticmethod(e2_pid_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("throttling_range", 10.0, "EU",
+              "Throttling Range TR: input span that sweeps the output 0-100 % at kp = 1 "
+              "(spec 3.2, 3.3)", lo=0.0),
+        Param("kp", 1.0, "", "P Mode gain: Padj = kp·Δe·100/TR per update (spec 3.2, 3.3)",
+              lo=0.0, lo_open=False),
+        Param("ki", 0.3, "%/EU per update",
+              "I Mode gain: Iadj = ki·e per update, no time factor (spec 3.2, 3.3)",
+              lo=0.0, lo_open=False),
+        Param("kd", 0.0, "%/EU per update",
+              "D Mode gain: Dadj = kd·(second difference of e) per update (spec 3.2, 3.3)",
+              lo=0.0, lo_open=False),
+        Param("output_at_setpoint", 50.0, _PCT,
+              "Output at Setpoint: the output when input = setpoint; start-up output "
+              "(spec 3.2, 3.9)", lo=0.0, hi=100.0, lo_open=False, hi_open=False),
+        Param("output_min", 0.0, _PCT, "Output at Minimum: low clamp of the PID output "
+              "(spec 3.2, 3.4)", lo=0.0, hi=100.0, lo_open=False, hi_open=False),
+        Param("output_max", 100.0, _PCT, "Output at Maximum: high clamp of the PID output, "
+              "> output_min (spec 3.2, 3.4)", lo=0.0, hi=100.0, lo_open=False, hi_open=False),
+        Param("min_accumulated_error", 0.1, "EU",
+              "Minimum Accumulated Error: no I adjustment while abs(e) <= MAE, inclusive edge "
+              "(spec 3.5)", lo=0.0, lo_open=False),
+        Param("update_interval", 2.0, "s", "PID update interval (spec 3.2, 3.3)", lo=0.0),
+        Param("filter_period", 0.0, "s", "filter period; 0 = filter off (spec 3.6)",
+              lo=0.0, lo_open=False),
+        Param("filter_percentage", 100.0, _PCT,
+              "filter percentage f: F += f·(OUT - F) each filter period (spec 3.6)",
+              lo=0.0, hi=100.0, lo_open=False, hi_open=False),
+        Param("error_sign", "input_minus_setpoint", "",
+              "e = input - setpoint (output rises with the input) [A], or the reverse "
+              "(spec 3.3, 3.9)", "choice",
+              choices=("input_minus_setpoint", "setpoint_minus_input")),
+        Param("i_tr_normalise", False, "", "also scale Iadj by 100 %/TR [?] (spec 3.3)",
+              "bool"),
+        Param("d_form", "second_difference", "",
+              "D Mode: kd·(e - 2e₋₁ + e₋₂) [A] or the printed form with times between "
+              "updates in minutes (spec 3.3)", "choice",
+              choices=("second_difference", "as_printed")),
+        Param("d_tr_normalise", False, "", "also scale Dadj by 100 %/TR [?] (spec 3.3)",
+              "bool"),
+        Param("initial_output", None, _PCT,
+              "PID and filter output at start-up [?], in output_min..output_max (spec 3.9)",
+              lo=0.0, hi=100.0, lo_open=False, hi_open=False,
+              default_text="output_at_setpoint (clamped)"),
+        Param("startup_errors", "zero", "",
+              "previous errors before the first update: zero (as if at setpoint) [?] or "
+              "current (no P/D kick) (spec 3.2, 3.9)", "choice", choices=("zero", "current")),
+        Param("old_output", "unfiltered", "",
+              "OUT_{k-1} the PID adds to: its own unfiltered output [A] or the filter output "
+              "(spec 3.6)", "choice", choices=("unfiltered", "filtered")),
+        Param("override_updates_pid", False, "",
+              "while overridden, set the PID's stored output and the filter to the override "
+              "value [?] (spec 3.7)", "bool"),
+        Param("override_limits", "percent", "",
+              "override limited to 0..100 % [A] or to output_min..output_max (spec 3.7)",
+              "choice", choices=("percent", "output_limits")),
+        Param("bad_input", "hold", "",
+              "NaN/inf or Bad pv/sp: the PID holds [A], or out goes to failsafe_output "
+              "(spec 3.2)", "choice", choices=("hold", "failsafe")),
+        Param("failsafe_output", 0.0, _PCT,
+              "out while pv/sp is bad and bad_input = failsafe [A] (spec 3.2)",
+              lo=0.0, hi=100.0, lo_open=False, hi_open=False),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("pv", 0.0, "EU", "control input (process variable)", status=True),
+        Port("sp", 0.0, "EU", "setpoint", status=True),
+        Port("override", math.nan, _PCT, "forced output; NaN = no override (spec 3.7)",
+             status=True),
+    )
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("out", 0.0, _PCT, "output after the Filter and Override cells", status=True),
+        Port("pid_out", 0.0, _PCT, "PID cell output OUT (before the filter)"),
+        Port("p_adj", 0.0, _PCT, "P adjustment of the latest update"),
+        Port("i_adj", 0.0, _PCT, "I adjustment of the latest update"),
+        Port("d_adj", 0.0, _PCT, "D adjustment of the latest update"),
+    )
+    STATES: ClassVar[tuple[str, ...]] = (
+        "pid_output", "filter_output", "e1", "e2", "p_adj", "i_adj", "d_adj", "pid_timer",
+        "filter_timer", "since_update", "t1", "updated", "started")
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        lo, hi = float(prm["output_min"]), float(prm["output_max"])
+        if not lo < hi:
+            raise ParameterError(
+                f"e2.pid: parameter 'output_max' = {hi:g} must be greater than "
+                f"output_min = {lo:g}")
+        init = prm["initial_output"]
+        if init is not None and not lo <= float(init) <= hi:
+            raise ParameterError(
+                f"e2.pid: parameter 'initial_output' = {float(init):g} is out of range: "
+                f"allowed [{lo:g}, {hi:g}] % (output_min..output_max)")
+        c = [0.0] * 21
+        c[TR] = float(prm["throttling_range"])
+        c[KP], c[KI], c[KD] = float(prm["kp"]), float(prm["ki"]), float(prm["kd"])
+        c[LO], c[HI] = lo, hi
+        c[MAE] = float(prm["min_accumulated_error"])
+        c[UPDATE] = float(prm["update_interval"])
+        c[FPERIOD] = float(prm["filter_period"])
+        c[FFRAC] = float(prm["filter_percentage"]) / 100.0
+        c[SIGN] = 1.0 if prm["error_sign"] == "input_minus_setpoint" else -1.0
+        c[I_NORM] = 1.0 if prm["i_tr_normalise"] else 0.0
+        c[D_FORM] = D_AS_PRINTED if prm["d_form"] == "as_printed" else D_SECOND_DIFFERENCE
+        c[D_NORM] = 1.0 if prm["d_tr_normalise"] else 0.0
+        c[STARTUP] = STARTUP_CURRENT if prm["startup_errors"] == "current" else STARTUP_ZERO
+        c[OLD_OUT] = OLD_FILTERED if prm["old_output"] == "filtered" else OLD_UNFILTERED
+        c[OVR_UPDATES] = 1.0 if prm["override_updates_pid"] else 0.0
+        c[OVR_LO], c[OVR_HI] = (lo, hi) if prm["override_limits"] == "output_limits" \
+            else (0.0, 100.0)
+        c[BAD_INPUT] = BAD_FAILSAFE if prm["bad_input"] == "failsafe" else BAD_HOLD
+        c[FAILSAFE] = float(prm["failsafe_output"])
+        return c
+
+    def initial_state(self) -> list[float]:
+        """OUT = F = initial_output (default Output at Setpoint, clamped); e₋₁ = e₋₂ = 0."""
+        x = [0.0] * len(self.STATES)
+        init = self.params["initial_output"]
+        start = float(self.params["output_at_setpoint"]) if init is None else float(init)
+        start = min(max(start, self.p[LO]), self.p[HI])
+        x[S_OUT] = start
+        x[S_F] = start
+        x[S_T1] = self.p[UPDATE]
+        return x

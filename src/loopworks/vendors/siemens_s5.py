@@ -1,0 +1,482 @@
+r"""``s5.pid``: the Siemens SIMATIC S5 integrated PID control block OB 251 (S5-100U, S5-95F,
+S5-115U/F), emulated from spec vendor-blocks section 2 and the S5-100U manual page 9-18 (seed
+002).
+
+What it is
+----------
+OB 251 is a firmware block. The user program opens a controller data block (``C DB n``) and
+calls ``JU OB 251`` from the time-driven OB 13; the OB 13 interval is the sampling time TA
+(spec 2.1). Every value lives in a 16-bit data-block word. The parameters here are those words:
+``k`` (DW 1), ``r`` (DW 3), ``ti`` (DW 5), ``td`` (DW 7) as raw words where 1000 ≈ 1.0,
+``bgog``/``bgug`` (DW 14/16), the control bits of DR 11 as flags, and the preset of DW 48
+(``y0``). The inputs are W (DW 9), X (DW 22), Z (DW 24), XZ (DW 29), YH (DW 12) and the bits
+D 11.0 (``auto``) and D 11.2 (``off``), which a user program may change at any scan.
+
+**The block has no clock** (spec 2.5, 2.11). TI = TA/TN and TD = TV/TA are per-sample
+coefficients, so each ``step(dt, ...)`` is one OB 13 call whatever ``dt`` is: ``dt`` is checked
+(> 0, finite) and otherwise ignored. If the OB 13 interval changes, recompute ``ti`` and ``td``.
+
+Equations (spec 2.4-2.7, seed 002)
+----------------------------------
+With c the coefficient word divided by the scale (1024 exact, 1000 nominal)::
+
+    XW_k = W_k - X_k                      PW_k = XW_k - XW_{k-1}    QW_k = PW_k - PW_{k-1}
+    PZ_k = XZ_k - XZ_{k-1}                QZ_k = PZ_k - PZ_{k-1}    dZ_k = Z_k - Z_{k-1}
+    Q_k  = QZ_k if xz_on (D 11.1 = 1) else QW_k
+    dPW_k = R·PW_k                        (P element)
+    dI_k  = TI·XW_k                       (I element)
+    dD_k  = d·(TD·Q_k + dD_{k-1})         (D element and its memory, d = dd_decay; spec 2.6)
+    dY_k  = K·(dPW_k + dI_k + dD_k) + dZ_k        (dZ_k = 0 when no_z, D 11.5 = 1)
+
+    positioning (velocity = false, D 11.3 = 0):  Y_k = clamp(Y_{k-1} + dY_k, BGUG, BGOG) → DW 48
+    velocity    (velocity = true,  D 11.3 = 1):  DW 48 = clamp(dY_k, BGUG, BGOG)
+
+These are the four correction-rate variants of seed 002 (D 11.1 × D 11.5); with ``dd_decay``
+= 1 the D element is the literal printed law dD_k = TD·QW_k + dD_{k-1}. Z is not multiplied
+by K. XW = W - X with K > 0 raises the output when X falls (ISA "reverse" action; Siemens
+calls K > 0 "direct"); K < 0 inverts the action. XZ is differentiated as given: for a
+derivative on the measurement with the usual sign feed xz = -X.
+
+DW 48 is the integrator of the whole controller in positioning mode (spec 2.7): Auto continues
+from whatever it holds (bumpless Manual → Auto), ``y0`` presets it, REG_AUS clears it to 0.
+
+I-action at a limit (spec 2.8, realisation [A]): when the unclamped Y_k (velocity: dY_k) is
+above BGOG and the I element pushes up (K·dI_k > 0), dY_k is recomputed with dI_k = 0, then
+clamped; symmetrically at BGUG. The spec's suggested rule says "dI_k > 0"; it is read here as
+the I element's contribution to the output, K·dI_k, which is the same thing for K > 0 and the
+spec's stated intent ("the direction the I-element would push further") for K < 0. A
+consequence of this realisation, kept as the spec's default: when the I element alone would
+carry Y past the limit (P and D at rest), the increment is dropped whole and Y stops short of
+the limit (spec 2.8 test: 120, 140, 140, ... with BGOG = 150); ``i_suppression = "flag"`` lets
+Y reach the limit and then holds the I element there.
+
+Manual mode (``auto`` = MAN, D 11.0 = 0; spec 2.9): the algorithm is not computed, but the
+histories are kept current (XW_{k-1} and PW_{k-1}; XZ_{k-1} and PZ_{k-1} if xz_on; Z_{k-1} if
+not no_z) and dD_{k-1} is set to 0, so the return to Auto is bumpless. The output:
+
+    hold = false, positioning:  Y moves to YH: Y_k = Y_{k-1} + (YH - Y_{k-1})/2 for
+                                ``manual_steps`` samples after entering Manual, then Y_k = YH
+    hold = false, velocity:     DW 48 = dYH (the yh input)
+    hold = true,  positioning:  the last output is held
+    hold = true,  velocity:     DW 48 = 0
+
+BGOG/BGUG stay active in Manual.
+
+Controller off (``off`` = OFF, D 11.2 = 1; spec 2.10): DW 18..48 are cleared (the histories,
+dD, the X and Z words, the DW 48 accumulator, the limit flags) and the algorithm does not run;
+the output is 0. W, YH and the parameters survive. The first call after REG_AUS, like the first
+call after construction, starts from the cleared histories, so a step in XW gives P and D kicks
+(``first_call``).
+
+Outputs: ``y`` is DW 48; ``dy`` is the change of the output in this scan, Y_k - Y_{k-1}
+(positioning; also in Manual and when REG_AUS clears DW 48), or the increment DW 48 itself
+(velocity). The S5 has no status: no port carries one.
+
+Arithmetic
+----------
+``arithmetic = "native"`` (default) is 16-bit fixed point: every input is rounded to the
+nearest integer word (half away from zero) and limited to -32768..32767, as the user program
+writes integer words into the DB (an emulator interface choice, not a firmware point). Every
+coefficient product c·v is the integer word (coefficient × v)/scale rounded by ``rounding``;
+every intermediate (XW, PW, QW, PZ, QZ, dZ, the products, dD, the sums, dY, Y) is a 16-bit word,
+saturated or wrapped by ``overflow``. The ×0.001 of the manual is really ÷1024 (spec 2.2):
+k = 1000 is gain 0.9765625 with ``scale = "exact"`` (default) and 1.0 with ``"nominal"``.
+
+Rounding loses fractions of a count at every product, so native results differ from the
+spec's exact real-number values by about a count per step (spec 2.13), and a decaying D
+memory ends a count or two short: the law-A kick of the 2.13 D-element check settles at 101
+instead of 100, the ramp check at 18 instead of TD·r = 20.
+
+``arithmetic = "float"`` runs the same equations in double precision for engineering studies:
+no rounding and no word overflow in between; the inputs are still limited to the word range
+-32768..32767 (they are DB words), and ``scale`` applies as above.
+
+Options for the spec's [A]/[?] points
+-------------------------------------
+* ``rounding`` = ``"nearest_even"`` (default) | ``"nearest"`` | ``"floor"`` | ``"truncate"``:
+  how each fixed-point product is rounded to a word [?] (spec 2.13, open question 8.2).
+  ``floor`` is a plain arithmetic shift; ``nearest`` rounds halves away from zero. The default
+  is the one that keeps the spec's 2.13 example within its ±1 count per step (floor and
+  truncate lose up to 2 counts a step there) and lets the law-A memory decay to zero (with
+  ``nearest`` and ``floor``, dD sticks at -1 because ½·(-1) rounds to -1, and a positioning
+  controller then ramps by about a count per sample at zero error).
+* ``overflow`` = ``"saturate"`` (default) | ``"wrap"``: 16-bit intermediates in native mode
+  saturate at -32768/32767 [A] (spec 2.14), or wrap around as unchecked two's complement would.
+  The spec's "|K| ≤ 1500 with a D part" is a guard against exactly this overflow, not a check.
+* ``dd_decay`` = 0.5 (default, law A: a derivative kick that halves each sample, a ramp of slope
+  r gives TD·r) | 1.0 (the literal printed law: D acts as extra P of gain TD) | any value in
+  [0, 1] [?] (spec 2.6).
+* ``i_suppression`` = ``"recompute"`` (default: the unclamped result beyond a limit with the I
+  element pushing further is recomputed with dI = 0, then clamped [A], spec 2.8) | ``"flag"``
+  (dI = 0 while the previous scan's output was at that limit, as the CPU 928B's MERK flags,
+  spec 2.8/2.12) | ``"none"`` (clamp only).
+* ``manual_steps`` = 3 (default): the manual-mode exponential transition (spec 2.9, law [A]):
+  Y halves its distance to YH for this many samples after entering Manual, then equals YH;
+  0 jumps to YH at once.
+* ``first_call`` = ``"zero"`` (default: the histories start from the DB contents, all zero, so
+  the first PW and QW can kick [A], spec 2.10) | ``"inputs"`` (the first active scan, after
+  construction or after REG_AUS, takes XW_{k-1} = XW_k, Z_{k-1} = Z_k, XZ_{k-1} = XZ_k and
+  PW_{k-1} = PZ_{k-1} = 0: no kick).
+* ``bad_input`` = ``"hold"`` (default) | ``"last"``: a NaN or infinite value in an input the scan
+  uses (w and x always; z unless no_z; xz if xz_on; yh in Manual with hold = false) [A]. The S5
+  has no status (spec 7), so this is the emulator's choice. ``hold`` skips the scan: the
+  histories, dD and DW 48 are kept, positioning holds the output and velocity outputs a zero
+  increment (the actuator stays). ``last`` runs the scan with the last finite value of that
+  input, as the DB word would keep it when the user program writes nothing new.
+
+Quirks reproduced (spec 2.14)
+-----------------------------
+TI and TD are dimensionless per-sample coefficients, not times; ×0.001 is ÷1024; K < 0 inverts
+the action and K multiplies P, I and D but R only P; Z bypasses K; DW 48 is the integrator
+(positioning) or the increment (velocity); limits bound the increment in velocity mode; the
+first call after the DB is created or after REG_AUS kicks; large |K| with a D part overflows.
+The high byte DL 11 is internal to the firmware and is not modelled. The CPU 928B OB 250/251
+(float DB, trapezoidal I, BUMP bit) is a different block and is not emulated (spec 2.12).
+
+Worked example
+--------------
+The spec 2.13 PI step (K = R = 1000, TI = 100, nominal scaling, W steps 0 → 100 with X = 0)::
+
+    import loopworks
+
+    pid = loopworks.create_block("s5.pid", k=1000, r=1000, ti=100, scale="nominal")
+    for _ in range(5):
+        print(pid.step(1.0, w=100.0, x=0.0)["y"].value)  # 110, 120, 130, 140, 150
+
+The same through ``loopworks replay s5.pid step.csv -p k=1000 -p ti=100 -p scale=nominal``
+with ``step.csv``::
+
+    t,w,x,auto,off
+    0,100,0,1,0
+    1,100,0,1,0
+    2,100,0,1,0
+    3,100,0,0,0
+    4,100,0,1,0
+
+(rows 0-2 give y = 110, 120, 130; row 3 is Manual with yh = 0: y halves to 65; row 4 is Auto
+again and continues from DW 48: 75).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.primitives import clamp, finite
+from loopworks.blocks.registry import register
+from loopworks.errors import ParameterError
+
+WORD_MIN = -32768.0
+WORD_MAX = 32767.0
+
+# Coefficient layout (p)
+(K, R, TI, TD, BGOG, BGUG, Y0, SCALE, NATIVE, ROUNDING, WRAP, DD_DECAY, ISUP, MANUAL_STEPS,
+ FIRST_INPUTS, BAD_LAST, XZ_ON, VELOCITY, HOLD, NO_Z) = range(20)
+ROUND_NEAREST_EVEN, ROUND_NEAREST, ROUND_FLOOR, ROUND_TRUNCATE = 0.0, 1.0, 2.0, 3.0
+ISUP_RECOMPUTE, ISUP_FLAG, ISUP_NONE = 0.0, 1.0, 2.0
+# Inputs (u)
+W, X, Z, XZ, YH, AUTO, OFF = range(7)
+# Outputs (y)
+OUT_Y, OUT_DY = range(2)
+# State (x): DW 48, the history words, the last input words, flags
+(S_DW48, S_XW1, S_PW1, S_DD1, S_Z1, S_XZ1, S_PZ1, S_W, S_X, S_YH, S_MAN_N, S_LIM,
+ S_FIRST) = range(13)
+
+_ROUNDINGS = ("nearest_even", "nearest", "floor", "truncate")
+_ISUPS = ("recompute", "flag", "none")
+
+
+@primitive
+def s5_round(q: float, mode: float) -> float:
+    """q rounded to an integer: half to even, half away from zero, floor or toward zero."""
+    f = float(math.floor(q))
+    if mode == ROUND_FLOOR:
+        return f
+    if mode == ROUND_TRUNCATE:
+        return f if q >= 0.0 else float(math.ceil(q))
+    rest = q - f
+    if rest > 0.5:
+        return f + 1.0
+    if rest < 0.5:
+        return f
+    if mode == ROUND_NEAREST:
+        return f + 1.0 if q > 0.0 else f
+    return f if math.floor(f * 0.5) * 2.0 == f else f + 1.0
+
+
+@primitive
+def s5_word(v: float, native: bool, wrap: bool) -> float:
+    """A 16-bit intermediate: saturated to -32768..32767 or wrapped (native); float: v."""
+    if not native:
+        return v
+    if wrap:
+        return v - 65536.0 * float(math.floor((v + 32768.0) / 65536.0))
+    return clamp(v, WORD_MIN, WORD_MAX)
+
+
+@primitive
+def s5_mul(c: float, v: float, scale: float, native: bool, mode: float, wrap: bool) -> float:
+    """The fixed-point product c·v/scale (scale 1024 or 1000), rounded to a word (native)."""
+    q = c * v / scale
+    if not native:
+        return q
+    return s5_word(s5_round(q, mode), True, wrap)
+
+
+@primitive
+def s5_input(v: float, native: bool) -> float:
+    """A finite input as the DB word holds it: limited to the word range, rounded (native)."""
+    v = clamp(v, WORD_MIN, WORD_MAX)
+    if native:
+        return s5_round(v, ROUND_NEAREST)
+    return v
+
+
+def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                  y: FloatArray, ys: IntArray) -> None:
+    """One OB 251 call (equations in the module docstring). ``dt`` is not used: no clock."""
+    native = p[NATIVE] != 0.0
+    wrap = p[WRAP] != 0.0
+    mode = p[ROUNDING]
+    scale = p[SCALE]
+    hi = p[BGOG]
+    lo = p[BGUG]
+    velocity = p[VELOCITY] != 0.0
+    xz_on = p[XZ_ON] != 0.0
+    use_z = p[NO_Z] == 0.0
+    y_prev = x[S_DW48]
+    if u[OFF] > 0.5:  # REG_AUS: clear DW 18..48 and do not compute (spec 2.3, 2.10)
+        for i in (S_DW48, S_XW1, S_PW1, S_DD1, S_Z1, S_XZ1, S_PZ1, S_X, S_MAN_N, S_LIM):
+            x[i] = 0.0
+        x[S_FIRST] = 1.0
+        y[OUT_Y] = 0.0
+        y[OUT_DY] = 0.0 if velocity else -y_prev
+        return
+    auto = u[AUTO] > 0.5
+    manual_follow = not auto and p[HOLD] == 0.0
+    last = p[BAD_LAST] != 0.0
+    # inputs: a non-finite value takes the DB word's last content; the scan is bad when it is
+    # one the scan uses and bad_input = hold
+    bad = False
+    w = u[W]
+    if not finite(w):
+        w = x[S_W]
+        bad = True
+    xv = u[X]
+    if not finite(xv):
+        xv = x[S_X]
+        bad = True
+    z = u[Z]
+    if not finite(z):
+        z = x[S_Z1]
+        bad = bad or use_z
+    xz = u[XZ]
+    if not finite(xz):
+        xz = x[S_XZ1]
+        bad = bad or xz_on
+    yh = u[YH]
+    if not finite(yh):
+        yh = x[S_YH]
+        bad = bad or manual_follow
+    if bad and not last:  # bad_input = hold: skip the scan, keep every history
+        if velocity:
+            x[S_DW48] = 0.0
+            y[OUT_Y] = 0.0
+            y[OUT_DY] = 0.0
+        else:
+            y[OUT_Y] = y_prev
+            y[OUT_DY] = 0.0
+        return
+    w = s5_input(w, native)
+    xv = s5_input(xv, native)
+    z = s5_input(z, native)
+    xz = s5_input(xz, native)
+    yh = s5_input(yh, native)
+    x[S_W] = w
+    x[S_X] = xv
+    x[S_YH] = yh
+    xw = s5_word(w - xv, native, wrap)
+    if x[S_FIRST] != 0.0 and p[FIRST_INPUTS] != 0.0:  # first_call = inputs: no kick
+        x[S_XW1] = xw
+        x[S_PW1] = 0.0
+        x[S_XZ1] = xz
+        x[S_PZ1] = 0.0
+        x[S_Z1] = z
+        x[S_DD1] = 0.0
+    x[S_FIRST] = 0.0
+    pw = s5_word(xw - x[S_XW1], native, wrap)
+    q = s5_word(pw - x[S_PW1], native, wrap)  # QW
+    pz = 0.0
+    if xz_on:
+        pz = s5_word(xz - x[S_XZ1], native, wrap)
+        q = s5_word(pz - x[S_PZ1], native, wrap)  # QZ
+    dz = 0.0
+    if use_z:
+        dz = s5_word(z - x[S_Z1], native, wrap)
+    base = 0.0 if velocity else y_prev
+    if auto:
+        dpw = s5_mul(p[R], pw, scale, native, mode, wrap)
+        di = s5_mul(p[TI], xw, scale, native, mode, wrap)
+        tq = s5_mul(p[TD], q, scale, native, mode, wrap)
+        dd = s5_mul(p[DD_DECAY], s5_word(tq + x[S_DD1], native, wrap), 1.0, native, mode, wrap)
+        total = s5_word(s5_word(dpw + di, native, wrap) + dd, native, wrap)
+        dy = s5_word(s5_mul(p[K], total, scale, native, mode, wrap) + dz, native, wrap)
+        v = s5_word(base + dy, native, wrap)
+        push = p[K] * di  # the direction the I element moves the output
+        isup = p[ISUP]
+        suppress = False
+        if isup == ISUP_RECOMPUTE:
+            suppress = (v > hi and push > 0.0) or (v < lo and push < 0.0)
+        elif isup == ISUP_FLAG:
+            suppress = (x[S_LIM] > 0.0 and push > 0.0) or (x[S_LIM] < 0.0 and push < 0.0)
+        if suppress:  # spec 2.8: recompute with dI = 0
+            total = s5_word(s5_word(dpw, native, wrap) + dd, native, wrap)
+            dy = s5_word(s5_mul(p[K], total, scale, native, mode, wrap) + dz, native, wrap)
+            v = s5_word(base + dy, native, wrap)
+        x[S_DD1] = dd
+        x[S_MAN_N] = 0.0
+    else:  # Manual (spec 2.9): no algorithm; dD_{k-1} = 0
+        if velocity:
+            v = 0.0 if p[HOLD] != 0.0 else yh
+        elif p[HOLD] != 0.0:
+            v = y_prev
+        elif x[S_MAN_N] < p[MANUAL_STEPS]:
+            gap = s5_word(yh - y_prev, native, wrap)
+            v = s5_word(y_prev + s5_mul(0.5, gap, 1.0, native, mode, wrap), native, wrap)
+            x[S_MAN_N] = x[S_MAN_N] + 1.0
+        else:
+            v = yh
+        x[S_DD1] = 0.0
+    held = not auto and not velocity and p[HOLD] != 0.0  # the held DW 48 is not rewritten
+    out = v if held else clamp(v, lo, hi)
+    x[S_LIM] = 1.0 if v >= hi else (-1.0 if v <= lo else 0.0)
+    x[S_XW1] = xw
+    x[S_PW1] = pw
+    if xz_on:
+        x[S_XZ1] = xz
+        x[S_PZ1] = pz
+    if use_z:
+        x[S_Z1] = z
+    x[S_DW48] = out
+    y[OUT_Y] = out
+    y[OUT_DY] = out if velocity else out - y_prev
+
+
+def _word_param(name: str, default: int, meaning: str, lo: float = WORD_MIN,
+                hi: float = WORD_MAX, unit: str = "×0.001") -> Param:
+    return Param(name, default, unit, meaning, "int", lo=lo, hi=hi, lo_open=False,
+                 hi_open=False)
+
+
+@register
+class S5PID(Block):
+    """Siemens SIMATIC S5 OB 251 PID (16-bit fixed point, velocity/positioning, DB words)."""
+
+    kind = "s5.pid"
+    summary = ("Siemens S5 OB 251 integrated PID: DB words, ÷1024 fixed point, "
+               "positioning (DW 48 sum) or velocity algorithm")
+    kernel = staticmethod(s5_pid_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        _word_param("k", 1000, "proportional coefficient K (DW 1): gain = k/1024 (scale exact) "
+                    "or k/1000 (nominal); k < 0 inverts the action; |k| ≤ 1500 is safe with a "
+                    "D part, beyond it products can overflow (spec 2.2)"),
+        _word_param("r", 1000, "weight R of the P element (DW 3), scaled as k; 0 = pure I/ID "
+                    "(spec 2.2, 2.5)"),
+        _word_param("ti", 0, "integral coefficient TI = TA/TN per sample (DW 5), scaled as k; 0 = "
+                    "no I (spec 2.2, 2.5)", lo=0.0, hi=9999.0),
+        _word_param("td", 0, "derivative coefficient TD = TV/TA per sample (DW 7), scaled as k; "
+                    "range not documented [?], negative values refused (spec 2.2, 2.6)",
+                    lo=0.0),
+        _word_param("bgog", 32767, "upper limit BGOG (DW 14) of Y (positioning) or of the "
+                    "increment dY (velocity) (spec 2.8)", unit="count"),
+        _word_param("bgug", -32768, "lower limit BGUG (DW 16), ≤ bgog (spec 2.8)",
+                    unit="count"),
+        Param("xz_on", False, "", "D 11.1 XZ_EIN: the differentiator takes xz (DW 29) instead "
+              "of XW (spec 2.3, 2.5)", "bool"),
+        Param("velocity", False, "", "D 11.3 GESCHW: velocity algorithm, y = increment dY; "
+              "false = positioning, y = running sum in DW 48 (spec 2.3, 2.7)", "bool"),
+        Param("hold", False, "", "D 11.4 HANDART: Manual holds the output (positioning) or "
+              "gives dY = 0 (velocity); false = Manual follows yh (spec 2.3, 2.9)", "bool"),
+        Param("no_z", False, "", "D 11.5 NO_Z: no feedforward; false = dZ = Z_k - Z_{k-1} is "
+              "added to dY, not multiplied by K (spec 2.3, 2.5)", "bool"),
+        _word_param("y0", 0, "initial content of DW 48: presets the output in positioning "
+                    "mode (spec 2.7)", unit="count"),
+        Param("arithmetic", "native", "", "native: 16-bit fixed point words; float: the same "
+              "equations in floating point (spec 2.2)", "choice", choices=("native", "float")),
+        Param("scale", "exact", "", "coefficient scaling: exact ÷1024 (the firmware) or "
+              "nominal ÷1000 (the manual's ×0.001) (spec 2.2)", "choice",
+              choices=("exact", "nominal")),
+        Param("rounding", "nearest_even", "", "[?] rounding of each fixed-point product in "
+              "native mode (spec 2.13)", "choice", choices=_ROUNDINGS),
+        Param("overflow", "saturate", "", "[A] 16-bit intermediates in native mode saturate "
+              "or wrap (spec 2.14)", "choice", choices=("saturate", "wrap")),
+        Param("dd_decay", 0.5, "", "[?] factor d of the D memory dD_k = d·(TD·Q_k + dD_{k-1}): "
+              "0.5 = law A, 1.0 = the literal printed law (spec 2.6)", lo=0.0, hi=1.0,
+              lo_open=False, hi_open=False),
+        Param("i_suppression", "recompute", "", "[A] I-action at a limit: recompute without "
+              "dI, the previous scan's limit flag (CPU 928B style), or none (spec 2.8)",
+              "choice", choices=_ISUPS),
+        Param("manual_steps", 3, "samples", "[A] Manual transition: Y halves its distance to "
+              "YH for this many samples, then equals YH (spec 2.9)", "int", lo=0.0, hi=1000.0,
+              lo_open=False, hi_open=False),
+        Param("first_call", "zero", "", "[A] first call histories: zero (the DB contents; "
+              "kicks possible) or inputs (no kick) (spec 2.10)", "choice",
+              choices=("zero", "inputs")),
+        Param("bad_input", "hold", "", "[A] a NaN/inf input the scan uses: hold (skip the "
+              "scan) or last (use the last finite value, as the DB word keeps it) (spec 7: "
+              "the S5 has no status)", "choice", choices=("hold", "last")),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("w", 0.0, "count", "setpoint W (DW 9)"),
+        Port("x", 0.0, "count", "actual value X (DW 22)"),
+        Port("z", 0.0, "count", "disturbance Z (DW 24), used unless no_z"),
+        Port("xz", 0.0, "count", "derivative input XZ (DW 29), used if xz_on"),
+        Port("yh", 0.0, "count", "manual value YH (positioning) or manual increment dYH "
+             "(velocity) (DW 12)"),
+        Port("auto", 1.0, "", "D 11.0: AUTO (1) automatic, MAN (0) manual (spec 2.9)",
+             choices=("MAN", "AUTO")),
+        Port("off", 0.0, "", "D 11.2 REG_AUS: OFF (1) clears DW 18..48 and suspends the "
+             "block, ACTIVE (0) runs it (spec 2.10)", choices=("ACTIVE", "OFF")),
+    )
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("y", 0.0, "count", "DW 48: the position Y_k (positioning) or the increment dY_k "
+             "(velocity)"),
+        Port("dy", 0.0, "count", "change of the output this scan: Y_k - Y_{k-1} "
+             "(positioning) or dY_k (velocity)"),
+    )
+    STATES: ClassVar[tuple[str, ...]] = (
+        "dw48", "xw1", "pw1", "dd1", "z1", "xz1", "pz1", "w", "x", "yh", "manual_n", "limit",
+        "first")
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        if prm["bgug"] > prm["bgog"]:
+            raise ParameterError(
+                f"s5.pid: parameter 'bgug' = {prm['bgug']} is out of range: allowed "
+                f"[-32768, {prm['bgog']}] (at most bgog)")
+        c = [0.0] * 20
+        c[K], c[R], c[TI], c[TD] = (float(prm[n]) for n in ("k", "r", "ti", "td"))
+        c[BGOG], c[BGUG], c[Y0] = float(prm["bgog"]), float(prm["bgug"]), float(prm["y0"])
+        c[SCALE] = 1024.0 if prm["scale"] == "exact" else 1000.0
+        c[NATIVE] = 1.0 if prm["arithmetic"] == "native" else 0.0
+        c[ROUNDING] = float(_ROUNDINGS.index(prm["rounding"]))
+        c[WRAP] = 1.0 if prm["overflow"] == "wrap" else 0.0
+        c[DD_DECAY] = float(prm["dd_decay"])
+        c[ISUP] = float(_ISUPS.index(prm["i_suppression"]))
+        c[MANUAL_STEPS] = float(prm["manual_steps"])
+        c[FIRST_INPUTS] = 1.0 if prm["first_call"] == "inputs" else 0.0
+        c[BAD_LAST] = 1.0 if prm["bad_input"] == "last" else 0.0
+        for index, flag in ((XZ_ON, "xz_on"), (VELOCITY, "velocity"), (HOLD, "hold"),
+                            (NO_Z, "no_z")):
+            c[index] = 1.0 if prm[flag] else 0.0
+        return c
+
+    def initial_state(self) -> list[float]:
+        x = [0.0] * len(self.STATES)
+        x[S_DW48] = self.p[Y0]
+        x[S_FIRST] = 1.0
+        return x
