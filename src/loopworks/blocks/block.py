@@ -252,6 +252,15 @@ class Block:
         self._all_good = bool((self.us == st.GOOD_NC).all())
 
     @classmethod
+    def split_table(cls, table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Split a scenario block table (lower-case keys, no ``kind``) into parameters and
+        constants for unwired inputs. Blocks whose ports depend on their parameters override
+        this."""
+        inputs = {p.name for p in cls.INPUTS}
+        return ({k: v for k, v in table.items() if k not in inputs},
+                {k: v for k, v in table.items() if k in inputs})
+
+    @classmethod
     def describe(cls) -> str:
         """A short description for ``loopworks blocks``."""
         return cls.summary or (cls.__doc__ or "").strip().splitlines()[0]

@@ -15,7 +15,7 @@ from typing import Any, Literal
 from loopworks.errors import ParameterError
 
 ParamValue = float | int | bool | str | None
-ParamType = Literal["float", "int", "bool", "choice"]
+ParamType = Literal["float", "int", "bool", "choice", "text"]
 
 
 def _fmt(x: float) -> str:
@@ -49,6 +49,8 @@ class Param:
         """The allowed values, e.g. ``(0, inf]`` or ``one of ideal, parallel, series``."""
         if self.type == "choice":
             return "one of " + ", ".join(self.choices)
+        if self.type == "text":
+            return "text"
         if self.type == "bool":
             return "true or false"
         if self.lo == -math.inf and self.hi == math.inf and self.lo_open and self.hi_open:
@@ -72,6 +74,10 @@ class Param:
             return text
         if self.type == "bool":
             return _to_bool(value, self.name, where)
+        if self.type == "text":
+            if not isinstance(value, str):
+                raise ParameterError(f"{where}parameter '{self.name}' = {value!r} must be text")
+            return value
         x = _to_float(value, self.name, where)
         if self.type == "int" and x != int(x):
             raise ParameterError(

@@ -110,10 +110,8 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
             cls = block_class(str(kind))
         except LoopworksError as exc:
             raise FileFormatError(f"{where}: {exc}") from None
-        inputs = {p.name for p in cls.INPUTS}
-        params = {k: v for k, v in table.items() if k not in inputs}
-        constants[name] = {k: v for k, v in table.items() if k in inputs}
         try:
+            params, constants[name] = cls.split_table(table)
             blocks[name] = cls(**params)
         except LoopworksError as exc:
             raise FileFormatError(f"{where}: {exc}") from None
