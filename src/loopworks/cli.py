@@ -81,13 +81,14 @@ def simulate(
                 bar.update(task, completed=done, total=total)
 
             result = sc.module.run(sc.duration, sc.dt, progress=tick)
+    # a controller, by the port convention: inputs sp and pv, output out
     controllers = [n for n, b in sc.module.blocks.items()
-                   if {"sp", "pv"} <= set(b._in_index) and b.OUTPUTS]
+                   if {"sp", "pv"} <= set(b._in_index) and "out" in b._out_index]
     table = Table(title=f"{title}: {sc.duration:g} s in scans of {sc.dt:g} s")
     table.add_column("metric")
     rows: dict[str, list[str]] = {}
     for name in controllers:
-        out = sc.module.blocks[name].OUTPUTS[0].name
+        out = "out"
         table.add_column(f"{name} ({sc.module.blocks[name].kind})", justify="right")
         m = loop_metrics(result.t, result[f"{name}.sp"], result[f"{name}.pv"],
                          result[f"{name}.{out}"])

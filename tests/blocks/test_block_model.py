@@ -14,6 +14,22 @@ from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import compiled
 from loopworks.errors import InputError, ParameterError, UnknownKindError
 
+# Every operator of the CALC subset; A, B, C are random inputs (deltav.calc variants).
+CALC_TEXT = """(* every operator of the subset; A, B, C are random inputs *)
+'^/R' := '^/A' / '^/B';
+'^/Q' := - '^/A' / ('^/B' - '^/B') + 1;
+IF NOT ('^/A' > 50) OR '^/B' != 3 AND '^/C' <> 0 THEN
+  '^/N' := '^/N' + 1;
+ELSIF '^/A' <= '^/B' THEN
+  '^/N' := - '^/N';
+ELSE
+  '^/N' := 0
+END_IF;
+'^/R.ST' := '^/A.ST' + '^/R';
+'^/S.ST' := '^/R.ST' - 1;
+'^/S' := ('^/A' >= '^/B') AND ('^/C' < 100) OR FALSE;
+"""
+
 # Parameter sets that exercise the branches of each kind's kernel.
 VARIANTS: dict[str, list[dict[str, object]]] = {
     "pid": [
@@ -64,6 +80,33 @@ VARIANTS: dict[str, list[dict[str, object]]] = {
          "xz_on": True, "bgog": 60, "bgug": 0, "y0": 80, "i_suppression": "none"},
         {"k": 1000, "ti": 200, "velocity": True, "hold": True, "arithmetic": "float",
          "rounding": "truncate", "dd_decay": 0.3, "bad_input": "last", "manual_steps": 5},
+    ],
+    "deltav.stick_slip": [
+        {},
+        {"resolution": 0.5, "deadband": 0.2},
+        {"resolution": 0.5, "deadband": 0.2, "precision": "float64",
+         "deferred_param_reads": True, "dither_half_period": 3, "upper_band_factor": 1.0,
+         "lower_band_factor": 0.5},
+        {"resolution": 2.0, "deadband": 1.0, "kick_start": 1.0, "cntrl_action": 1.0,
+         "valve_action": -1.0, "process_gain": 20.0, "noise_factor": 0.5,
+         "dither_factor": 3.0, "kicker_factor": 0.25},
+        {"resolution": 1e38, "deadband": 3e38, "process_gain": 1e30, "dither_half_period": 2,
+         "deferred_param_reads": True},
+    ],
+    "deltav.calc": [
+        {},
+        {"resolution": 0.5, "deadband": 0.2, "kick_start": 1.0, "process_gain": 0.01},
+        {"resolution": 0.5, "deadband": 0.2, "precision": "float64",
+         "deferred_param_reads": True, "cntrl_action": 1.0},
+        {"expression": CALC_TEXT, "a": 0.0, "b": 0.0, "c": 0.0},
+        {"expression": CALC_TEXT, "a": 0.0, "b": 0.0, "c": 0.0, "n": 1e30,
+         "divide_by_zero": "ieee", "precision": "float64", "deferred_param_reads": True},
+    ],
+    "deltav.sggn": [
+        {},
+        {"waveform": "sine", "amplitude": 2.5, "period": 0.7, "bias": 50.0, "phase": 30.0},
+        {"waveform": "triangle", "amplitude": -1.0, "period": 3.3, "phase": 270.0},
+        {"waveform": "square", "amplitude": 0.3, "period": 0.05, "phase": 180.0},
     ],
     "e2.pid": [
         {},

@@ -87,6 +87,10 @@ class Block:
     INPUTS: ClassVar[tuple[Port, ...]] = ()
     OUTPUTS: ClassVar[tuple[Port, ...]] = ()
     STATES: ClassVar[tuple[str, ...]] = ()
+    #: False for kinds whose array sizes vary per instance (``deltav.calc``): the compiled
+    #: single-step wrapper is specialised to the sizes, so such kinds step through the kernel's
+    #: standard entry point instead of compiling a wrapper per instance.
+    FIXED_LAYOUT: ClassVar[bool] = True
 
     @staticmethod
     def kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
@@ -118,8 +122,10 @@ class Block:
         self.ys: IntArray = self._S[n_u:]
         kernel = type(self).kernel
         self._run: Kernel = entry_point(kernel) if self.jit else kernel
-        self._packed: Any = (packed_entry(kernel, n_p, n_x, n_u, n_y) if self.jit
-                             else self._packed_interpreted)
+        if self.jit and self.FIXED_LAYOUT:
+            self._packed: Any = packed_entry(kernel, n_p, n_x, n_u, n_y)
+        else:  # interpreted, or a layout that varies per instance: through the 7-array entry
+            self._packed = self._packed_interpreted
         # memoryviews on the same buffers: item access from Python is several times cheaper
         self._um: Any = memoryview(cast(Any, self.u))
         self._usm: Any = memoryview(cast(Any, self.us))
@@ -140,7 +146,7 @@ class Block:
 
     # -- the block API ------------------------------------------------------------------------
     def _packed_interpreted(self, dt: float, F: FloatArray, S: IntArray) -> None:
-        type(self).kernel(dt, self.p, self.x, self.u, self.us, self.y, self.ys)
+        self._run(dt, self.p, self.x, self.u, self.us, self.y, self.ys)
 
     def reset(self) -> None:
         """Return to the state right after construction (inputs to their defaults)."""

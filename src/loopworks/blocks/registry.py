@@ -18,6 +18,10 @@ BLOCK_MODULES: tuple[str, ...] = (
     "loopworks.vendors.ge_pacsystems",
     "loopworks.vendors.siemens_s5",
     "loopworks.vendors.emerson_e2",
+    "loopworks.vendors.deltav.pid",
+    "loopworks.vendors.deltav.stick_slip",
+    "loopworks.vendors.deltav.sggn",
+    "loopworks.vendors.deltav.calc",
 )
 
 _REGISTRY: dict[str, type[Block]] = {}

@@ -1,0 +1,200 @@
+r"""The DeltaV signal generator (SGGN) as the compensator's dither source: kind ``deltav.sggn``.
+
+In seed 000 the stick-slip compensator module holds an SGGN block, SGGN1, executed as #3
+just before the CALC block (#4) whose expression reads DITHER_OUT. The SGGN1 configuration is
+not in any retrieved source (spec vendor-blocks 6.5, 8 item 5); the spec's most plausible
+reading [A] is a square wave of amplitude DITHER_AMP, zero bias, a fixed period, starting with
++, its output wired to DITHER_OUT. This block is that generator, with sine and triangle as
+alternatives.
+
+Equations
+---------
+
+The block keeps its position in the cycle, c (cycles, 0 <= c < 1). At the first scan c = 0;
+each later scan advances it by the scan time and wraps it::
+
+    c_k = frac(c_{k-1} + dt_k / period)          (c_0 = 0)
+    s_k = frac(c_k + phase / 360)                (phase in degrees)
+
+so c_k is the elapsed time (t_k - t_0)/period modulo 1, and the output of scan k is
+
+    square    out = bias + A·(+1 if s < 1/2 else -1)
+    sine      out = bias + A·sin(2π·s)
+    triangle  out = bias + A·(4s for s <= 1/4; 2 - 4s for 1/4 < s <= 3/4; 4s - 4 above)
+
+with A = the ``amplitude`` input when it is not NaN, else the ``amplitude`` parameter. All three
+start (phase 0) at the beginning of the positive half-wave: the square wave at +A, the sine and
+the triangle at 0 rising. The square wave is the sign of the sine.
+
+Wrapping uses a tolerance of 1e-9 cycles, so that binary rounding of dt/period does not move a
+scan across an edge it sits on: a position within 1e-9 of a whole cycle is taken as 0 (the
+cycle start, kept exactly), and the square wave takes a position within 1e-9 of 1/2 as the
+start of the negative half. Hence a square wave with ``period`` = 2·dt alternates every scan,
++A, -A, +A, ... (dt = 1 s, 0.1 s or any other), and ``period`` = 2·N·dt alternates every N
+scans: the internal dither of ``deltav.stick_slip`` with ``dither_half_period`` = N.
+
+The ``amplitude`` input lets a module drive the amplitude from another block, as the seed's
+compensator does (spec 6.5 [A])::
+
+    "sggn1.amplitude"  = "comp.dither_amp"     (SGGN1 runs first: last scan's DITHER_AMP)
+    "comp.dither_out"  = "sggn1.out"
+
+Because SGGN1 runs before the compensator in each scan, it reads the DITHER_AMP the
+compensator wrote in the previous scan: a one-scan lag (spec 6.1, 6.5 [D]). A negative
+amplitude inverts the wave; a NaN input selects the parameter; other values (inf included)
+are used as given (inf·0 is NaN, as in IEEE arithmetic). In a scenario table, ``amplitude``
+is the parameter (the input is reached by a wire).
+
+``out`` is Good non-cascade (128). The scan time dt enters only through c; ``period``
+is in seconds. A scan longer than 1e15 periods (where the position within the cycle is lost
+in rounding) restarts the cycle at 0.
+
+Options for the spec's [A]/[?] points
+-------------------------------------
+
+Each is a parameter; the default is the spec's choice (spec 6.5 [A], the SGGN1 configuration is
+unknown, spec 8 item 5).
+
+* ``waveform`` = ``square`` (spec 6.5 [A]); ``sine`` and ``triangle`` are the spec's
+  alternatives.
+* ``period`` = 2 s: with the usual 1 s module scan the square wave alternates every scan
+  (spec 6.5 [A]: half-period 1 scan). The true period is unknown ([?]; RESET_TIME may set it,
+  spec 6.5).
+* ``bias`` = 0 (spec 6.5 [A]: zero bias).
+* ``phase`` = 0°: the wave starts with + (spec 6.5 [A]); 180° starts with -.
+* ``amplitude`` input: NaN = the ``amplitude`` parameter; wire DITHER_AMP to it for the
+  spec's reading (spec 6.5 [A]).
+
+Example
+-------
+
+Python::
+
+    import loopworks
+    gen = loopworks.create_block("deltav.sggn", amplitude=0.3, period=2.0)
+    print([gen.step(1.0)["out"].value for _ in range(4)])    # [0.3, -0.3, 0.3, -0.3]
+
+The seed's module (SGGN1 first, then the compensator)::
+
+    from loopworks import Module, create_block
+    m = Module({"sggn1": create_block("deltav.sggn", period=2.0),
+                "comp": create_block("deltav.stick_slip", resolution=0.5, deadband=0.2)},
+               wires={"sggn1.amplitude": "comp.dither_amp", "comp.dither_out": "sggn1.out"},
+               inputs={"comp": {"signal_in": 40.0, "sp": 50.0, "pv": 50.0, "comp_start": 1.0}})
+    r = m.run(4.0, 1.0)
+    print(r.values["sggn1.out"])   # 0, -0.3, 0.3, -0.3 (float32 0.30000001): one-scan lag
+
+Replay (``loopworks replay deltav.sggn gen.csv -p waveform=triangle -p period=4``), with
+``gen.csv``::
+
+    t,amplitude
+    0,2
+    1,2
+    2,nan
+    3,nan
+
+gives ``out`` 0, 2, 0, -1 (the last two scans use the parameter, amplitude 1).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.registry import register
+from loopworks.blocks.status import GOOD_NC
+
+# Coefficient layout (p)
+WAVEFORM, AMPLITUDE, PERIOD, BIAS, PHASE = range(5)
+SQUARE, SINE, TRIANGLE = 0.0, 1.0, 2.0
+# Inputs (u, us)
+AMPLITUDE_IN = 0
+# Outputs (y, ys)
+OUT = 0
+# State (x)
+S_CYCLE, S_STARTED = range(2)
+
+EDGE_TOLERANCE = 1e-9  # cycles: positions this close to an edge are on it
+MAX_CYCLES = 1e15  # beyond this many cycles in one scan the position within a cycle is lost
+
+
+def sggn_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                y: FloatArray, ys: IntArray) -> None:
+    """One scan of the signal generator (equations in the module docstring)."""
+    if x[S_STARTED] == 0.0:
+        x[S_STARTED] = 1.0
+        cycle = 0.0
+    else:
+        cycle = float(x[S_CYCLE]) + dt / float(p[PERIOD])
+        if not cycle < MAX_CYCLES:  # dt/period beyond float resolution (or NaN): restart
+            cycle = 0.0
+        cycle = cycle - math.floor(cycle + EDGE_TOLERANCE)
+        if cycle < EDGE_TOLERANCE:  # within the tolerance of a whole cycle: the cycle start
+            cycle = 0.0
+    x[S_CYCLE] = cycle
+    s = cycle + p[PHASE]
+    s = s - math.floor(s + EDGE_TOLERANCE)
+    if s < 0.0:
+        s = 0.0
+    amplitude = float(u[AMPLITUDE_IN])
+    if math.isnan(amplitude):
+        amplitude = float(p[AMPLITUDE])
+    shape = p[WAVEFORM]
+    if shape == SQUARE:
+        wave = 1.0 if s < 0.5 - EDGE_TOLERANCE else -1.0
+    elif shape == SINE:
+        wave = math.sin(2.0 * math.pi * s)
+    elif s <= 0.25:
+        wave = 4.0 * s
+    elif s <= 0.75:
+        wave = 2.0 - 4.0 * s
+    else:
+        wave = 4.0 * s - 4.0
+    y[OUT] = float(p[BIAS]) + amplitude * wave
+    ys[OUT] = GOOD_NC
+
+
+@register
+class SGGN(Block):
+    """DeltaV signal generator: square, sine or triangle wave; the compensator's dither."""
+
+    kind = "deltav.sggn"
+    summary = ("DeltaV signal generator (square/sine/triangle; amplitude, period, bias), the "
+               "stick-slip compensator's dither source SGGN1")
+    kernel = staticmethod(sggn_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("waveform", "square", "", "wave shape; square is the dither of the seed's "
+              "reading [A] (spec 6.5)", "choice", choices=("square", "sine", "triangle")),
+        Param("amplitude", 1.0, "out",
+              "peak amplitude A (the amplitude input overrides it when not NaN) (spec 6.5)"),
+        Param("period", 2.0, "s",
+              "period; 2·dt alternates the square wave every scan [A] (spec 6.5)", lo=0.0),
+        Param("bias", 0.0, "out", "offset added to the wave; 0 [A] (spec 6.5)"),
+        Param("phase", 0.0, "deg", "phase advance; 0 starts with + [A] (spec 6.5)",
+              lo=0.0, hi=360.0, lo_open=False),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("amplitude", math.nan, "out",
+             "amplitude, e.g. wired from the compensator's dither_amp; NaN = the parameter "
+             "(spec 6.5)"),
+    )
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("out", 0.0, "out", "bias + amplitude·wave (spec 6.5: DITHER_OUT)", status=True),
+    )
+    STATES: ClassVar[tuple[str, ...]] = ("cycle", "started")
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        shape = {"square": SQUARE, "sine": SINE, "triangle": TRIANGLE}[prm["waveform"]]
+        return [shape, float(prm["amplitude"]), float(prm["period"]), float(prm["bias"]),
+                float(prm["phase"]) / 360.0]
+
+    @classmethod
+    def split_table(cls, table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:
+        """In a scenario table ``amplitude`` is the parameter; the input is for wires."""
+        return dict(table), {}

@@ -1,0 +1,393 @@
+r"""The DeltaV stick-slip compensator of seed 000 (dither + kicker): kind ``deltav.stick_slip``.
+
+In the seed, a DeltaV module holds the compensator: a CALC block (COMPENSATOR, execution #4)
+runs a 28-line expression on module parameters, and a signal generator (SGGN1, execution #3)
+supplies the dither waveform DITHER_OUT. The compensator sits between the PID output and the AO:
+``signal_in`` is the PID OUT (%), ``signal_out`` goes to the AO CAS_IN (%). It adds a *dither*
+(a small alternating signal that keeps a sticky valve moving) while the PV is inside a noise
+band around the setpoint, and a *kick* (a constant bias, "relay auto tuner type correction")
+that pushes the PV back towards the setpoint while it is outside the band (spec vendor-blocks
+section 6; plant-and-tuning 2.3 describes the same compensator from the plant side).
+
+This block is the seed's expression, implemented natively, line by line in the seed's order,
+as one CALC scan executes it. A ``deltav.calc`` block running the seed's text gives the same
+outputs bit for bit when the options match.
+
+The expression (seed 000, one scan, top to bottom)
+--------------------------------------------------
+
+Names are the seed's module parameters; in this block they are snake_case parameters, inputs
+(``signal_in``, ``sp``, ``pv``, ``comp_start``, ``initialize``, ``dither_out``) and outputs::
+
+    line 2      DITHER_AMP := (RESOLUTION + 0.5*DEADBAND)*DITHER_FACTOR*0.5
+    line 3      KICKER_OUT := (RESOLUTION + 0.5*DEADBAND)*KICKER_FACTOR*0.5
+    lines 5-9   IF (INITIALIZE = 1 AND KICK_START = 1) THEN NOISE_BAND := 0.0
+                ELSE NOISE_BAND := DITHER_AMP*PROCESS_GAIN*NOISE_FACTOR
+    line 11     IF (COMP_START = 0) THEN
+    line 12         SIGNAL_OUT := SIGNAL_IN                                     (pass-through)
+                ELSE
+    line 15         IF (PV > (SP + NOISE_BAND*0.5)) THEN                        (high: kick)
+    line 16             KICKER_DELT := KICKER_OUT*CNTRL_ACTION*VALVE_ACTION
+    line 17             DITHER_DELT := 0.0
+    line 19         ELSE IF (PV < (SP - NOISE_BAND)) THEN                       (low: kick)
+    line 20             KICKER_DELT := - KICKER_OUT*CNTRL_ACTION*VALVE_ACTION
+    line 21             DITHER_DELT := 0.0
+                    ELSE                                                        (band: dither)
+    line 23             DITHER_DELT := DITHER_OUT*CNTRL_ACTION*VALVE_ACTION
+    line 26         SIGNAL_OUT := SIGNAL_IN + KICKER_DELT + DITHER_DELT
+    line 28     SIGNAL_OUT.ST := SIGNAL_IN.ST
+
+The arithmetic of each line is done in float64 in the order written, left to right
+(``a*b*c`` is ``(a*b)*c``, ``a + b + c`` is ``(a + b) + c``, line 20 is ``((-a)*b)*c``), and
+the comparisons are IEEE comparisons (strict ``>`` and ``<``; ``=`` is exact float equality, so
+only exactly 1.0 (0.0) counts as 1 (0), spec 6.3). The factors 0.5 of line 15 and 1 (implicit)
+of line 19 are the options ``upper_band_factor`` and ``lower_band_factor``: line 15 reads
+``SP + NOISE_BAND*upper_band_factor`` and line 19 ``SP - NOISE_BAND*lower_band_factor``
+(multiplying by 1.0 is exact, so the defaults are the literal text).
+
+Precision (``precision = "float32"``, the default; spec 6.1 [A]): a DeltaV module parameter
+holds a 32-bit float. So
+
+* every value assigned to a module parameter (lines 2, 3, 6, 8, 12, 16, 17, 20, 21, 23, 26) is
+  rounded once to float32 (round to nearest, ties to even; beyond the float32 range it becomes
+  ±inf) when it is stored; the expression on the right is evaluated in float64;
+* every parameter and input the expression reads is the float32-rounded value: the
+  parameters are rounded when the block is made (``kick_start = 1.00000001`` is then exactly
+  1), the inputs when they are read in the scan (``pv = 50.3000001`` reads as 50.29999924).
+
+``precision = "float64"`` stores and reads float64 values unchanged.
+
+Read/write visibility (``deferred_param_reads``, spec 6.1 [A]). With ``false`` (the default)
+a line sees the values written by earlier lines of the same scan (immediate writes). With
+``true`` every read of a parameter that the expression writes (DITHER_AMP, KICKER_OUT,
+NOISE_BAND, KICKER_DELT, DITHER_DELT, SIGNAL_OUT) sees its value as of the start of the scan,
+i.e. the value stored by the previous scan (the seed defaults, 0, at the first scan): line 8
+uses last scan's DITHER_AMP, lines 15/19 last scan's NOISE_BAND, lines 16/20 last scan's
+KICKER_OUT and line 26 last scan's KICKER_DELT and DITHER_DELT. Parameters the expression never
+writes (the inputs and the tuning parameters) read their current values in both modes. The
+writes themselves are the same in both modes.
+
+DITHER_OUT (spec 6.5). The ``dither_out`` input is the SGGN1 output; wire a ``deltav.sggn`` block
+that runs before this one to it (see ``deltav.sggn``). While ``dither_out`` is NaN (its default:
+"not supplied") the block uses an internal square wave instead, the spec's default reading of
+SGGN1 [A]: at the start of each scan, *before line 2 executes* (SGGN1 is execution #3, the CALC
+#4), the sample is::
+
+    DITHER_OUT_k = +DITHER_AMP_{k-1}   if floor(k / dither_half_period) is even   (k = 0, 1, ...)
+                 = -DITHER_AMP_{k-1}   otherwise
+
+where DITHER_AMP_{k-1} is the value line 2 stored in the previous scan (0, the seed default, in
+the first scan k = 0): a one-scan lag of the amplitude. The wave starts with + and alternates
+every ``dither_half_period`` scans; its scan counter k advances on every scan, whether or not
+``dither_out`` is supplied. A supplied ``dither_out`` is read as a module parameter
+(float32-rounded in float32 precision).
+
+Status (spec 6.3 line 28): ``signal_out`` carries the status byte of ``signal_in`` unchanged
+on every scan, in both branches; the compensator neither degrades nor improves it. The other
+outputs are Good non-cascade (128). Input statuses are otherwise ignored, as in the expression.
+
+NaN and inf inputs are computed as the expression computes them with IEEE floats: every
+comparison with NaN is false. So a NaN ``comp_start`` is not 0 and selects the compensation
+branch; a NaN ``initialize`` is not 1 (the noise band is computed); a NaN ``pv`` or ``sp`` fails
+both band tests and selects the dither branch (KICKER_DELT held); a NaN ``signal_in`` gives a
+NaN ``signal_out``. A NaN ``dither_out`` cannot reach line 23: it means "use the internal
+dither" (above). Infinities follow IEEE arithmetic (``pv = inf`` is the high branch; a result
+beyond the float32 range is stored as ±inf). Nothing is clamped: there is no limit on
+``signal_out`` (spec 6.3 line 26), and the block never raises on a value.
+
+Options for the spec's [A]/[?] points
+-------------------------------------
+
+Each is a parameter; the default is the spec's choice.
+
+* ``upper_band_factor`` = 0.5 and ``lower_band_factor`` = 1.0: the factors of NOISE_BAND in the
+  high (line 15) and low (line 19) band tests; the defaults are the literal, asymmetric text
+  (spec 6.4 [A]). ``upper_band_factor = lower_band_factor`` gives a symmetric band.
+* ``deferred_param_reads`` = false: immediate writes; true = reads see last scan's values
+  (spec 6.1 [A]).
+* ``precision`` = ``float32``: module parameters are 32-bit floats, rounded on every store;
+  ``float64`` keeps doubles (spec 6.1 [A]).
+* ``dither_half_period`` = 1 scan: the internal DITHER_OUT square wave (±last scan's DITHER_AMP,
+  starting with +) alternates every this many scans (spec 6.5 [A]; the SGGN1 configuration is
+  unknown, spec 8 item 5).
+
+Vendor quirks reproduced
+------------------------
+
+* The band is asymmetric: high above SP + NOISE_BAND/2, low below SP - NOISE_BAND, so it is
+  1.5·NOISE_BAND wide (SP - 0.6 .. SP + 0.3 for NOISE_BAND 0.6) (spec 6.4).
+* KICKER_DELT keeps its last value while the PV is inside the band (the last kick persists
+  while dithering: a relay with hysteresis, spec 6.6) and while COMP_START = 0 (spec 6.3).
+* DITHER_DELT is zeroed in the kick branches; with COMP_START = 0 both KICKER_DELT and
+  DITHER_DELT keep their (stale) values and come back into effect when compensation resumes,
+  until overwritten (spec 6.3 lines 11-12).
+* DITHER_AMP is half the header's peak-to-peak dither: resolution 0.5 %, deadband 0.2 % give
+  DITHER_AMP 0.3 % (spec 6.2).
+* INITIALIZE = KICK_START = 1 collapses the band to 0: every PV ≠ SP kicks (pure relay,
+  spec 6.6). Nothing in the expression clears INITIALIZE.
+* NOISE_BAND (% of PV span) is compared with SP and PV in EU as raw numbers (spec 6.7), and the
+  kick direction is the literal product CNTRL_ACTION·VALVE_ACTION (spec 6.7).
+* ``reset_time`` is a parameter of the seed's list but the expression does not use it
+  (spec 6.2).
+* No clamp on ``signal_out``: it can leave 0..100 % by up to KICKER_OUT + DITHER_AMP (spec 6.3).
+
+Example
+-------
+
+Python (the golden step-through of spec 6.8, first three scans)::
+
+    import loopworks
+    comp = loopworks.create_block("deltav.stick_slip", resolution=0.5, deadband=0.2)
+    for pv, dither in ((50.0, 0.3), (50.0, -0.3), (50.5, 0.3)):
+        r = comp.step(1.0, signal_in=40.0, sp=50.0, pv=pv, comp_start=1.0, dither_out=dither)
+        print(r["signal_out"].value, r["kicker_delt"].value)
+    # 39.70000076293945 0.0            (band: dither -0.3)
+    # 40.29999923706055 0.0            (band: dither +0.3)
+    # 39.70000076293945 -0.30000001192092896   (high: kick -0.3)
+
+(float32 values; ``precision="float64"`` gives 39.7, 40.3, 39.7.)
+
+Replay (``loopworks replay deltav.stick_slip comp.csv -p resolution=0.5 -p deadband=0.2
+-p precision=float64``), with ``comp.csv``::
+
+    t,signal_in,sp,pv,comp_start,dither_out,signal_in.ST
+    0,40,50,50.0,1,0.3,128
+    1,40,50,50.5,1,0.3,128
+    2,40,50,49.5,1,-0.3,28
+    3,40,50,49.5,0,0.3,128
+
+gives ``signal_out`` 39.7, 39.7 (kick -0.3), 40.0 (kick held, dither +0.3), 40.0
+(pass-through) and ``signal_out.ST`` 128, 128, 28, 128.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.registry import register
+from loopworks.blocks.status import GOOD_NC
+from loopworks.errors import ParameterError
+
+# Coefficient layout (p): the module parameters (as stored), then the options
+(RES, DB, PG, CA, VA, DF, KF, NF, KS, RESET, UPPER, LOWER, DEFERRED, SINGLE, HALF) = range(15)
+# Inputs (u, us)
+SIGNAL_IN, SP, PV, COMP_START, INITIALIZE, DITHER_OUT = range(6)
+# Outputs (y, ys)
+SIGNAL_OUT, DITHER_AMP, KICKER_OUT, NOISE_BAND, KICKER_DELT, DITHER_DELT = range(6)
+# State (x): the module parameters the expression writes, and the internal dither's scan counter
+S_DA, S_KO, S_NB, S_KD, S_DD, S_COUNT = range(6)
+
+# 2**128 - 2**103: the float32 rounding of a double at or beyond this magnitude is ±inf
+# (FLT_MAX plus half an ulp; the tie rounds to even, i.e. up to 2**128 = inf).
+F32_OVERFLOW = 3.4028235677973366e38
+
+
+@primitive
+def f32(value: float) -> float:
+    """``value`` rounded to the nearest float32 (ties to even), as a float: what a DeltaV module
+    parameter holds after ``value`` is written to it. Beyond the float32 range: ±inf; NaN stays
+    NaN. The cast is IEEE in both numpy and numba, so interpreted and compiled runs agree."""
+    if value >= F32_OVERFLOW:
+        return math.inf
+    if value <= -F32_OVERFLOW:
+        return -math.inf
+    return float(np.float32(value))
+
+
+@primitive
+def stored(value: float, single: float) -> float:
+    """The value a module parameter holds after ``value`` is written: float32-rounded when
+    ``single`` (precision float32), else unchanged. Reads of inputs use it too: an input is a
+    module parameter written by someone else."""
+    if single != 0.0:
+        return f32(value)
+    return value
+
+
+def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                      y: FloatArray, ys: IntArray) -> None:
+    """One module scan: SGGN1 (internal dither), then the seed's lines 2-28 in order.
+
+    Every array element is read once into a local Python float (``float()`` costs nothing
+    compiled, and keeps the interpreted run in plain IEEE floats, without numpy warnings)."""
+    single = p[SINGLE]
+    deferred = p[DEFERRED] != 0.0
+    # the tuning parameters, as stored (float32-rounded by coefficients() in float32 precision)
+    resolution = float(p[RES])
+    deadband = float(p[DB])
+    process_gain = float(p[PG])
+    action = float(p[CA])
+    valve = float(p[VA])
+    # the parameters the expression writes, as of the start of the scan
+    da0 = float(x[S_DA])
+    ko0 = float(x[S_KO])
+    nb0 = float(x[S_NB])
+    kicker_delt = float(x[S_KD])
+    dither_delt = float(x[S_DD])
+    # -- SGGN1 (#3) before the CALC (#4): DITHER_OUT, spec 6.5 ---------------------------------
+    count = float(x[S_COUNT])
+    positive = count < p[HALF]
+    count = count + 1.0
+    if count >= 2.0 * p[HALF]:
+        count = 0.0
+    x[S_COUNT] = count
+    dither = float(u[DITHER_OUT])
+    if not math.isnan(dither):  # supplied (SGGN1 wired): the module parameter as stored
+        dither = stored(dither, single)
+    elif positive:  # not supplied: the internal square wave, ±DITHER_AMP of the last scan [A]
+        dither = da0
+    else:
+        dither = -da0
+    # -- line 2, line 3 -------------------------------------------------------------------------
+    da = stored((resolution + 0.5 * deadband) * float(p[DF]) * 0.5, single)
+    ko = stored((resolution + 0.5 * deadband) * float(p[KF]) * 0.5, single)
+    # -- lines 5-9: NOISE_BAND ------------------------------------------------------------------
+    if stored(float(u[INITIALIZE]), single) == 1.0 and p[KS] == 1.0:
+        nb = 0.0
+    else:
+        nb = stored((da0 if deferred else da) * process_gain * float(p[NF]), single)
+    # -- lines 11-27 ------------------------------------------------------------------------------
+    signal_in = stored(float(u[SIGNAL_IN]), single)
+    if stored(float(u[COMP_START]), single) == 0.0:
+        signal_out = signal_in  # line 12: pass-through; KICKER_DELT, DITHER_DELT untouched
+    else:
+        pv = stored(float(u[PV]), single)
+        sp = stored(float(u[SP]), single)
+        band = nb0 if deferred else nb
+        kicker = ko0 if deferred else ko
+        kd_read = kicker_delt  # line 26 reads these: the start-of-scan values when deferred
+        dd_read = dither_delt
+        if pv > (sp + band * float(p[UPPER])):  # lines 15-17: high
+            kicker_delt = stored(kicker * action * valve, single)
+            dither_delt = 0.0
+        elif pv < (sp - band * float(p[LOWER])):  # lines 19-21: low
+            kicker_delt = stored(-kicker * action * valve, single)
+            dither_delt = 0.0
+        else:  # line 23: inside the band, KICKER_DELT held
+            dither_delt = stored(dither * action * valve, single)
+        if not deferred:
+            kd_read = kicker_delt
+            dd_read = dither_delt
+        signal_out = stored(signal_in + kd_read + dd_read, single)  # line 26, no clamp
+    # -- store; line 28 and the outputs ----------------------------------------------------------
+    x[S_DA] = da
+    x[S_KO] = ko
+    x[S_NB] = nb
+    x[S_KD] = kicker_delt
+    x[S_DD] = dither_delt
+    y[SIGNAL_OUT] = signal_out
+    ys[SIGNAL_OUT] = us[SIGNAL_IN]
+    y[DITHER_AMP] = da
+    y[KICKER_OUT] = ko
+    y[NOISE_BAND] = nb
+    y[KICKER_DELT] = kicker_delt
+    y[DITHER_DELT] = dither_delt
+    ys[DITHER_AMP] = GOOD_NC
+    ys[KICKER_OUT] = GOOD_NC
+    ys[NOISE_BAND] = GOOD_NC
+    ys[KICKER_DELT] = GOOD_NC
+    ys[DITHER_DELT] = GOOD_NC
+
+
+_PCT = "%"
+# the module parameters of the seed's list, in the p layout order
+_SEED_PARAMS = ("resolution", "deadband", "process_gain", "cntrl_action", "valve_action",
+                "dither_factor", "kicker_factor", "noise_factor", "kick_start", "reset_time")
+
+
+@register
+class StickSlip(Block):
+    """DeltaV stick-slip compensator (seed 000): dither inside a noise band, kick outside."""
+
+    kind = "deltav.stick_slip"
+    summary = ("DeltaV stick-slip compensator (seed 000 CALC): dither inside the noise band, "
+               "relay-type kick outside it")
+    kernel = staticmethod(stick_slip_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("resolution", 0.0, _PCT,
+              "RESOLUTION, 'Stick-Slip (%)': valve resolution (spec 6.2, line 2)"),
+        Param("deadband", 0.0, _PCT,
+              "DEADBAND, 'Backlash (%)': valve deadband, not a PID dead band (spec 6.2)"),
+        Param("process_gain", 2.0, "%PV/%OUT",
+              "PROCESS_GAIN, 'Identified Process Gain' from the tuner (spec 6.2, line 8)"),
+        Param("cntrl_action", -1.0, "",
+              "CNTRL_ACTION: Reverse = -1, Direct = +1; used as a factor (spec 6.2, 6.7)"),
+        Param("valve_action", 1.0, "",
+              "VALVE_ACTION: Inc-close = -1, Inc-open = +1; used as a factor (spec 6.2, 6.7)"),
+        Param("dither_factor", 1.0, "", "DITHER_FACTOR: scales DITHER_AMP (spec 6.2, line 2)"),
+        Param("kicker_factor", 1.0, "", "KICKER_FACTOR: scales KICKER_OUT (spec 6.2, line 3)"),
+        Param("noise_factor", 1.0, "", "NOISE_FACTOR: scales NOISE_BAND (spec 6.2, line 8)"),
+        Param("kick_start", 0.0, "",
+              "KICK_START: exactly 1 with INITIALIZE = 1 sets NOISE_BAND = 0 (spec 6.2, 6.3)"),
+        Param("reset_time", 8.0, "s",
+              "RESET_TIME, 'PID Reset Time (sec)': read but unused by the expression "
+              "(spec 6.2)"),
+        Param("upper_band_factor", 0.5, "",
+              "high test PV > SP + NOISE_BAND·factor; literal 0.5 [A] (spec 6.4, line 15)",
+              lo=0.0, lo_open=False),
+        Param("lower_band_factor", 1.0, "",
+              "low test PV < SP - NOISE_BAND·factor; literal 1 [A] (spec 6.4, line 19)",
+              lo=0.0, lo_open=False),
+        Param("deferred_param_reads", False, "",
+              "reads of parameters the expression writes see last scan's values; false = "
+              "immediate writes [A] (spec 6.1)", "bool"),
+        Param("precision", "float32", "",
+              "module parameters are float32, rounded on every store [A], or float64 "
+              "(spec 6.1)", "choice", choices=("float32", "float64")),
+        Param("dither_half_period", 1, "scans",
+              "internal dither (dither_out NaN): ±last scan's DITHER_AMP, starting +, "
+              "alternating every N scans [A] (spec 6.5)", "int", lo=1.0, hi=1e9,
+              lo_open=False, hi_open=False),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("signal_in", 0.0, _PCT, "SIGNAL_IN, 'PID OUT (%)': the PID output (spec 6.2)",
+             status=True),
+        Port("sp", 0.0, "EU", "SP, 'PID Set Point (eu)' (spec 6.2)"),
+        Port("pv", 0.0, "EU", "PV, 'PID Process Variable (eu)' (spec 6.2)"),
+        Port("comp_start", 0.0, "",
+             "COMP_START: exactly 0 passes signal_in through; else compensate (spec 6.3)"),
+        Port("initialize", 0.0, "",
+             "INITIALIZE: exactly 1 with kick_start = 1 sets NOISE_BAND = 0 (spec 6.3)"),
+        Port("dither_out", math.nan, _PCT,
+             "DITHER_OUT, the SGGN1 output; NaN = internal square wave (spec 6.5)"),
+    )
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("signal_out", 0.0, _PCT,
+             "SIGNAL_OUT, 'AO CAS_IN (%)': signal_in + kick + dither, no clamp; status = "
+             "signal_in's (spec 6.3 lines 26, 28)", status=True),
+        Port("dither_amp", 0.0, _PCT, "DITHER_AMP: dither amplitude (spec 6.3 line 2)"),
+        Port("kicker_out", 0.0, _PCT, "KICKER_OUT: kick amplitude (spec 6.3 line 3)"),
+        Port("noise_band", 0.0, "% of PV", "NOISE_BAND: PV noise band (spec 6.3 lines 5-9)"),
+        Port("kicker_delt", 0.0, _PCT,
+             "KICKER_DELT: kick applied; held inside the band (spec 6.3 lines 16, 20)"),
+        Port("dither_delt", 0.0, _PCT,
+             "DITHER_DELT: dither applied; 0 while kicking (spec 6.3 lines 17, 21, 23)"),
+    )
+    STATES: ClassVar[tuple[str, ...]] = (
+        "dither_amp", "kicker_out", "noise_band", "kicker_delt", "dither_delt", "dither_count")
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        single = prm["precision"] == "float32"
+        coeffs = [0.0] * 15
+        for index, name in enumerate(_SEED_PARAMS):
+            value = float(prm[name])
+            if single and abs(value) >= F32_OVERFLOW:
+                raise ParameterError(
+                    f"{self.kind}: parameter '{name}' = {value:g} is out of range: a float32 "
+                    f"module parameter allows (-{F32_OVERFLOW:g}, {F32_OVERFLOW:g}), i.e. "
+                    "values that round to a finite float32 (precision = float32, spec 6.1)")
+            coeffs[index] = f32(value) if single else value
+        coeffs[UPPER] = float(prm["upper_band_factor"])
+        coeffs[LOWER] = float(prm["lower_band_factor"])
+        coeffs[DEFERRED] = 1.0 if prm["deferred_param_reads"] else 0.0
+        coeffs[SINGLE] = 1.0 if single else 0.0
+        coeffs[HALF] = float(prm["dither_half_period"])
+        return coeffs
