@@ -93,6 +93,36 @@ VARIANTS: dict[str, list[dict[str, object]]] = {
         {"resolution": 1e38, "deadband": 3e38, "process_gain": 1e30, "dither_half_period": 2,
          "deferred_param_reads": True},
     ],
+    "deltav.pid": [
+        {},
+        {"gain": 2.0, "reset": 5.0, "rate": 1.0, "structure": "pid_action_on_error",
+         "pv_ftime": 0.5, "sp_ftime": 0.3, "sp_rate_up": 2.0, "sp_rate_dn": 5.0,
+         "out_hi_lim": 90.0, "out_lo_lim": 5.0, "arw_hi_lim": 80.0, "arw_lo_lim": 10.0,
+         "ideadband": 1.0, "ff_gain": 0.5, "dynamic_reset_limit": True, "precision": "float64"},
+        {"form": "series", "gain": 1.5, "reset": 3.0, "rate": 2.0, "alpha": 0.2,
+         "structure": "two_degrees_of_freedom", "beta": 0.5, "gamma": 0.3,
+         "direct_acting": True, "reset_discretisation": "exact",
+         "filter_discretisation": "exact", "derivative_discretisation": "exact",
+         "pv_ftime": 1.0, "track_enable": True, "track_in_manual": True,
+         "use_uncertain_as_good": True, "ifs_if_bad_in": True, "ifs_if_bad_cas_in": True,
+         "pv_scale_eu_0": -50.0, "pv_scale_eu_100": 250.0, "out_scale_eu_0": 4.0,
+         "out_scale_eu_100": 20.0, "trk_scale_eu_100": 50.0},
+        {"structure": "pd_action_on_error", "gain": 0.7, "rate": 3.0,
+         "no_reset_bias": "fixed", "bias": 40.0, "bal_time": 2.0, "sp_pv_track_man": True,
+         "sp_pv_track_lo_iman": True, "target_to_man_if_bad_in": True,
+         "no_out_limits_manual": True, "use_pv_for_bkcal_out": True,
+         "obey_sp_limits_cas": True, "sp_hi_lim": 80.0, "sp_lo_lim": 20.0,
+         "ff_conversion": "scale_then_gain", "ff_gain": -1.0, "ff_scale_eu_0": 10.0,
+         "ff_scale_eu_100": 60.0},
+        {"structure": "i_action_on_error_d_action_on_pv", "reset": 0.05, "rate": 0.5,
+         "reset_feedback": "output", "ff_in_reset_feedback": True,
+         "series_derivative": "filtered", "form": "series", "reset_discretisation": "backward",
+         "sp_track_retained_target": True, "target_to_next_if_bad_cas_in": True,
+         "arw_units": "out_eu", "arw_hi_lim": 95.0, "arw_lo_lim": 2.0, "initial_out": 30.0,
+         "bkcal_hys": 5.0, "gain": 1e6},
+        {"structure": "id_action_on_error", "reset": 0.0, "reset_zero_disables": True,
+         "rate": 1e30, "gain": 3.0, "out_hi_lim": 110.0, "out_lo_lim": -10.0},
+    ],
     "deltav.calc": [
         {},
         {"resolution": 0.5, "deadband": 0.2, "kick_start": 1.0, "process_gain": 0.01},
@@ -130,7 +160,7 @@ def random_inputs(block: Block, rng: np.random.Generator) -> dict[str, object]:
     for port in block.INPUTS:
         if port.choices:
             value = float(rng.integers(0, len(port.choices)))
-        elif port.name == "track":
+        elif port.name in ("track", "trk_in_d"):
             value = float(rng.random() < 0.1)
         else:
             value = float(rng.uniform(-20.0, 120.0))

@@ -1,1 +1,933 @@
-"""The DeltaV PID block (spec vendor-blocks section 4): being written; registers no kind yet."""
+r"""Emerson DeltaV standard PID function block: kind ``deltav.pid``.
+
+The DeltaV PID is the Foundation Fieldbus PID model, extended (spec vendor-blocks section 4;
+sources R40-R47 DeltaV Books Online, R53-R58). This block emulates the part of it the spec
+covers: Standard and Series forms, the eight STRUCTURE options with BETA and GAMMA, reset by
+external positive feedback (optionally from BKCAL_IN: dynamic reset limiting), the ARW window
+with its 16x reset, IDEADBAND, the PV and SP filters, SP limits and SP rate limits, feedforward,
+the modes OOS, IMan, LO, Man, Auto and Cas with bumpless transfer, PV_SCALE / OUT_SCALE
+normalisation and the Fieldbus status handling of spec 4.5-4.6. Not emulated: RCas/ROut (and
+SHED_OPT), BYPASS, NL_GAIN_MOD, the fault-state (FSA) logic and alarms.
+
+Signals and units
+-----------------
+
+Inputs are in engineering units (EU): ``pv`` (IN), ``sp``, ``cas_in`` in PV_SCALE EU;
+``bkcal_in``, ``man_out`` and the output limits in OUT_SCALE EU; ``ff_val`` in FF_SCALE EU;
+``trk_val`` in TRK_SCALE EU. The algorithm works in percent of span (spec 4.2, 4.9: GAIN is
+dimensionless on %/% signals, so changing a span changes the effective gain)::
+
+    x% = (x - EU@0%) · 100/(EU@100% - EU@0%)        EU = EU@0% + x%·(EU@100% - EU@0%)/100
+
+Each scan, in the order of spec 4.7 (k = this scan, s = +1 reverse acting, -1 with
+``direct_acting``; dt = the ``step`` time, the fixed module period, never 0)::
+
+    1  actual mode from the target, IN, CAS_IN, BKCAL_IN, TRK_IN_D and STATUS_OPTS (below)
+    2  SP: operator SP (Auto/Man), CAS_IN (Cas; limited with obey_sp_limits_cas), limited to
+       SP_LO_LIM..SP_HI_LIM when written; ramped in Auto at SP_RATE_UP/SP_RATE_DN (EU/s,
+       0 = no limit); then the SP_FTIME filter; SP = PV with the SP-PV track options
+    3  PV_k = PV_{k-1} + dt/(PV_FTIME + dt)·(IN_k - PV_{k-1})                [A] backward Euler
+    4  SP%, PV% on PV_SCALE
+    5  P_k = s·GAIN·(β·SP% - PV%)            (0 in the structures without P)
+    6  D_k = (α·RATE·D_{k-1} + s·GAIN·c·RATE·(d_k - d_{k-1}))/(α·RATE + dt),  d = γ·SP% - PV%
+                                                                            [A] backward Euler
+    7  R_k = R_{k-1} + a·(F_{k-1} - R_{k-1}),  a = dt/RESET                 [A] Euler (a <= 1)
+       (RESET/16 under the ARW rule; frozen while abs(SP - PV) < IDEADBAND (EU); frozen in
+       the structures without I)
+    8  FF_k = FF_GAIN·FF_VAL converted from FF_SCALE to %                   [A] order
+    9  OUT%_k = P_k + D_k + R_k + FF_k, limited to OUT_LO_LIM..OUT_HI_LIM; limit bits with
+       BKCAL_HYS hysteresis
+    10 Man/LO/IMan/OOS: OUT% = operator value / TRK_VAL / BKCAL_IN / held, then
+       R_k = OUT%_k - P_k - D_k - FF_k (back-initialisation: the next Auto scan is bumpless)
+    11 BKCAL_OUT = working SP (PV in Cas with use_pv_for_bkcal_out); statuses
+
+STRUCTURE (spec 4.3) sets β, γ and whether P and I act: ``pid_action_on_error`` β = γ = 1;
+``pi_action_on_error_d_action_on_pv`` β = 1, γ = 0; ``i_action_on_error_pd_action_on_pv``
+β = γ = 0; ``pd_action_on_error`` β = γ = 1, no I; ``p_action_on_error_d_action_on_pv`` β = 1,
+γ = 0, no I; ``id_action_on_error`` no P, γ = 1; ``i_action_on_error_d_action_on_pv`` no P,
+γ = 0; ``two_degrees_of_freedom`` β = ``beta``, γ = ``gamma``. RESET = inf also means no I.
+
+The reset is external positive feedback (spec 4.2, 4.4): R is a first-order lag of time
+constant RESET driven by F, which is built from the previous *limited* output (or from
+BKCAL_IN% with ``dynamic_reset_limit``, when BKCAL_IN is usable)::
+
+    reset_feedback = "error":   F = OUT%_{k-1} - FF_{k-1} - (P_{k-1} - Pe_{k-1}) [- D_{k-1}]
+    reset_feedback = "output":  F = OUT%_{k-1} - FF_{k-1}          (4.7 step 7 as written)
+
+with Pe = s·GAIN·(SP% - PV%) (proportional action on the error) and D removed in the
+Standard form only. While nothing limits the output, "error" makes the block exactly the
+equations of spec 4.2: Standard OUT = s·GAIN·[(β·SP - PV) + 1/(RESET·s)·(SP - PV) +
+RATE·s/(α·RATE·s + 1)·(γ·SP - PV)] + FF, and Series OUT = s·GAIN·(1 + 1/(RESET·s))·
+(1 + RATE·s)/(α·RATE·s + 1)·E + FF (the series D, with c = 1 - α, stays inside the reset loop,
+which makes the two factors multiply). At a limit, R runs toward the limited output, so it can
+never pass the limit, and it is not pinned there either: when the error vanishes OUT drops to
+R (spec 4.8 DV2). With RATE = 0 and β = 1 the two settings are the same.
+
+ARW (spec 4.4, R42): when OUT%_{k-1} > ARW_HI_LIM and R is moving down (F < R), or
+OUT%_{k-1} < ARW_LO_LIM and R is moving up, the scan uses RESET/16. A BKCAL_IN with Good
+quality and high (low) limit bits stops R from rising (falling): the upstream block stops
+integrating in the direction the downstream one cannot follow (spec 4.4; constant = both).
+
+Modes (spec 4.5)
+----------------
+
+Codes (the ``mode`` input and the ``mode_actual`` / ``mode_target`` outputs): OOS 0, IMAN 1,
+LO 2, MAN 3, AUTO 4, CAS 5. The target is OOS, MAN, AUTO or CAS (IMan and LO are actual modes
+only: a write of them is rejected, the target stays). The actual mode, highest priority first:
+
+* OOS: target OOS. OUT holds (operator writes accepted); status Bad: out of service (0x1C).
+* IMan: BKCAL_IN is Bad, or Good cascade with substatus IR, NI, LO or FSA (the downstream block
+  is not in cascade; FF rule, spec 4.5). OUT = BKCAL_IN (not limited; held when BKCAL_IN has no
+  value).
+* LO: ``track_enable`` and TRK_IN_D true (> 0.5, not Bad) while the target is not Man (or is
+  Man with ``track_in_manual``). OUT = TRK_VAL converted from TRK_SCALE, limited to the OUT
+  limits (held while TRK_VAL is NaN or Bad).
+* Man: target Man, or IN Bad. OUT is the operator's ``man_out``, limited unless
+  ``no_out_limits_manual`` (with target and actual Man).
+* Cas: target Cas and CAS_IN usable (finite, not Bad): SP = CAS_IN; the SP parameter follows
+  it, so Cas -> Auto keeps the last cascade SP.
+* Auto: target Auto, or target Cas with an unusable CAS_IN (the block sheds to Auto).
+
+In Man, LO, IMan and OOS, R is back-initialised each scan (step 10), so the return to Auto or
+Cas is bumpless; after a scan without a usable PV (Bad IN, or the very first scan) the first
+scan with one re-initialises R, D and the previous terms from the current P, D and FF, as if
+the scan before had been a Man scan with those values.
+
+Operator writes. ``sp``, ``man_out`` and ``mode`` are the operator's writes to the SP, OUT and
+MODE.TARGET parameters: a value is written when it differs from the value the input had on the
+scan before (the inputs latch, as a DCS parameter does); NaN writes nothing. A repeated value
+therefore writes nothing, so what the block itself sets is kept: the SP set by Cas or by SP-PV
+tracking, the output held on Auto -> Man, and the target set to Man by "Target to Manual if Bad
+IN" (to return, give another mode and then AUTO). SP writes are rejected in Cas, OUT writes
+outside Man and OOS. The first scan writes whatever the inputs hold.
+
+Start. The block starts with OUT = ``initial_out`` (default the OUT_SCALE 0 % value) and R
+back-initialised at the first scan, as if it had been in Man there: the first Auto scan gives
+OUT_1 = initial_out + a·Pe_1. To start from a steady state (spec 4.8 DV1/DV2: OUT = R = 50 %,
+e = 0), run one scan with SP = PV (in MAN with ``man_out`` = 50, or in AUTO with
+``initial_out`` = 50), then step the error.
+
+Status (spec 4.6; FF encoding, ``loopworks.blocks.status``)
+----------------------------------------------------------
+
+* IN: NaN/inf or Bad = Bad; Uncertain = Bad unless ``use_uncertain_as_good``. Bad IN makes
+  the actual mode Man (``target_to_man_if_bad_in``: the target too, so the loop stays in Man
+  after IN recovers). ``filtered_pv`` carries IN.ST (Bad non-specific for a NaN IN) and holds
+  its last value while IN has no usable value (Bad or NaN).
+* OUT.ST quality: Good cascade when BKCAL_IN comes from a cascade partner (any BKCAL_IN status
+  except Good non-cascade: an AO or a secondary PID), else Good non-cascade (an unconnected
+  BKCAL_IN reads 128, the project default). In Auto/Cas the limit bits come from the BKCAL_HYS
+  hysteresis (set at OUT_HI_LIM/OUT_LO_LIM, released when OUT% is BKCAL_HYS % away), and an
+  Uncertain IN used as Good degrades OUT.ST to Uncertain (0x40). Man, LO and IMan give the
+  constant bits (3); IMan answering an IR request gives Good cascade IA (0xC7). OOS: 0x1C.
+  ``ifs_if_bad_in`` / ``ifs_if_bad_cas_in`` (CAS_IN unusable while the target is Cas) give
+  Good cascade IFS (0xE0) with the same limit bits.
+* BKCAL_OUT.ST: Good cascade (0xC0) in Cas, LO (0xD8) in LO, IR (0xC8) while the target is Cas
+  but the actual mode is not, NI (0xCC) otherwise, each with the hysteresis limit bits of OUT;
+  Bad: out of service in OOS. A primary ``deltav.pid`` wired to it goes to IMan on IR/NI/LO.
+* FF_VAL NaN or Bad: the last usable FF contribution is held. CAS_IN, BKCAL_IN and TRK_VAL
+  are usable when finite and not Bad.
+
+Inputs are saturated at ±1e15 (EU and %), far beyond any real signal, so that no value the
+block is given can overflow its arithmetic (GAIN and FF_GAIN are bounded to 1e6 for the same
+reason); the block never raises at run time.
+
+Options for the spec's [A]/[?] points
+-------------------------------------
+
+Each is a parameter whose default is the spec's choice:
+
+* ``reset_discretisation`` = ``euler`` (a = dt/RESET, capped at 1 so that R never passes F in
+  one scan) | ``backward`` (a = dt/(RESET + dt)) | ``exact`` (a = 1 - exp(-dt/RESET)).
+  Spec 4.7 step 7 [A]. With RESET/16: 16·dt replaces dt.
+* ``filter_discretisation`` = ``backward`` (dt/(T + dt)) | ``exact`` (1 - exp(-dt/T)), for
+  PV_FTIME and SP_FTIME. Spec 4.7 step 3 [A].
+* ``derivative_discretisation`` = ``backward`` (step 6 above) | ``exact`` (step invariant:
+  D_k = e^(-dt/(α·RATE))·D_{k-1} + s·GAIN·c/α·(d_k - d_{k-1})). Spec 4.7 step 6 [A].
+* ``ff_in_reset_feedback`` = false (FF removed from F, so FF is not integrated) | true.
+  Spec 4.7 step 7 [A].
+* ``reset_feedback`` = ``error`` | ``output`` (see above). Spec 4.2 vs 4.7 step 7 [A]: the
+  literal step 7 integrates D and the setpoint weighting too, which contradicts the 4.2
+  statement that the unconstrained block equals the ideal equations (and gives the no-P
+  structures no integral action at all); ``error`` honours 4.2 and equals step 7 whenever
+  RATE = 0 and β = 1.
+* ``series_derivative`` = ``lead_lag`` ((1 + RATE·s)/(α·RATE·s + 1), the spec 4.2 equation,
+  c = 1 - α) | ``filtered`` (1 + RATE·s/(α·RATE·s + 1), "derivative filter applied only to
+  derivative action" in R40's words, c = 1). Spec 4.2 [A].
+* ``no_reset_bias`` = ``bumpless`` (in the structures without I, R is the bias frozen at the
+  value that made the last mode change bumpless) | ``fixed`` (in Auto/Cas R returns to ``bias``
+  (OUT EU) with the time constant ``bal_time``, s; 0 = at once). Spec 4.3 [?], 4.1 BAL_TIME [?].
+* ``reset_zero_disables`` = false (RESET = 0 is a ParameterError; RESET = inf disables I, the FF
+  convention of R58) | true (RESET = 0 also disables I). Spec 4.1 [?].
+* ``ff_conversion`` = ``gain_then_scale`` (FF% = (FF_GAIN·FF_VAL - FF@0%)·100/span, the spec's
+  wording; note the offset when FF_SCALE does not start at 0) | ``scale_then_gain``
+  (FF% = FF_GAIN·(FF_VAL - FF@0%)·100/span). Spec 4.7 step 8 [A].
+* ``arw_units`` = ``percent`` (ARW limits in % of OUT span, spec 4.1) | ``out_eu`` (OUT_SCALE EU,
+  as the DeltaV parameter table R42 lists them). Spec 4.1.
+* ``precision`` = ``float32`` (parameters, inputs and every stored or output value (PV, SP, P,
+  D, R, FF, OUT) are rounded to IEEE single precision, the DeltaV float; the arithmetic inside
+  one formula is double) | ``float64``. Spec 4.1 [A].
+* ``initial_out``: the output before the first scan (OUT EU; default OUT_SCALE 0 %).
+* Defaults [?] (spec 4.1): GAIN 1 and RESET inf (the Emerson FF PID defaults, R58); STRUCTURE
+  ``pi_action_on_error_d_action_on_pv``; BETA = GAMMA = 1; SP limits and OUT limits = the
+  scale ends; ARW limits = the OUT limits (the 16x rule then never acts); FF_GAIN 0.
+
+Vendor quirks reproduced
+------------------------
+
+* RESET is seconds per repeat: larger RESET, less integral action (spec 4.9).
+* Gains act on % of span: changing PV_SCALE or OUT_SCALE changes the effective gain.
+* External reset gives inherent anti-windup: R runs toward the limited output, never past it,
+  and OUT drops to R when the error vanishes (DV2: 62, 62, then 55.439).
+* The ARW window makes the reset 16x faster on the way back into it.
+* Direct/reverse is the ``direct_acting`` CONTROL_OPTS bit, not a sign on GAIN.
+* The derivative filter is ALPHA·RATE (0.125 by default) and, in the "D on PV" structures, an
+  SP step gives no derivative kick (DV4).
+* Bad IN drops the actual mode to Man; the status encoding follows FF.
+
+Example
+-------
+
+Python (spec 4.8 DV2: GAIN 1, RESET 10 s, OUT_HI_LIM 62, 1 s scans)::
+
+    import loopworks
+    pid = loopworks.create_block("deltav.pid", gain=1.0, reset=10.0, rate=0.0,
+                                 out_hi_lim=62.0, precision="float64")
+    pid.step(1.0, mode="MAN", man_out=50.0, sp=50.0, pv=50.0)   # steady state: OUT = R = 50
+    for pv in (40.0,) * 6 + (50.0,) * 3:
+        r = pid.step(1.0, mode="AUTO", pv=pv)
+        print(round(r["out"].value, 6), r["out"].status)
+    # 60.0 128, 61.0 128, 62.0 130, 62.0 130, 62.0 130, 62.0 130, 55.439 128, 55.439 128, ...
+
+Replay (``loopworks replay deltav.pid dv.csv -p reset=10 -p out_hi_lim=62``), with
+``dv.csv``::
+
+    t,mode,man_out,sp,pv
+    0,MAN,50,50,50
+    1,AUTO,50,50,40
+    2,AUTO,50,50,40
+    3,AUTO,50,50,40
+
+gives ``out`` 50, 60, 61, 62 (float32 values) and ``out.ST`` 131 (Man: constant), 128, 128,
+130 (high limited).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.primitives import clamp, finite, lag_step
+from loopworks.blocks.registry import register
+from loopworks.blocks.status import (
+    BAD,
+    BAD_NON_SPECIFIC,
+    BAD_OUT_OF_SERVICE,
+    CONSTANT,
+    GOOD_C_FSA,
+    GOOD_C_IA,
+    GOOD_C_IFS,
+    GOOD_C_IR,
+    GOOD_C_LO,
+    GOOD_C_NI,
+    GOOD_C_NON_SPECIFIC,
+    GOOD_CASCADE,
+    GOOD_NC,
+    HIGH_LIMITED,
+    LOW_LIMITED,
+    NOT_LIMITED,
+    UNCERTAIN,
+    UNCERTAIN_NON_SPECIFIC,
+)
+from loopworks.errors import ParameterError
+
+# Coefficient layout (p)
+(GAIN, RESET, RATE, ALPHA, BETA, GAMMA, HAS_P, HAS_I, SERIES, D_FACTOR, SIGN,
+ PV_EU0, PV_K, OUT_EU0, OUT_K, OUT_EU_PER_PCT, FF_EU0, FF_K, TRK_EU0, TRK_K,
+ SP_LO, SP_HI, SP_RATE_UP, SP_RATE_DN, SP_FTIME, PV_FTIME, OUT_LO, OUT_HI, ARW_LO, ARW_HI,
+ BKCAL_HYS, IDEADBAND, FF_GAIN, FF_ORDER, RESET_LAW, FILTER_LAW, DERIV_LAW, FEEDBACK,
+ FF_IN_FEEDBACK, BIAS_MODE, BIAS, BAL_TIME, SINGLE,
+ TRACK_ENABLE, TRACK_IN_MANUAL, SP_PV_TRACK_MAN, SP_PV_TRACK_LO_IMAN, SP_TRACK_RETAINED,
+ USE_PV_FOR_BKCAL, OBEY_SP_LIMITS, NO_OUT_LIMITS_MAN, DYNAMIC_RESET,
+ IFS_IF_BAD_IN, IFS_IF_BAD_CAS_IN, UNCERTAIN_AS_GOOD, TARGET_TO_MAN, TARGET_TO_NEXT) = range(57)
+N_COEFFS = 57
+EULER, BACKWARD, EXACT = 0.0, 1.0, 2.0
+FEEDBACK_ERROR, FEEDBACK_OUTPUT = 0.0, 1.0
+GAIN_THEN_SCALE, SCALE_THEN_GAIN = 0.0, 1.0
+BIAS_BUMPLESS, BIAS_FIXED = 0.0, 1.0
+# Inputs (u, us)
+PV, SP, CAS_IN, BKCAL_IN, FF_VAL, TRK_IN_D, TRK_VAL, MAN_OUT, MODE = range(9)
+# Mode codes (inputs and outputs)
+MODES = ("OOS", "IMAN", "LO", "MAN", "AUTO", "CAS")
+OOS, IMAN, LO, MAN, AUTO, CAS = 0.0, 1.0, 2.0, 3.0, 4.0, 5.0
+# Outputs (y, ys)
+(OUT, BKCAL_OUT, FILTERED_PV, WORKING_SP, MODE_ACTUAL, MODE_TARGET, P_TERM, D_TERM, R_TERM,
+ FF_TERM) = range(10)
+# State (x)
+(S_TARGET, S_MODE_SEEN, S_SP_PARAM, S_SP_SEEN, S_MAN_SEEN, S_SP_RAMP, S_SP_FILT, S_PV, S_PV_OK,
+ S_OUT, S_R, S_P, S_PE, S_D, S_DSIG, S_FF, S_FF_HOLD, S_LIM, S_INIT, S_FIRST) = range(20)
+
+SIGNAL_LIMIT = 1e15  # EU and % signals saturate here: an overflow guard, not a vendor limit
+GAIN_LIMIT = 1e6
+FLOAT32_MAX = float(np.finfo(np.float32).max)
+
+STRUCTURES: dict[str, tuple[bool, float, float, bool]] = {
+    # name: (P acts, beta, gamma, I acts)  - spec 4.3
+    "pid_action_on_error": (True, 1.0, 1.0, True),
+    "pi_action_on_error_d_action_on_pv": (True, 1.0, 0.0, True),
+    "i_action_on_error_pd_action_on_pv": (True, 0.0, 0.0, True),
+    "pd_action_on_error": (True, 1.0, 1.0, False),
+    "p_action_on_error_d_action_on_pv": (True, 1.0, 0.0, False),
+    "id_action_on_error": (False, 0.0, 1.0, True),
+    "i_action_on_error_d_action_on_pv": (False, 0.0, 0.0, True),
+    "two_degrees_of_freedom": (True, math.nan, math.nan, True),
+}
+
+
+@primitive
+def rnd(x: float, single: bool) -> float:
+    """``x`` rounded to IEEE single precision (nearest, ties to even) when ``single``: a value
+    stored in a 32-bit DeltaV float parameter (spec 4.1 [A])."""
+    if single:
+        return float(np.float32(x))
+    return x
+
+
+@primitive
+def to_pct(x: float, eu0: float, k: float) -> float:
+    """Percent of span: (x - EU@0%)·k with k = 100/span (spec 4.2), saturated at ±1e15."""
+    return clamp((x - eu0) * k, -SIGNAL_LIMIT, SIGNAL_LIMIT)
+
+
+@primitive
+def first_order(y: float, target: float, dt: float, t: float, law: float) -> float:
+    """PV/SP filter step (spec 4.7 step 3): y + dt/(T + dt)·(target - y) (backward Euler, [A])
+    or y + (1 - e^(-dt/T))·(target - y) (exact); T = 0 passes the target through."""
+    if t <= 0.0:
+        return target
+    if law == EXACT:
+        return y + (1.0 - math.exp(-dt / t)) * (target - y)
+    return y + dt / (t + dt) * (target - y)
+
+
+@primitive
+def reset_gain(dt: float, reset: float, law: float) -> float:
+    """The a of R_k = R_{k-1} + a·(F - R_{k-1}) (spec 4.7 step 7): dt/RESET (Euler [A], capped
+    at 1), dt/(RESET + dt) (backward) or 1 - e^(-dt/RESET) (exact)."""
+    if law == EXACT:
+        return 1.0 - math.exp(-dt / reset)
+    if law == BACKWARD:
+        return dt / (reset + dt)
+    return min(dt / reset, 1.0)
+
+
+@primitive
+def ramp(current: float, target: float, up: float, down: float) -> float:
+    """Move ``current`` toward ``target`` by at most ``up`` (rising) or ``down`` (falling) per
+    scan; 0 or inf = no limit (FF SP_RATE_UP/DN: "0 = the SP is used immediately")."""
+    if target > current and up > 0.0 and current + up < target:
+        return current + up
+    if target < current and down > 0.0 and current - down > target:
+        return current - down
+    return target
+
+
+def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                      y: FloatArray, ys: IntArray) -> None:
+    """One scan of the DeltaV PID, in the order of spec 4.7 (see the module docstring)."""
+    single = p[SINGLE] != 0.0
+    first = x[S_FIRST] != 0.0
+    lo = p[OUT_LO]
+    hi = p[OUT_HI]
+    out_prev = x[S_OUT]
+    # -- input qualities (spec 4.5, 4.6) ------------------------------------------------------
+    v_in = u[PV]
+    q_in = us[PV] & 0xC0
+    in_finite = finite(v_in)
+    in_bad = (not in_finite or q_in == BAD
+              or (q_in == UNCERTAIN and p[UNCERTAIN_AS_GOOD] == 0.0))
+    in_uncertain = q_in == UNCERTAIN and not in_bad
+    sample = in_finite and q_in != BAD  # a value the PV filter takes
+    if in_finite:
+        v_in = rnd(clamp(v_in, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+    fresh = False
+    if sample and x[S_PV_OK] == 0.0:  # the PV filter starts at the first usable IN
+        x[S_PV] = v_in
+        x[S_PV_OK] = 1.0
+        fresh = True
+    cas = u[CAS_IN]
+    cas_ok = finite(cas) and (us[CAS_IN] & 0xC0) != BAD
+    if cas_ok:
+        cas = rnd(clamp(cas, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+        if p[OBEY_SP_LIMITS] != 0.0:
+            cas = clamp(cas, p[SP_LO], p[SP_HI])
+    st_bk = us[BKCAL_IN]
+    q_bk = st_bk & 0xC0
+    sub_bk = st_bk & 0xFC
+    bk_ok = finite(u[BKCAL_IN]) and q_bk != BAD
+    bk_pct = 0.0
+    if bk_ok:
+        bk_pct = rnd(to_pct(rnd(clamp(u[BKCAL_IN], -SIGNAL_LIMIT, SIGNAL_LIMIT), single),
+                            p[OUT_EU0], p[OUT_K]), single)
+    downstream_not_cas = (q_bk == BAD or sub_bk == GOOD_C_IR or sub_bk == GOOD_C_NI
+                          or sub_bk == GOOD_C_LO or sub_bk == GOOD_C_FSA)
+    trk = u[TRK_VAL]
+    trk_ok = finite(trk) and (us[TRK_VAL] & 0xC0) != BAD
+    # -- step 8 (a pure function of the inputs, needed earlier by the re-initialisation) ------
+    ff_val = u[FF_VAL]
+    if finite(ff_val) and (us[FF_VAL] & 0xC0) != BAD:
+        ff_val = rnd(clamp(ff_val, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+        if p[FF_ORDER] == SCALE_THEN_GAIN:
+            ff = p[FF_GAIN] * to_pct(ff_val, p[FF_EU0], p[FF_K])
+        else:
+            ff = to_pct(p[FF_GAIN] * ff_val, p[FF_EU0], p[FF_K])
+        ff = rnd(clamp(ff, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+        x[S_FF_HOLD] = ff
+    else:  # NaN or Bad FF_VAL: the last usable contribution holds
+        ff = x[S_FF_HOLD]
+    # -- step 1: target and actual mode ---------------------------------------------------------
+    m = u[MODE]
+    if finite(m) and m != x[S_MODE_SEEN]:  # an operator write of MODE.TARGET
+        x[S_MODE_SEEN] = m
+        if m == OOS or m == MAN or m == AUTO or m == CAS:
+            x[S_TARGET] = m
+    if in_bad and p[TARGET_TO_MAN] != 0.0 and x[S_TARGET] != OOS:
+        x[S_TARGET] = MAN
+    ifs_cas = p[IFS_IF_BAD_CAS_IN] != 0.0 and x[S_TARGET] == CAS and not cas_ok
+    if x[S_TARGET] == CAS and not cas_ok and p[TARGET_TO_NEXT] != 0.0:
+        x[S_TARGET] = AUTO
+    target = x[S_TARGET]
+    trk_d = u[TRK_IN_D]
+    tracking = (p[TRACK_ENABLE] != 0.0 and finite(trk_d) and trk_d > 0.5
+                and (us[TRK_IN_D] & 0xC0) != BAD
+                and (target != MAN or p[TRACK_IN_MANUAL] != 0.0))
+    if target == OOS:
+        actual = OOS
+    elif downstream_not_cas:
+        actual = IMAN
+    elif tracking:
+        actual = LO
+    elif target == MAN or in_bad:
+        actual = MAN
+    elif target == CAS and cas_ok:
+        actual = CAS
+    else:
+        actual = AUTO
+    computing = actual == AUTO or actual == CAS
+    # -- step 2: setpoint -------------------------------------------------------------------------
+    sp_in = u[SP]
+    if finite(sp_in) and sp_in != x[S_SP_SEEN] and actual != CAS:  # an operator SP write
+        x[S_SP_PARAM] = rnd(clamp(sp_in, p[SP_LO], p[SP_HI]), single)
+    x[S_SP_SEEN] = sp_in
+    tracked = False
+    if actual == CAS:
+        x[S_SP_PARAM] = cas
+        spw = cas
+    else:
+        if (p[SP_TRACK_RETAINED] != 0.0 and target == CAS and cas_ok
+                and (actual == MAN or actual == LO or actual == IMAN)):
+            x[S_SP_PARAM] = cas
+            tracked = True
+        elif x[S_PV_OK] != 0.0 and (
+                (p[SP_PV_TRACK_MAN] != 0.0 and target == MAN and actual != OOS)
+                or (p[SP_PV_TRACK_LO_IMAN] != 0.0 and (actual == LO or actual == IMAN))):
+            x[S_SP_PARAM] = x[S_PV]  # SP = PV as it stands at step 2 (PV_{k-1})
+            tracked = True
+        if actual == AUTO and not tracked and not first:
+            spw = ramp(x[S_SP_RAMP], x[S_SP_PARAM], p[SP_RATE_UP] * dt, p[SP_RATE_DN] * dt)
+        else:
+            spw = x[S_SP_PARAM]
+    spw = rnd(spw, single)
+    x[S_SP_RAMP] = spw
+    if tracked or first:
+        spf = spw
+    else:
+        spf = rnd(first_order(x[S_SP_FILT], spw, dt, p[SP_FTIME], p[FILTER_LAW]), single)
+    x[S_SP_FILT] = spf
+    # -- step 3: PV ------------------------------------------------------------------------------
+    if sample and not fresh:
+        x[S_PV] = rnd(first_order(x[S_PV], v_in, dt, p[PV_FTIME], p[FILTER_LAW]), single)
+    pv = x[S_PV]
+    # -- steps 4-7 ---------------------------------------------------------------------------------
+    valid = not in_bad  # implies a PV: a non-Bad IN has started the filter
+    init = x[S_INIT] != 0.0
+    s = p[SIGN]
+    g = p[GAIN]
+    pterm = 0.0
+    dterm = 0.0
+    pe = 0.0
+    dsig = 0.0
+    r = x[S_R]
+    if valid:
+        sp_pct = to_pct(spf, p[PV_EU0], p[PV_K])  # step 4
+        pv_pct = to_pct(pv, p[PV_EU0], p[PV_K])
+        pe = rnd(s * g * (sp_pct - pv_pct), single)
+        if p[HAS_P] != 0.0:  # step 5
+            pterm = rnd(s * g * (p[BETA] * sp_pct - pv_pct), single)
+        dsig = p[GAMMA] * sp_pct - pv_pct  # step 6
+        d_prev = x[S_D]
+        dsig_prev = x[S_DSIG]
+        if init:
+            d_prev = 0.0
+            dsig_prev = dsig
+        rate = p[RATE]
+        if rate > 0.0:
+            tf = p[ALPHA] * rate
+            kd = s * g * p[D_FACTOR]
+            if p[DERIV_LAW] == EXACT:
+                dterm = math.exp(-dt / tf) * d_prev + kd / p[ALPHA] * (dsig - dsig_prev)
+            else:  # (α·RATE·D + kd·RATE·Δd)/(α·RATE + dt), written so nothing overflows
+                dterm = (d_prev * (tf / (tf + dt))
+                         + kd * (dsig - dsig_prev) / (p[ALPHA] + dt / rate))
+            dterm = rnd(dterm, single)
+        p_prev = x[S_P]
+        pe_prev = x[S_PE]
+        ff_prev = x[S_FF]
+        r_prev = x[S_R]
+        if init:  # (re)start: as if the scan before had been Man with these P, D, FF
+            r_prev = rnd(out_prev - pterm - dterm - ff, single)
+            p_prev = pterm
+            pe_prev = pe
+            d_prev = dterm
+            ff_prev = ff
+        r = r_prev
+        if computing:  # step 7
+            if p[HAS_I] == 0.0:
+                if p[BIAS_MODE] == BIAS_FIXED:
+                    r = lag_step(r_prev, p[BIAS], dt, p[BAL_TIME])
+            elif not abs(spf - pv) < p[IDEADBAND]:
+                fb = out_prev
+                if p[DYNAMIC_RESET] != 0.0 and bk_ok:
+                    fb = bk_pct
+                if p[FF_IN_FEEDBACK] == 0.0:
+                    fb = fb - ff_prev
+                if p[FEEDBACK] == FEEDBACK_ERROR:
+                    fb = fb - (p_prev - pe_prev)
+                    if p[SERIES] == 0.0:
+                        fb = fb - d_prev
+                k = 1.0
+                if (out_prev > p[ARW_HI] and fb < r_prev) or (out_prev < p[ARW_LO]
+                                                             and fb > r_prev):
+                    k = 16.0  # ARW: RESET/16 on the way back (spec 4.4)
+                r = r_prev + reset_gain(dt * k, p[RESET], p[RESET_LAW]) * (fb - r_prev)
+                if (q_bk & 0x80) != 0:  # Good BKCAL_IN limit bits (spec 4.4)
+                    bits = st_bk & 3
+                    if (bits == HIGH_LIMITED or bits == CONSTANT) and r > r_prev:
+                        r = r_prev
+                    if (bits == LOW_LIMITED or bits == CONSTANT) and r < r_prev:
+                        r = r_prev
+            r = rnd(r, single)
+    # -- step 9: output ----------------------------------------------------------------------------
+    man = u[MAN_OUT]
+    man_write = finite(man) and man != x[S_MAN_SEEN]
+    x[S_MAN_SEEN] = man
+    if computing:
+        out_pct = clamp(rnd(pterm + dterm + r + ff, single), lo, hi)
+    elif actual == MAN or actual == OOS:  # -- step 10: overrides
+        out_pct = out_prev
+        if man_write:
+            out_pct = to_pct(rnd(clamp(man, -SIGNAL_LIMIT, SIGNAL_LIMIT), single),
+                             p[OUT_EU0], p[OUT_K])
+        if actual == MAN and not (p[NO_OUT_LIMITS_MAN] != 0.0 and target == MAN):
+            out_pct = clamp(out_pct, lo, hi)
+    elif actual == LO:
+        out_pct = out_prev
+        if trk_ok:
+            trk = rnd(clamp(trk, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+            out_pct = clamp(to_pct(trk, p[TRK_EU0], p[TRK_K]), lo, hi)
+    else:  # IMan: OUT follows the downstream block
+        out_pct = out_prev
+        if bk_ok:
+            out_pct = bk_pct
+    out_pct = rnd(out_pct, single)
+    if valid:
+        if not computing:  # back-initialisation: the next Auto/Cas scan is bumpless
+            r = rnd(out_pct - pterm - dterm - ff, single)
+        x[S_P] = pterm
+        x[S_PE] = pe
+        x[S_D] = dterm
+        x[S_DSIG] = dsig
+        x[S_R] = r
+    x[S_FF] = ff
+    x[S_OUT] = out_pct
+    x[S_INIT] = 0.0 if valid and actual != OOS else 1.0
+    x[S_FIRST] = 0.0
+    # limit bits with BKCAL_HYS hysteresis (spec 4.4)
+    if out_pct >= hi:
+        x[S_LIM] = 2.0
+    elif out_pct <= lo:
+        x[S_LIM] = 1.0
+    elif (x[S_LIM] == 2.0 and hi - out_pct >= p[BKCAL_HYS]) or (
+            x[S_LIM] == 1.0 and out_pct - lo >= p[BKCAL_HYS]):
+        x[S_LIM] = 0.0
+    bits = NOT_LIMITED
+    if x[S_LIM] == 2.0:
+        bits = HIGH_LIMITED
+    elif x[S_LIM] == 1.0:
+        bits = LOW_LIMITED
+    # -- step 11: BKCAL_OUT and statuses -------------------------------------------------------
+    base = GOOD_NC if q_bk == GOOD_NC else GOOD_CASCADE
+    if actual == OOS:
+        st_out = BAD_OUT_OF_SERVICE
+        st_bkcal = BAD_OUT_OF_SERVICE
+    else:
+        if computing:
+            st_out = (UNCERTAIN_NON_SPECIFIC if in_uncertain else base) | bits
+        elif actual == IMAN and sub_bk == GOOD_C_IR:
+            st_out = GOOD_C_IA | CONSTANT
+        else:
+            st_out = base | CONSTANT
+        if (in_bad and p[IFS_IF_BAD_IN] != 0.0) or ifs_cas:
+            st_out = GOOD_C_IFS | (st_out & 3)
+        if actual == CAS:
+            st_bkcal = GOOD_C_NON_SPECIFIC | bits
+        elif actual == LO:
+            st_bkcal = GOOD_C_LO | bits
+        elif target == CAS:
+            st_bkcal = GOOD_C_IR | bits
+        else:
+            st_bkcal = GOOD_C_NI | bits
+    y[OUT] = rnd(p[OUT_EU0] + out_pct * p[OUT_EU_PER_PCT], single)
+    ys[OUT] = st_out
+    y[BKCAL_OUT] = pv if actual == CAS and p[USE_PV_FOR_BKCAL] != 0.0 else spf
+    ys[BKCAL_OUT] = st_bkcal
+    y[FILTERED_PV] = pv
+    ys[FILTERED_PV] = us[PV] if in_finite else BAD_NON_SPECIFIC
+    y[WORKING_SP] = spf
+    y[MODE_ACTUAL] = actual
+    y[MODE_TARGET] = target
+    y[P_TERM] = pterm
+    y[D_TERM] = dterm
+    y[R_TERM] = r
+    y[FF_TERM] = ff
+
+
+def series_to_standard(gain: float, reset: float, rate: float) -> tuple[float, float, float]:
+    """Series (GAIN', RESET', RATE') to the Standard equivalent, ignoring the derivative filter
+    (spec 4.2 [D], textbook): Kc = GAIN'(1 + RATE'/RESET'), Ti = RESET' + RATE',
+    Td = RESET'·RATE'/(RESET' + RATE'). RESET' = inf (no I) gives (GAIN', inf, RATE')."""
+    if math.isinf(reset):
+        return gain, reset, rate
+    return gain * (1.0 + rate / reset), reset + rate, reset * rate / (reset + rate)
+
+
+_PCT = "%"
+_OPT = "CONTROL_OPTS"
+_STO = "STATUS_OPTS"
+
+
+def _flag(name: str, meaning: str) -> Param:
+    return Param(name, False, "", meaning, "bool")
+
+
+def _eu(name: str, default: float | None, unit: str, meaning: str, text: str = "") -> Param:
+    return Param(name, default, unit, meaning, lo=-SIGNAL_LIMIT, hi=SIGNAL_LIMIT,
+                 lo_open=False, hi_open=False, default_text=text)
+
+
+@register
+class DeltaVPID(Block):
+    """Emerson DeltaV standard PID function block (spec vendor-blocks 4)."""
+
+    kind = "deltav.pid"
+    summary = ("Emerson DeltaV PID: Standard/Series, STRUCTURE, external reset, ARW, modes, "
+               "Fieldbus status")
+    kernel = staticmethod(deltav_pid_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("form", "standard", "", "FORM: standard (ISA, non-interacting) or series "
+              "(interacting) (spec 4.2)", "choice", choices=("standard", "series")),
+        Param("structure", "pi_action_on_error_d_action_on_pv", "",
+              "STRUCTURE: which terms act on the error and which on PV (spec 4.3); default [?]",
+              "choice", choices=tuple(STRUCTURES)),
+        Param("gain", 1.0, "%/%", "GAIN on normalised signals (spec 4.1, 4.2); default [?] "
+              "(R58)", lo=0.0, hi=GAIN_LIMIT, hi_open=False),
+        Param("reset", math.inf, "s/repeat", "RESET, seconds per repeat; inf = no integral "
+              "action (spec 4.1; default [?], R58)", lo=0.0, lo_open=False, hi_open=False),
+        Param("rate", 0.0, "s", "RATE, derivative time; 0 = no D (spec 4.1)", lo=0.0,
+              lo_open=False),
+        Param("alpha", 0.125, "", "ALPHA: derivative filter time constant = ALPHA·RATE "
+              "(spec 4.1, R42)", lo=0.05, hi=1.0, lo_open=False, hi_open=False),
+        Param("beta", 1.0, "", "BETA: setpoint weight of P, structure two_degrees_of_freedom "
+              "only (spec 4.3)", lo=0.0, hi=1.0, lo_open=False, hi_open=False),
+        Param("gamma", 1.0, "", "GAMMA: setpoint weight of D, structure two_degrees_of_freedom "
+              "only (spec 4.3)", lo=0.0, hi=1.0, lo_open=False, hi_open=False),
+        Param("ideadband", 0.0, "EU", "IDEADBAND: no reset action while abs(SP - PV) < "
+              "IDEADBAND (spec 4.4)", lo=0.0, lo_open=False),
+        _eu("pv_scale_eu_0", 0.0, "EU", "PV_SCALE: EU at 0 % (spec 4.1, 4.2)"),
+        _eu("pv_scale_eu_100", 100.0, "EU", "PV_SCALE: EU at 100 %, > EU at 0 % (spec 4.1)"),
+        _eu("out_scale_eu_0", 0.0, "EU", "OUT_SCALE: EU at 0 % (spec 4.1, 4.2)"),
+        _eu("out_scale_eu_100", 100.0, "EU", "OUT_SCALE: EU at 100 %, > EU at 0 % (spec 4.1)"),
+        _eu("ff_scale_eu_0", 0.0, "EU", "FF_SCALE: EU at 0 % (spec 4.1, 4.7 step 8)"),
+        _eu("ff_scale_eu_100", 100.0, "EU", "FF_SCALE: EU at 100 % (spec 4.1)"),
+        _eu("trk_scale_eu_0", 0.0, "EU", "TRK_SCALE: EU at 0 % (spec 4.1, 4.5)"),
+        _eu("trk_scale_eu_100", 100.0, "EU", "TRK_SCALE: EU at 100 % (spec 4.1)"),
+        _eu("sp_hi_lim", None, "EU", "SP_HI_LIM: highest operator/limited SP (spec 4.1, 4.7 "
+            "step 2)", "pv_scale_eu_100"),
+        _eu("sp_lo_lim", None, "EU", "SP_LO_LIM: lowest operator/limited SP (spec 4.1)",
+            "pv_scale_eu_0"),
+        Param("sp_rate_up", 0.0, "EU/s", "SP_RATE_UP: SP ramp rate up in Auto; 0 or inf = "
+              "none (spec 4.1, 4.7 step 2)", lo=0.0, lo_open=False, hi_open=False),
+        Param("sp_rate_dn", 0.0, "EU/s", "SP_RATE_DN: SP ramp rate down in Auto; 0 or inf = "
+              "none (spec 4.1)", lo=0.0, lo_open=False, hi_open=False),
+        Param("sp_ftime", 0.0, "s", "SP_FTIME: setpoint filter time constant (spec 4.1, "
+              "4.7 step 2)", lo=0.0, lo_open=False),
+        Param("pv_ftime", 0.0, "s", "PV_FTIME: PV filter time constant (spec 4.1, 4.7 "
+              "step 3)", lo=0.0, lo_open=False),
+        _eu("out_hi_lim", None, "EU", "OUT_HI_LIM (OUT_SCALE EU), -10..110 % of span (spec "
+            "4.1, 4.4)", "out_scale_eu_100"),
+        _eu("out_lo_lim", None, "EU", "OUT_LO_LIM (OUT_SCALE EU), -10..110 % of span, < "
+            "OUT_HI_LIM (spec 4.1)", "out_scale_eu_0"),
+        _eu("arw_hi_lim", None, "% or EU", "ARW_HI_LIM: RESET/16 beyond it on the way back "
+            "(spec 4.4); unit per arw_units", "the OUT high limit"),
+        _eu("arw_lo_lim", None, "% or EU", "ARW_LO_LIM (spec 4.4); unit per arw_units",
+            "the OUT low limit"),
+        Param("bkcal_hys", 0.5, _PCT, "BKCAL_HYS: limit status released when OUT is this far "
+              "from the limit (spec 4.1, 4.4)", lo=0.0, hi=50.0, lo_open=False, hi_open=False),
+        Param("ff_gain", 0.0, "", "FF_GAIN (spec 4.1, 4.7 step 8)", lo=-GAIN_LIMIT,
+              hi=GAIN_LIMIT, lo_open=False, hi_open=False),
+        _flag("direct_acting", f"{_OPT} Direct acting: s = -1 (spec 4.2, 4.9)"),
+        _flag("track_enable", f"{_OPT} Track enable: TRK_IN_D puts the block in LO "
+              "(spec 4.5)"),
+        _flag("track_in_manual", f"{_OPT} Track in Manual: tracking also with target Man "
+              "(spec 4.5)"),
+        _flag("sp_pv_track_man", f"{_OPT} SP-PV track in Man: SP = PV while the target is "
+              "Man (spec 4.5, 4.7 step 2)"),
+        _flag("sp_pv_track_lo_iman", f"{_OPT} SP-PV track in LO or IMan (spec 4.7 step 2)"),
+        _flag("sp_track_retained_target", f"{_OPT} SP track retained target: SP = CAS_IN in "
+              "Man/LO/IMan while the target is Cas (precedes SP-PV track)"),
+        _flag("use_pv_for_bkcal_out", f"{_OPT} Use PV for BKCAL_OUT (in Cas) (spec 4.7 "
+              "step 11)"),
+        _flag("obey_sp_limits_cas", f"{_OPT} Obey SP limits in Cas (spec 4.7 step 2)"),
+        _flag("no_out_limits_manual", f"{_OPT} No OUT limits in Manual (spec 4.5)"),
+        _flag("dynamic_reset_limit", f"{_OPT} dynamic reset limit: reset feedback from "
+              "BKCAL_IN (spec 4.4)"),
+        _flag("ifs_if_bad_in", f"{_STO} IFS if Bad IN: OUT.ST Good cascade IFS (spec 4.1)"),
+        _flag("ifs_if_bad_cas_in", f"{_STO} IFS if Bad CAS_IN (spec 4.1)"),
+        _flag("use_uncertain_as_good", f"{_STO} Use Uncertain as Good: an Uncertain IN is "
+              "not Bad (spec 4.1, 4.6)"),
+        _flag("target_to_man_if_bad_in", f"{_STO} Target to Manual if Bad IN (spec 4.5)"),
+        _flag("target_to_next_if_bad_cas_in", f"{_STO} Target to next permitted mode (Auto) "
+              "if Bad CAS_IN (spec 4.1)"),
+        Param("reset_discretisation", "euler", "", "R update a = dt/RESET (euler [A]), "
+              "dt/(RESET + dt) or 1 - exp(-dt/RESET) (spec 4.7 step 7)", "choice",
+              choices=("euler", "backward", "exact")),
+        Param("filter_discretisation", "backward", "", "PV_FTIME/SP_FTIME filter: backward "
+              "Euler [A] or exact (spec 4.7 step 3)", "choice", choices=("backward", "exact")),
+        Param("derivative_discretisation", "backward", "", "D filter: backward Euler [A] or "
+              "exact step invariant (spec 4.7 step 6)", "choice",
+              choices=("backward", "exact")),
+        Param("reset_feedback", "error", "", "F = limited OUT less FF and what the 4.2 "
+              "equations do not integrate (error) or less FF only (output, 4.7 step 7 "
+              "literally) [A]", "choice", choices=("error", "output")),
+        Param("ff_in_reset_feedback", False, "", "keep FF in the reset feedback (FF is "
+              "integrated) [A] (spec 4.7 step 7)", "bool"),
+        Param("series_derivative", "lead_lag", "", "Series D: (1 + RATE·s)/(α·RATE·s + 1) "
+              "(spec 4.2 [A]) or filtered (1 + RATE·s/(α·RATE·s + 1), R40)", "choice",
+              choices=("lead_lag", "filtered")),
+        Param("no_reset_bias", "bumpless", "", "bias of the structures without I: frozen at "
+              "the bumpless value, or fixed (bias, bal_time) [?] (spec 4.3)", "choice",
+              choices=("bumpless", "fixed")),
+        _eu("bias", None, "EU", "bias (OUT EU) for no_reset_bias = fixed (spec 4.3 [?])",
+            "out_scale_eu_0"),
+        Param("bal_time", 0.0, "s", "BAL_TIME: time constant of the return to bias, "
+              "no_reset_bias = fixed (spec 4.1 [?])", lo=0.0, lo_open=False),
+        Param("reset_zero_disables", False, "", "RESET = 0 also disables I (else an error) "
+              "[?] (spec 4.1)", "bool"),
+        Param("ff_conversion", "gain_then_scale", "", "FF_GAIN·FF_VAL then FF_SCALE to %, or "
+              "the reverse [A] (spec 4.7 step 8)", "choice",
+              choices=("gain_then_scale", "scale_then_gain")),
+        Param("arw_units", "percent", "", "ARW limits in % of OUT span (spec 4.1) or in "
+              "OUT_SCALE EU (R42)", "choice", choices=("percent", "out_eu")),
+        Param("precision", "float32", "", "float32: values stored as 32-bit floats [A], or "
+              "float64 (spec 4.1)", "choice", choices=("float32", "float64")),
+        _eu("initial_out", None, "EU", "OUT before the first scan (OUT EU, within the OUT "
+            "limits); R is back-initialised from it", "out_scale_eu_0 (clamped to the limits)"),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("pv", 0.0, "EU", "IN: the process input, PV_SCALE EU", status=True),
+        Port("sp", 0.0, "EU", "operator SP write (a new value is written; NaN = none)"),
+        Port("cas_in", math.nan, "EU", "CAS_IN: cascade setpoint (Cas)", status=True),
+        Port("bkcal_in", math.nan, "EU", "BKCAL_IN: downstream BKCAL_OUT (OUT_SCALE EU); its "
+             "status drives IMan", status=True),
+        Port("ff_val", 0.0, "EU", "FF_VAL: feedforward input, FF_SCALE EU", status=True),
+        Port("trk_in_d", 0.0, "", "TRK_IN_D: track switch (> 0.5 = track)", status=True),
+        Port("trk_val", math.nan, "EU", "TRK_VAL: output in LO, TRK_SCALE EU", status=True),
+        Port("man_out", math.nan, "EU", "operator OUT write in Man/OOS (a new value is "
+             "written; NaN = none)"),
+        Port("mode", AUTO, "", "MODE.TARGET write: OOS, MAN, AUTO or CAS (IMAN/LO rejected)",
+             choices=MODES),
+    )
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("out", 0.0, "EU", "OUT, OUT_SCALE EU", status=True),
+        Port("bkcal_out", 0.0, "EU", "BKCAL_OUT: working SP (or PV), PV_SCALE EU", status=True),
+        Port("filtered_pv", 0.0, "EU", "PV: IN after PV_FTIME; status follows IN", status=True),
+        Port("working_sp", 0.0, "EU", "working SP after limits, ramp and SP_FTIME"),
+        Port("mode_actual", 0.0, "", "MODE.ACTUAL code: OOS 0, IMAN 1, LO 2, MAN 3, AUTO 4, "
+             "CAS 5"),
+        Port("mode_target", 0.0, "", "MODE.TARGET code (same codes)"),
+        Port("p_term", 0.0, _PCT, "P contribution, % of OUT span"),
+        Port("d_term", 0.0, _PCT, "D contribution, % of OUT span"),
+        Port("r_term", 0.0, _PCT, "reset contribution R (external reset state), %"),
+        Port("ff_term", 0.0, _PCT, "FF contribution, %"),
+    )
+    STATES: ClassVar[tuple[str, ...]] = (
+        "target", "mode_seen", "sp_param", "sp_seen", "man_seen", "sp_ramp", "sp_filtered",
+        "pv", "pv_ok", "out_pct", "r", "p", "pe", "d", "d_signal", "ff", "ff_hold",
+        "limit", "init", "first")
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        kind = self.kind
+        single = prm["precision"] == "float32"
+
+        def num(name: str, value: Any = None) -> float:
+            v = float(prm[name] if value is None else value)
+            if not single:
+                return v
+            if math.isfinite(v) and abs(v) > FLOAT32_MAX:
+                raise ParameterError(
+                    f"{kind}: parameter '{name}' = {v:g} is out of range for a 32-bit float "
+                    f"(precision = float32): allowed magnitude up to {FLOAT32_MAX:g}")
+            return float(np.float32(v))
+
+        def scale(name: str) -> tuple[float, float]:
+            e0, e100 = num(f"{name}_eu_0"), num(f"{name}_eu_100")
+            if not e100 > e0:
+                raise ParameterError(
+                    f"{kind}: parameter '{name}_eu_100' = {e100:g} must be greater than "
+                    f"{name}_eu_0 = {e0:g}")
+            return e0, e100 - e0
+
+        pv0, pv_span = scale("pv_scale")
+        out0, out_span = scale("out_scale")
+        ff0, ff_span = scale("ff_scale")
+        trk0, trk_span = scale("trk_scale")
+        structure = prm["structure"]
+        has_p, beta, gamma, has_i = STRUCTURES[structure]
+        if structure == "two_degrees_of_freedom":
+            beta, gamma = num("beta"), num("gamma")
+        else:
+            for name in ("beta", "gamma"):
+                if name in self.given:
+                    raise ParameterError(
+                        f"{kind}: parameter '{name}' is used only with structure "
+                        f"'two_degrees_of_freedom', not '{structure}'")
+        reset = num("reset")
+        if reset == 0.0:
+            if not prm["reset_zero_disables"]:
+                raise ParameterError(
+                    f"{kind}: parameter 'reset' = 0 is out of range: allowed (0, inf] s/repeat "
+                    "(inf = no integral action; reset_zero_disables = true accepts 0)")
+            reset = math.inf
+        if math.isinf(reset):
+            has_i = False
+        # output limits, in % of the OUT span
+        hi_eu = num("out_hi_lim", out0 + out_span if prm["out_hi_lim"] is None else None)
+        lo_eu = num("out_lo_lim", out0 if prm["out_lo_lim"] is None else None)
+        hi, lo = (hi_eu - out0) * 100.0 / out_span, (lo_eu - out0) * 100.0 / out_span
+        for name, pct in (("out_hi_lim", hi), ("out_lo_lim", lo)):
+            if not -10.0 <= pct <= 110.0:
+                raise ParameterError(
+                    f"{kind}: parameter '{name}' = {hi_eu if name == 'out_hi_lim' else lo_eu:g}"
+                    f" is out of range: allowed -10..110 % of OUT_SCALE "
+                    f"[{out0 - 0.1 * out_span:g}, {out0 + 1.1 * out_span:g}] EU")
+        if not hi > lo:
+            raise ParameterError(f"{kind}: parameter 'out_hi_lim' = {hi_eu:g} must be greater "
+                                 f"than out_lo_lim = {lo_eu:g}")
+        arw: list[float] = []
+        for name, default in (("arw_hi_lim", hi), ("arw_lo_lim", lo)):
+            if prm[name] is None:
+                arw.append(default)
+                continue
+            v = num(name)
+            pct = v if prm["arw_units"] == "percent" else (v - out0) * 100.0 / out_span
+            if not lo <= pct <= hi:
+                raise ParameterError(
+                    f"{kind}: parameter '{name}' = {v:g} is out of range: allowed between the "
+                    f"OUT limits ({lo:g}..{hi:g} % of OUT span; arw_units = {prm['arw_units']})")
+            arw.append(pct)
+        if arw[1] > arw[0]:
+            raise ParameterError(f"{kind}: parameter 'arw_lo_lim' must not exceed arw_hi_lim")
+        sp_hi = num("sp_hi_lim", pv0 + pv_span if prm["sp_hi_lim"] is None else None)
+        sp_lo = num("sp_lo_lim", pv0 if prm["sp_lo_lim"] is None else None)
+        if sp_lo > sp_hi:
+            raise ParameterError(f"{kind}: parameter 'sp_hi_lim' = {sp_hi:g} must not be below "
+                                 f"sp_lo_lim = {sp_lo:g}")
+        init = out0 if prm["initial_out"] is None else num("initial_out")
+        init_pct = (init - out0) * 100.0 / out_span
+        if prm["initial_out"] is None:
+            init_pct = min(max(init_pct, lo), hi)
+        elif not lo <= init_pct <= hi:
+            raise ParameterError(f"{kind}: parameter 'initial_out' = {init:g} is out of range: "
+                                 f"allowed [{lo_eu:g}, {hi_eu:g}] EU (the OUT limits)")
+        self._initial_pct = float(np.float32(init_pct)) if single else init_pct
+        self._initial_sp = min(max(0.0, sp_lo), sp_hi)
+        alpha = num("alpha")
+        series = prm["form"] == "series"
+        d_factor = 1.0
+        if series and prm["series_derivative"] == "lead_lag":
+            d_factor = 1.0 - alpha
+        bias = out0 if prm["bias"] is None else num("bias")
+        laws = {"euler": EULER, "backward": BACKWARD, "exact": EXACT}
+        flags = ("track_enable", "track_in_manual", "sp_pv_track_man", "sp_pv_track_lo_iman",
+                 "sp_track_retained_target", "use_pv_for_bkcal_out", "obey_sp_limits_cas",
+                 "no_out_limits_manual", "dynamic_reset_limit", "ifs_if_bad_in",
+                 "ifs_if_bad_cas_in", "use_uncertain_as_good", "target_to_man_if_bad_in",
+                 "target_to_next_if_bad_cas_in")
+        c = [0.0] * N_COEFFS
+        c[GAIN], c[RESET], c[RATE], c[ALPHA] = num("gain"), reset, num("rate"), alpha
+        c[BETA], c[GAMMA] = beta, gamma
+        c[HAS_P], c[HAS_I] = float(has_p), float(has_i)
+        c[SERIES], c[D_FACTOR] = float(series), d_factor
+        c[SIGN] = -1.0 if prm["direct_acting"] else 1.0
+        c[PV_EU0], c[PV_K] = pv0, 100.0 / pv_span
+        c[OUT_EU0], c[OUT_K], c[OUT_EU_PER_PCT] = out0, 100.0 / out_span, out_span / 100.0
+        c[FF_EU0], c[FF_K] = ff0, 100.0 / ff_span
+        c[TRK_EU0], c[TRK_K] = trk0, 100.0 / trk_span
+        c[SP_LO], c[SP_HI] = sp_lo, sp_hi
+        c[SP_RATE_UP], c[SP_RATE_DN] = num("sp_rate_up"), num("sp_rate_dn")
+        c[SP_FTIME], c[PV_FTIME] = num("sp_ftime"), num("pv_ftime")
+        c[OUT_LO], c[OUT_HI] = lo, hi
+        c[ARW_HI], c[ARW_LO] = arw
+        c[BKCAL_HYS], c[IDEADBAND] = num("bkcal_hys"), num("ideadband")
+        c[FF_GAIN] = num("ff_gain")
+        c[FF_ORDER] = SCALE_THEN_GAIN if prm["ff_conversion"] == "scale_then_gain" \
+            else GAIN_THEN_SCALE
+        c[RESET_LAW] = laws[prm["reset_discretisation"]]
+        c[FILTER_LAW] = laws[prm["filter_discretisation"]]
+        c[DERIV_LAW] = laws[prm["derivative_discretisation"]]
+        c[FEEDBACK] = FEEDBACK_OUTPUT if prm["reset_feedback"] == "output" else FEEDBACK_ERROR
+        c[FF_IN_FEEDBACK] = float(bool(prm["ff_in_reset_feedback"]))
+        c[BIAS_MODE] = BIAS_FIXED if prm["no_reset_bias"] == "fixed" else BIAS_BUMPLESS
+        c[BIAS] = (bias - out0) * 100.0 / out_span
+        c[BAL_TIME] = num("bal_time")
+        c[SINGLE] = float(single)
+        for i, name in enumerate(flags):
+            c[TRACK_ENABLE + i] = float(bool(prm[name]))
+        return c
+
+    def initial_state(self) -> list[float]:
+        """Target Man until the first scan writes the ``mode`` input; OUT = initial_out; the
+        PV filter and the reset wait for the first usable IN (re-initialisation pending)."""
+        x = [0.0] * len(self.STATES)
+        x[S_TARGET] = MAN
+        x[S_MODE_SEEN] = math.nan
+        x[S_SP_PARAM] = self._initial_sp
+        x[S_SP_SEEN] = math.nan
+        x[S_MAN_SEEN] = math.nan
+        x[S_SP_RAMP] = self._initial_sp
+        x[S_SP_FILT] = self._initial_sp
+        x[S_PV] = math.nan
+        x[S_OUT] = self._initial_pct
+        x[S_R] = self._initial_pct
+        x[S_LIM] = 2.0 if self._initial_pct >= self.p[OUT_HI] else (
+            1.0 if self._initial_pct <= self.p[OUT_LO] else 0.0)
+        x[S_INIT] = 1.0
+        x[S_FIRST] = 1.0
+        return x
