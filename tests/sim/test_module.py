@@ -160,3 +160,15 @@ def test_to_csv_writes_every_signal(tmp_path: object) -> None:
 
 def test_module_is_exported() -> None:
     assert loopworks.Module is Module
+
+
+def test_result_metrics_for_the_first_controller() -> None:
+    """The result object computes the loop metrics itself (spec plant-and-tuning 4.1)."""
+    result = closed_loop().run(duration=50.0, dt=DT)
+    assert result.controllers() == ["pid"]
+    m = result.metrics()
+    e = result["pid.sp"] - result["pid.pv"]
+    assert m["IAE"] == pytest.approx(float(np.sum(np.abs(e))) * DT)
+    assert "valve travel" not in m
+    late = result.metrics(window=(25.0, 50.0))
+    assert late["IAE"] < m["IAE"]

@@ -77,23 +77,107 @@ def step_metrics(t: np.ndarray, y: np.ndarray, r: float, band: float = 0.02) -> 
     return StepMetrics(dr, overshoot, rise, settle)
 
 
-def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray,
-                 out: np.ndarray) -> dict[str, float]:
-    """The metrics table of one loop: error integrals over the run, step figures over the
-    window from the last setpoint change to the end, and output travel."""
+def reversals(y: np.ndarray, threshold: float = 0.05) -> int:
+    """Sign changes of the moves of ``y``, ignoring moves of at most ``threshold`` (spec 4.1:
+    so noise below the resolution is not counted). Moves are taken between the points where y
+    has moved more than the threshold since the last counted point."""
+    count = 0
+    last = float(y[0]) if len(y) else 0.0
+    direction = 0
+    for v in y[1:]:
+        move = float(v) - last
+        if abs(move) > threshold:
+            d = 1 if move > 0 else -1
+            if direction and d != direction:
+                count += 1
+            direction = d
+            last = float(v)
+    return count
+
+
+@dataclass(frozen=True)
+class OscillationReport:
+    """Hägglund's load-disturbance detector (spec 4.2): the IAE limit used, the number of
+    half periods whose IAE exceeded it, the forgetting counter at the end and the alarm."""
+
+    iae_limit: float
+    large_half_periods: int
+    counter: float
+    alarm: bool
+
+
+def oscillation_detector(t: np.ndarray, e: np.ndarray, a: float = 1.0,
+                         wu: float | None = None, ti: float | None = None, n_lim: float = 10.0,
+                         t_sup: float | None = None) -> OscillationReport:
+    """Hägglund (1995), spec 4.2: integrate |e| between zero crossings of e; a half period is
+    "large" when its IAE_i > IAE_lim = 2a/ωu (a in PV units, default 1 % of a 0..100 range;
+    ωu from the tuner, or ωu = 2π/Ti, giving IAE_lim = a·Ti/π). The flags are counted with
+    exponential forgetting x <- γ·x + flag at each crossing, γ = exp(-Δt/T_sup) over the time
+    since the previous crossing, T_sup = 50·Tu (Tu = 2π/ωu); alarm when x > n_lim."""
+    if wu is None:
+        if ti is None:
+            raise ValueError("oscillation_detector needs wu (rad/s) or ti (s)")
+        wu = 2.0 * np.pi / ti
+    iae_lim = 2.0 * a / wu
+    tu = 2.0 * np.pi / wu
+    t_sup = 50.0 * tu if t_sup is None else t_sup
+    ts = float(t[1] - t[0]) if len(t) > 1 else 0.0
+    x = 0.0
+    large = 0
+    area = 0.0
+    t_last = float(t[0]) if len(t) else 0.0
+    sign = 0.0
+    for k in range(len(e)):
+        ek = float(e[k])
+        s = float(np.sign(ek))
+        if sign and s and s != sign:  # a zero crossing ends the half period
+            flag = 1.0 if area > iae_lim else 0.0
+            large += int(flag)
+            x = float(np.exp(-(float(t[k]) - t_last) / t_sup)) * x + flag
+            t_last = float(t[k])
+            area = 0.0
+        if s:
+            sign = s
+        area += abs(ek) * ts
+    return OscillationReport(iae_lim, large, x, x > n_lim)
+
+
+def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
+                 position: np.ndarray | None = None,
+                 window: tuple[float, float] | None = None,
+                 reversal_threshold: float = 0.05) -> dict[str, float]:
+    """The metrics table of one loop (spec 4.1), over ``window`` = (t0, t1) s (default: the
+    whole run): error integrals, step figures over the window from the last setpoint change,
+    PV standard deviation and peak to peak, controller output travel and reversals, and the
+    valve stem travel and reversals when ``position`` is given."""
+    if window is not None:
+        keep = (t >= window[0]) & (t <= window[1])
+        if not keep.any():
+            raise ValueError(f"window {window} s holds no sample of the run "
+                             f"({t[0]:g}..{t[-1]:g} s)")
+        t, sp, pv, out = t[keep], sp[keep], pv[keep], out[keep]
+        position = position[keep] if position is not None else None
     ts = float(t[1] - t[0]) if len(t) > 1 else 0.0
     e = sp - pv
     changes = np.flatnonzero(np.diff(sp) != 0.0)
     start = int(changes[-1]) + 1 if len(changes) else 0
     sm = step_metrics(t[start:], pv[start:], float(sp[-1]))
-    return {
+    result = {
         "IAE": iae(e, ts),
         "ISE": ise(e, ts),
         "ITAE": itae(e, t),
+        "mean |e|": float(np.mean(np.abs(e))),
         "step size": sm.step_size,
         "overshoot %": sm.overshoot_pct,
         "rise time s": sm.rise_time_s,
         "settling time s (2 %)": sm.settling_time_s,
         "final error": float(e[-1]),
+        "PV std": float(np.std(pv)),
+        "PV peak to peak": float(np.ptp(pv)),
         "output travel": travel(out),
+        "output reversals": float(reversals(out, reversal_threshold)),
     }
+    if position is not None:
+        result["valve travel"] = travel(position)
+        result["valve reversals"] = float(reversals(position, reversal_threshold))
+    return result

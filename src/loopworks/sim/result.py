@@ -34,6 +34,29 @@ class SimResult:
         """Every signal name, ``block.port``."""
         return list(self.values)
 
+    def controllers(self) -> list[str]:
+        """Blocks that look like controllers by the port convention (sp, pv in; out out)."""
+        return [n for n in self.kinds if f"{n}.sp" in self.values and f"{n}.pv" in self.values
+                and f"{n}.out" in self.values]
+
+    def metrics(self, loop: str | None = None, valve: str | None = None,
+                window: tuple[float, float] | None = None) -> dict[str, float]:
+        """Loop metrics (spec plant-and-tuning 4.1) of controller ``loop`` (default: the first
+        controller), with valve stem travel when ``valve`` names a block with a ``position``
+        output (default: the first such block), over ``window`` = (t0, t1) s."""
+        from loopworks.sim.metrics import loop_metrics
+
+        loops = self.controllers()
+        if loop is None:
+            if not loops:
+                raise KeyError("no controller (a block with sp and pv inputs and an out output)")
+            loop = loops[0]
+        if valve is None:
+            valve = next((n for n in self.kinds if f"{n}.position" in self.values), None)
+        position = self.values[f"{valve}.position"] if valve is not None else None
+        return loop_metrics(self.t, self[f"{loop}.sp"], self[f"{loop}.pv"],
+                            self[f"{loop}.out"], position=position, window=window)
+
     def to_pandas(self) -> Any:
         """A pandas DataFrame indexed by ``t`` (s), with a ``NAME.ST`` column per signal.
         pandas is optional: ``pip install loopworks[pandas]``."""
