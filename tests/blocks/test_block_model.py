@@ -340,3 +340,14 @@ def test_a_held_result_keeps_the_scan_that_produced_it() -> None:
     assert third["out"].value == 1.0
     assert dict(first) == {"out": (6.0, 128), "p_term": (6.0, 128), "i_term": (0.0, 128),
                            "d_term": (0.0, 128)}
+
+
+def test_set_params_changes_tuning_and_keeps_state() -> None:
+    pid = loopworks.create_block("pid", k=1.0, ti=10.0)
+    pid.step(1.0, sp=10.0, pv=0.0)            # I = 1.0
+    pid.set_params(k=2.0)                     # ki = k/ti = 0.2 now
+    out = pid.step(1.0)["out"].value
+    assert out == pytest.approx(2.0 * 10.0 + 1.0 + 0.2 * 10.0)
+    with pytest.raises(ParameterError, match="'k' = -1"):
+        pid.set_params(k=-1.0)
+    assert pid.params["k"] == 2.0             # a failed change leaves the block as it was

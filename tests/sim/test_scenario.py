@@ -86,3 +86,45 @@ def test_errors_name_the_file_and_place(text: str, message: str) -> None:
 def test_missing_file_is_a_clear_error(tmp_path: Path) -> None:
     with pytest.raises(FileFormatError, match="cannot read the scenario"):
         load_scenario(tmp_path / "nope.toml")
+
+
+def test_compare_variants_change_parameters_and_inputs() -> None:
+    text = GOOD + """
+[compare.slow]
+"pid.k" = 0.5
+[compare.high_sp]
+"pid.sp" = 8.0
+"""
+    sc = parse_scenario(text, "cmp.toml")
+    assert list(sc.variants) == ["slow", "high_sp"]
+    assert sc.module is sc.variants["slow"]
+    assert sc.variants["slow"].blocks["pid"].params["k"] == 0.5
+    assert sc.variants["high_sp"].blocks["pid"].params["k"] == 1.0
+    r = sc.variants["high_sp"].run(sc.duration, sc.dt)
+    assert r["pid.sp"][0] == 8.0
+
+
+def test_without_compare_there_is_one_base_variant() -> None:
+    sc = parse_scenario(GOOD)
+    assert list(sc.variants) == ["base"]
+
+
+@pytest.mark.parametrize(("extra", "message"), [
+    ('[compare.x]\n"nope.k" = 1.0\n', r"compare\.x: 'nope\.k' must be 'block\.parameter'"),
+    ('[compare.x]\n"pid.kind" = "pid"\n', r"not the kind"),
+    ('[compare.x]\n"pid.kk" = 1.0\n', r"compare\.x\).*unknown parameter 'kk'"),
+])
+def test_compare_errors_are_located(extra: str, message: str) -> None:
+    with pytest.raises(FileFormatError, match=message):
+        parse_scenario(GOOD + extra, "bad.toml")
+
+
+def test_an_event_can_change_a_parameter() -> None:
+    """[[events]] set = "pid.k" changes the gain at t = 10 s: the P term follows at once."""
+    text = GOOD + '\n[[events]]\nt = 15.0\nset = "pid.k"\nvalue = 3.0\n'
+    sc = parse_scenario(text)
+    r = sc.module.run(sc.duration, sc.dt)
+    e = r["pid.sp"] - r["pid.pv"]
+    before = r.t < 15.0
+    np.testing.assert_allclose(r["pid.p_term"][before], 1.0 * e[before], atol=1e-12)
+    np.testing.assert_allclose(r["pid.p_term"][~before], 3.0 * e[~before], atol=1e-12)

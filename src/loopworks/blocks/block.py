@@ -211,6 +211,25 @@ class Block:
                     raise InputError(f"{self.kind}: {exc}") from None
                 us[i] = st.GOOD_NC
 
+    def set_params(self, **changes: Any) -> None:
+        """Change parameters between scans (an operator's new tuning): validated like the
+        constructor's; the state is kept, so the next scan continues from it."""
+        given = dict(self.given)
+        given.update({k.lower(): v for k, v in changes.items()})
+        params = validate(self.kind, self.PARAMS, given)
+        old_params, self.params = self.params, params
+        try:
+            coefficients = np.asarray(self.coefficients(), dtype=np.float64)
+        except Exception:
+            self.params = old_params
+            raise
+        if coefficients.shape != self.p.shape:
+            self.params = old_params
+            raise InputError(f"{self.kind}: changing {', '.join(changes)} changes the block's "
+                             "layout; make a new block instead")
+        self.given = given
+        self.p[:] = coefficients
+
     def outputs(self) -> Outputs:
         """The outputs of the last scan (a copy)."""
         result = Outputs((self._out_index, self._ym, self._ysm))

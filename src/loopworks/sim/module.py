@@ -12,7 +12,8 @@ Wires go from destination to source, as in a scenario file's ``[wires]`` table::
            inputs={"pid": {"sp": 50.0}})
 
 An unwired input takes the constant given for it in ``inputs`` (a scenario block table's
-``sp = 50.0``), else its port default. Events set an unwired input at a given time. A block
+``sp = 50.0``), else its port default. Events set an unwired input, or change a parameter
+(a new tuning, a new disturbance size), at a given time. A block
 with an input named ``clock`` (a controller clock in seconds, as GE's PID measures its own dt)
 gets the module time t_k there, unless it is wired or given.
 """
@@ -83,7 +84,8 @@ class Module:
             and "clock" not in self.constants.get(name, {})}
         self.events: list[Event] = sorted(events or [], key=lambda e: e.t)
         for ev in self.events:
-            self._check_unwired(ev.target, "an event")
+            if not self._is_parameter(ev.target):
+                self._check_unwired(ev.target, "an event")
             if not math.isfinite(ev.t) or ev.t < 0.0:
                 raise InputError(f"event at t = {ev.t!r} s: t must be finite and >= 0")
         self.t = 0.0
@@ -121,11 +123,21 @@ class Module:
         self.k = 0
         self._next_event = 0
 
+    def _is_parameter(self, ref: str) -> bool:
+        """True when ``ref`` ("block.name") names a parameter (not an input) of a block."""
+        block, name = _split(ref, "event target")
+        b = self.blocks.get(block)
+        return (b is not None and name.lower() not in b._in_index
+                and name.lower() in {p.name for p in b.PARAMS})
+
     def _apply_events(self, t: float) -> None:
         while self._next_event < len(self.events) and self.events[self._next_event].t <= t + 1e-9:
             ev = self.events[self._next_event]
-            block, port = _split(ev.target, "event target")
-            self.blocks[block].set_inputs({port: ev.value})
+            block, name = _split(ev.target, "event target")
+            if self._is_parameter(ev.target):
+                self.blocks[block].set_params(**{name: ev.value})
+            else:
+                self.blocks[block].set_inputs({name: ev.value})
             self._next_event += 1
 
     def scan(self, dt: float) -> None:

@@ -3,7 +3,9 @@
     [simulation]            dt (s), duration (s), seed, optional order = ["process", "pid"]
     [blocks.NAME]           kind = "pid", then parameters, and constants for unwired inputs
     [wires]                 "process.u" = "pid.out"    (destination = source)
-    [[events]]              t = 100.0, set = "pid.sp", value = 60.0
+    [[events]]              t = 100.0, set = "pid.sp", value = 60.0   (an input or a parameter)
+    [compare.NAME]          "compensator.comp_start" = 1.0   (a variant: parameters or input
+                            constants changed; variants run side by side, in file order)
 
 Blocks run in the order their tables appear, unless ``[simulation] order`` says otherwise. Keys
 match parameter and input names in any letter case. Errors name the file and the table.
@@ -12,7 +14,7 @@ match parameter and input names in any letter case. Errors name the file and the
 from __future__ import annotations
 
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -47,11 +49,13 @@ class _Scenario(BaseModel):
     blocks: dict[str, dict[str, Any]]
     wires: dict[str, str] = {}
     events: list[_Event] = []
+    compare: dict[str, dict[str, float | int | bool | str]] = {}
 
 
 @dataclass
 class Scenario:
-    """A loaded scenario: the module, and how long and how finely to run it."""
+    """A loaded scenario: its modules (one per ``[compare]`` variant, else one named "base";
+    ``module`` is the first), and how long and how finely to run them."""
 
     module: Module
     dt: float
@@ -59,6 +63,7 @@ class Scenario:
     seed: int | None
     title: str
     source: str
+    variants: dict[str, Module] = field(default_factory=dict)
 
 
 def _format_validation(err: ValidationError, source: str) -> str:
@@ -85,8 +90,6 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
 
 def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     """Build a scenario from TOML text; ``source`` names it in error messages."""
-    from loopworks.blocks.registry import block_class
-
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
@@ -98,13 +101,42 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     if not sc.blocks:
         raise FileFormatError(f"{source}: [blocks] is empty: expected at least one "
                               "[blocks.NAME] table with a kind")
+    tables: dict[str, dict[str, Any]] = {}
+    for name, table in sc.blocks.items():
+        if not isinstance(table, dict) or "kind" not in {k.lower() for k in table}:
+            raise FileFormatError(f"{source}: [blocks.{name}]: expected a table with "
+                                  "kind = \"...\"")
+        tables[name] = {k.lower(): v for k, v in table.items()}
+    variants: dict[str, Module] = {}
+    if not sc.compare:
+        variants["base"] = _build(sc, tables, source)
+    for variant, overrides in sc.compare.items():
+        changed = {name: dict(table) for name, table in tables.items()}
+        for key, value in overrides.items():
+            block, sep, fname = key.rpartition(".")
+            if not sep or block not in changed:
+                raise FileFormatError(
+                    f"{source}: compare.{variant}: '{key}' must be 'block.parameter' or "
+                    f"'block.input' with a block of this scenario ({', '.join(tables)})")
+            if fname.lower() == "kind":
+                raise FileFormatError(f"{source}: compare.{variant}: '{key}': a variant "
+                                      "changes parameters and inputs, not the kind")
+            changed[block][fname.lower()] = value
+        variants[variant] = _build(sc, changed, f"{source} (compare.{variant})")
+    sim = sc.simulation
+    first = next(iter(variants.values()))
+    return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, variants)
+
+
+def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Module:
+    """One module from the block tables (names lower-cased), the wires and the events."""
+    from loopworks.blocks.registry import block_class
+
     blocks = {}
     constants: dict[str, dict[str, Any]] = {}
-    for name, table in sc.blocks.items():
+    for name, original in tables.items():
         where = f"{source}: [blocks.{name}]"
-        if not isinstance(table, dict) or "kind" not in {k.lower() for k in table}:
-            raise FileFormatError(f"{where}: expected a table with kind = \"...\"")
-        table = {k.lower(): v for k, v in table.items()}
+        table = dict(original)
         kind = table.pop("kind")
         try:
             cls = block_class(str(kind))
@@ -117,9 +149,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
             raise FileFormatError(f"{where}: {exc}") from None
     events = [Event(e.t, e.set, e.value) for e in sc.events]
     try:
-        module = Module(blocks, wires=sc.wires, inputs=constants, order=sc.simulation.order,
-                        events=events)
+        return Module(blocks, wires=sc.wires, inputs=constants, order=sc.simulation.order,
+                      events=events)
     except LoopworksError as exc:
         raise FileFormatError(f"{source}: {exc}") from None
-    sim = sc.simulation
-    return Scenario(module, sim.dt, sim.duration, sim.seed, sim.title, source)
