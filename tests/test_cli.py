@@ -420,31 +420,36 @@ def test_blocks_unknown_kind() -> None:
 # -- simulate ----------------------------------------------------------------------------------
 
 
-def test_simulate_builtin_scenario() -> None:
-    result = invoke("simulate", columns=120)
+def test_simulate_builtin_scenario(tmp_path: Path) -> None:
+    result = invoke("simulate", "-o", str(tmp_path / "report"), columns=120)
     assert result.exit_code == 0, result.output
     assert "IAE" in result.stdout
     assert "overshoot" in result.stdout
-    assert "pid" in result.stdout
     assert result.stderr == ""
+    assert (tmp_path / "report" / "report.html").exists()
 
 
-def test_simulate_file_writes_csv_and_plot(tmp_path: Path) -> None:
+def test_simulate_file_writes_the_report_directory(tmp_path: Path) -> None:
     scenario = tmp_path / "loop.toml"
     scenario.write_text(SCENARIO, encoding="utf-8")
-    out = tmp_path / "out.csv"
-    png = tmp_path / "run.png"
-    result = invoke("simulate", str(scenario), "-o", str(out), "--plot", str(png), "-q",
-                    columns=120)
+    out = tmp_path / "report"
+    result = invoke("simulate", str(scenario), "-o", str(out), "-q", columns=120)
     assert result.exit_code == 0, result.output
     assert "IAE" in result.stdout
-    header, rows = table(out.read_text(encoding="utf-8"))
+    header, rows = table((out / "base.csv").read_text(encoding="utf-8"))
     assert header[0] == "t"
     assert "pid.out" in header and "process.y" in header
     assert len(rows) == 200  # 20 s in scans of 0.1 s
     t = column(header, rows, "t")
     assert t[1] - t[0] == pytest.approx(0.1)
-    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (out / "base.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    import json
+
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert list(metrics) == ["base"] and "IAE" in metrics["base"]
+    assert (out / "scenario.toml").read_text() == SCENARIO
+    page = (out / "report.html").read_text()
+    assert 'src="base.png"' in page and "IAE" in page
 
 
 @pytest.mark.parametrize(("edit", "needle"), [
@@ -459,7 +464,7 @@ def test_simulate_scenario_errors(tmp_path: Path, edit: tuple[str, str], needle:
     assert text != SCENARIO
     scenario = tmp_path / "broken_scenario.toml"
     scenario.write_text(text, encoding="utf-8")
-    out = tmp_path / "out.csv"
+    out = tmp_path / "report"
     result = invoke("simulate", str(scenario), "-q", "-o", str(out))
     assert_user_error(result, "broken_scenario.toml", needle)
     assert not out.exists()

@@ -52,70 +52,54 @@ def _user_errors(fn: F) -> F:
 def simulate(
     scenario: Annotated[Path | None, typer.Argument(
         help="scenario TOML file; omit to run the built-in scenario")] = None,
-    output: Annotated[Path | None, typer.Option(
-        "--output", "-o", help="write every signal to this CSV file")] = None,
-    plot: Annotated[Path | None, typer.Option(
-        "--plot", help="save a plot of the run to this PNG file")] = None,
+    output: Annotated[Path, typer.Option(
+        "--output", "-o", help="report directory: plots, metrics.json, report.html")] = Path(
+        "loopworks-report"),
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
 ) -> None:
-    """Run a closed-loop scenario and print a metrics table for each controller."""
+    """Run a scenario (each [compare] variant), print the metrics, write a report directory."""
     from rich.console import Console
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
     from rich.table import Table
 
-    from loopworks.sim.metrics import loop_metrics
+    from loopworks.sim.report import write_report
+    from loopworks.sim.result import SimResult
     from loopworks.sim.scenario import load_scenario
 
     sc = load_scenario(scenario)
     console = Console()
     title = sc.title or sc.source
-    if quiet:
-        result = sc.module.run(sc.duration, sc.dt)
-    else:
-        with Progress("[progress.description]{task.description}", BarColumn(),
-                      MofNCompleteColumn(), TimeRemainingColumn(), console=console,
-                      transient=True) as bar:
-            task = bar.add_task(f"simulating {title}", total=None)
+    results: dict[str, SimResult] = {}
+    with Progress("[progress.description]{task.description}", BarColumn(),
+                  MofNCompleteColumn(), TimeRemainingColumn(), console=console,
+                  transient=True, disable=quiet) as bar:
+        for variant, module in sc.variants.items():
+            task = bar.add_task(f"simulating {variant}", total=None)
 
-            def tick(done: int, total: int) -> None:
+            def tick(done: int, total: int, task: Any = task) -> None:
                 bar.update(task, completed=done, total=total)
 
-            result = sc.module.run(sc.duration, sc.dt, progress=tick)
-    # a controller, by the port convention: inputs sp and pv, output out
-    controllers = [n for n, b in sc.module.blocks.items()
-                   if {"sp", "pv"} <= set(b._in_index) and "out" in b._out_index]
+            results[variant] = module.run(sc.duration, sc.dt, progress=tick)
+    metrics: dict[str, dict[str, float]] = {}
+    for variant, result in results.items():
+        for loop in result.controllers():
+            key = variant if len(result.controllers()) == 1 else f"{variant}: {loop}"
+            metrics[key] = result.metrics(loop)
     table = Table(title=f"{title}: {sc.duration:g} s in scans of {sc.dt:g} s")
     table.add_column("metric")
-    rows: dict[str, list[str]] = {}
-    for name in controllers:
-        out = "out"
-        table.add_column(f"{name} ({sc.module.blocks[name].kind})", justify="right")
-        m = loop_metrics(result.t, result[f"{name}.sp"], result[f"{name}.pv"],
-                         result[f"{name}.{out}"])
-        for key, value in m.items():
-            rows.setdefault(key, []).append("n/a" if math.isnan(value) else f"{value:.4g}")
-    for key, cells in rows.items():
-        table.add_row(key, *cells)
-    if controllers:
+    for key in metrics:
+        table.add_column(key, justify="right")
+    for name in next(iter(metrics.values()), {}):
+        table.add_row(name, *("n/a" if math.isnan(m.get(name, math.nan))
+                              else f"{m[name]:.4g}" for m in metrics.values()))
+    if metrics:
         console.print(table)
     else:
-        console.print(f"{title}: {len(result.t)} scans (no controller with sp and pv to score)")
-    if output is not None:
-        result.to_csv(output)
-        console.print(f"wrote {len(result.t)} rows of {len(result.names)} signals to {output}")
-    if plot is not None:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
-
-        axes = result.plot()
-        fig = axes[0].figure
-        fig.suptitle(title)
-        fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
-        fig.savefig(plot, dpi=100)
-        plt.close(axes[0].figure)
-        console.print(f"wrote the plot to {plot}")
+        console.print(f"{title}: no controller to score (a block with sp and pv inputs and an "
+                      "out output)")
+    write_report(output, title, sc.text, results, metrics)
+    console.print(f"wrote {output}/report.html, metrics.json, scenario.toml and "
+                  f"{len(results)} trend plot(s)")
 
 
 @app.command()

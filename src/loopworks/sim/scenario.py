@@ -64,6 +64,7 @@ class Scenario:
     title: str
     source: str
     variants: dict[str, Module] = field(default_factory=dict)
+    text: str = ""
 
 
 def _format_validation(err: ValidationError, source: str) -> str:
@@ -125,7 +126,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         variants[variant] = _build(sc, changed, f"{source} (compare.{variant})")
     sim = sc.simulation
     first = next(iter(variants.values()))
-    return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, variants)
+    return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, variants, text)
 
 
 def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Module:
