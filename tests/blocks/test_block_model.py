@@ -30,6 +30,15 @@ END_IF;
 '^/S' := ('^/A' >= '^/B') AND ('^/C' < 100) OR FALSE;
 """
 
+CHOUDHURY_VARIANTS: list[dict[str, object]] = [
+    {},
+    {"s": 3.0, "j": 1.0, "y0": 50.0, "start": "moving_up", "stroke_rate": 2.0},
+    {"resolution": 0.5, "deadband": 0.2, "bad_op": "fail", "fail_op": 10.0,
+     "characteristic": "equal_percentage", "rangeability": 30.0},
+    {"s": 1.0, "j": 4.0, "start": "moving_down"},
+    {"fs": 5.0, "fd": 0.0, "y0": 0.0},
+]
+
 # Parameter sets that exercise the branches of each kind's kernel.
 VARIANTS: dict[str, list[dict[str, object]]] = {
     "pid": [
@@ -45,6 +54,30 @@ VARIANTS: dict[str, list[dict[str, object]]] = {
     ],
     "process.first_order": [{}, {"gain": -2.0, "time_constant": 3.0, "y0": 5.0},
                             {"time_constant": 0.0}],
+    "process.fopdt": [
+        {},
+        {"gain": -2.0, "time_constant": 0.0, "dead_time": 0.35, "u0": 10.0,
+         "bad_input": "freeze"},
+        {"time_constant": 3.0, "dead_time": 1.3, "y0": 5.0, "delay_capacity": 200},
+    ],
+    "process.sopdt": [
+        {},
+        {"time_constant_1": 4.0, "time_constant_2": 4.0, "dead_time": 0.0},
+        {"time_constant_1": 0.0, "time_constant_2": 1.5, "u0": 50.0, "y0": 20.0,
+         "bad_input": "freeze"},
+    ],
+    "process.ipdt": [
+        {},
+        {"gain": -0.05, "dead_time": 0.0, "u0": 50.0, "y0": 10.0},
+        {"dead_time": 0.77, "bad_input": "freeze"},
+    ],
+    "process.tf": [
+        {"sample_time": 0.1},
+        {"num": "1, 0.5, 2", "den": "2, 3, 1.5", "sample_time": 0.25, "dead_time": 0.6,
+         "u0": 20.0},
+        {"num": "0.2, 0.1", "den": "1, -1.2, 0.5", "domain": "z", "sample_time": 0.5,
+         "dead_time": 1.0, "bad_input": "freeze"},
+    ],
     "ge.pid_ind": [
         {},
         {"kp": 4.0, "ki": 1.5, "kd": 0.5, "sample_period": 0.1, "deadband_pos": 5,
@@ -138,6 +171,74 @@ VARIANTS: dict[str, list[dict[str, object]]] = {
         {"waveform": "triangle", "amplitude": -1.0, "period": 3.3, "phase": 270.0},
         {"waveform": "square", "amplitude": 0.3, "period": 0.05, "phase": 180.0},
     ],
+    "valve.choudhury": CHOUDHURY_VARIANTS,
+    "valve.kano": CHOUDHURY_VARIANTS,
+    "valve.he": [
+        {},
+        {"fs": 2.0, "fd": 1.0, "y0": 50.0, "start": "moving_up", "stroke_rate": 2.0},
+        {"resolution": 0.5, "deadband": 0.2, "bad_op": "fail", "fail_op": 10.0,
+         "characteristic": "equal_percentage"},
+        {"s": 1.0, "j": 4.0, "start": "moving_down"},
+    ],
+    "valve.backlash": [
+        {},
+        {"b": 5.0, "y0": 20.0, "stroke_rate": 1.5, "start": "moving_up"},
+        {"b": 0.0, "bad_op": "fail", "fail_op": 100.0, "characteristic": "equal_percentage"},
+        {"b": 3.0, "start": "moving_down"},
+    ],
+    "valve.resolution": [
+        {},
+        {"r": 3.0, "y0": 100.0, "stroke_rate": 5.0},
+        {"r": 0.0, "bad_op": "fail", "characteristic": "equal_percentage"},
+    ],
+    "valve.quantiser": [
+        {},
+        {"q": 40.0, "y0": 50.0, "stroke_rate": 10.0, "characteristic": "equal_percentage"},
+        {"q": 1.0, "bad_op": "fail", "fail_op": 37.3},
+    ],
+    "valve.karnopp": [  # coarse substeps: the interpreted kernel runs them all
+        {"substep": 0.01},
+        {"tau_ip": 0.05, "substep": 0.005, "y0": 50.0, "bad_op": "fail",
+         "characteristic": "equal_percentage"},
+        {"f_v": 0.0, "v_s": 0.0, "tau_ip": 0.0, "substep": 0.01, "max_substeps": 50},
+        {"s": 3.0, "j": 1.0, "sj_mapping": "valve_estimation", "f_init": 1840.8, "k": 0.0,
+         "dv": 0.0, "substep": 0.002, "y0": 10.0},
+        {"resolution": 1.0, "deadband": 2.0, "m": 50.0, "f_v": 500.0, "tau_ip": 0.5,
+         "substep": 0.01, "fail_op": 100.0, "bad_op": "fail"},
+    ],
+    "sensor.transmitter": [
+        {},
+        {"gain": 2.0, "offset": -5.0, "time_constant": 3.0, "noise_std": 0.5, "seed": 11,
+         "quantum": 0.1, "pv_lo": 0.0, "pv_hi": 100.0},
+        {"noise_std": 1.0, "seed": 3, "failure": "stuck", "failure_start": 20.0,
+         "failure_end": 60.0, "range_status": "good", "pv_lo": -10.0, "pv_hi": 110.0},
+        {"time_constant": 0.5, "failure": "bad", "failure_start": 5.0, "quantum": 1e-300},
+        {"failure": "nan", "failure_start": 0.0, "failure_end": 50.0, "failure_status": 16,
+         "noise_std": 1e300, "quantum": 1e-3},
+    ],
+    "disturbance.load": [
+        {},
+        {"bias": 1.0, "step_size": 5.0, "step_time": 30.0, "ramp_rate": 0.1,
+         "ramp_start": 10.0, "ramp_end": 200.0, "sine_amplitude": 2.0, "sine_period": 7.0,
+         "sine_phase": 45.0, "sine_start": 3.0},
+        {"walk_std": 0.5, "seed": 4, "walk_start": 10.0},
+        {"walk_std": 2.0, "walk_time_constant": 15.0, "seed": 99, "ramp_rate": -1e300},
+    ],
+    "compensator.knocker": [
+        {},
+        {"amplitude": 3.0, "pulse_width": 0.5, "interval": 2.0, "error_band": 20.0},
+        {"direction_reference": "pulse_start", "pulse_width": 1.5, "interval": 1.6},
+    ],
+    "compensator.constant_reinforcement": [{}, {"alpha": 0.0}, {"alpha": 1e300}],
+    "compensator.two_move": [
+        {},
+        {"cycles": 1, "approach": "auto", "move_time": 1.5, "release_band": 50.0,
+         "cycle_band": 5.0},
+        {"cycles": 1, "target": "model", "model_gain": -2.0, "model_bias": 30.0, "op_lo": 10.0,
+         "op_hi": 90.0, "margin": 2.0},
+        {"cycles": 3, "s": 0.0, "j": 0.0, "margin": 1e-9, "target": "model",
+         "model_gain": 1e-300},
+    ],
     "e2.pid": [
         {},
         {"kd": 1.0, "d_form": "as_printed", "update_interval": 0.5, "filter_period": 1.5,
@@ -152,6 +253,14 @@ VARIANTS: dict[str, list[dict[str, object]]] = {
          "ki": 1.0, "update_interval": 0.05},
     ],
 }
+
+
+def scan_time(params: dict[str, object], rng: np.random.Generator, lo: float,
+              hi: float) -> float:
+    """A random scan time, or the block's own sample_time when it has one (process.tf)."""
+    if "sample_time" in params:
+        return float(params["sample_time"])  # type: ignore[arg-type]
+    return float(rng.uniform(lo, hi))
 
 
 def random_inputs(block: Block, rng: np.random.Generator) -> dict[str, object]:
@@ -190,7 +299,7 @@ def test_compiled_kernel_matches_interpreted_run(kind: str) -> None:
         nb = loopworks.create_block(kind, jit=False, **params)
         fast = compiled(type(py).kernel)
         for _ in range(3000):
-            dt = float(rng.uniform(0.01, 2.0))
+            dt = scan_time(params, rng, 0.01, 2.0)
             inputs = random_inputs(py, rng)
             py.set_inputs(inputs)
             nb.set_inputs(inputs)
@@ -209,7 +318,7 @@ def test_step_with_jit_matches_step_without(kind: str) -> None:
         a = loopworks.create_block(kind, jit=True, **params)
         b = loopworks.create_block(kind, jit=False, **params)
         for _ in range(500):
-            dt = float(rng.uniform(0.05, 1.0))
+            dt = scan_time(params, rng, 0.05, 1.0)
             inputs = random_inputs(a, rng)
             ra, rb = a.step(dt, **inputs), b.step(dt, **inputs)
             for name in ra:
@@ -222,7 +331,7 @@ def test_resume_from_saved_state_equals_uninterrupted_run(kind: str) -> None:
     """Save mid-run (through JSON), restore into a fresh block, continue: identical outputs."""
     for params in VARIANTS[kind]:
         rng = np.random.default_rng(99)
-        steps = [(float(rng.uniform(0.05, 1.0)), None) for _ in range(400)]
+        steps = [(scan_time(params, rng, 0.05, 1.0), None) for _ in range(400)]
         whole = loopworks.create_block(kind, **params)
         first = loopworks.create_block(kind, **params)
         seq = []

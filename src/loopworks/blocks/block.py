@@ -211,6 +211,11 @@ class Block:
                     raise InputError(f"{self.kind}: {exc}") from None
                 us[i] = st.GOOD_NC
 
+    def check_dt(self, dt: float) -> None:
+        """Raise InputError if this block cannot run at scan time ``dt`` (s). Modules and
+        replays call it before running; blocks with a fixed sample time or a limited delay
+        line override it."""
+
     def set_params(self, **changes: Any) -> None:
         """Change parameters between scans (an operator's new tuning): validated like the
         constructor's; the state is kept, so the next scan continues from it."""

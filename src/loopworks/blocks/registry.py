@@ -22,6 +22,11 @@ BLOCK_MODULES: tuple[str, ...] = (
     "loopworks.vendors.deltav.stick_slip",
     "loopworks.vendors.deltav.sggn",
     "loopworks.vendors.deltav.calc",
+    "loopworks.plant.valve",
+    "loopworks.plant.karnopp",
+    "loopworks.plant.sensor",
+    "loopworks.plant.disturbance",
+    "loopworks.blocks.compensators",
 )
 
 _REGISTRY: dict[str, type[Block]] = {}

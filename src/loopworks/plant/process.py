@@ -1,26 +1,210 @@
-"""Process models (blocks with input ``u`` and output ``y``).
+r"""Process models (blocks with input ``u`` and output ``y``).
 
-``process.first_order``: a first-order lag, the plant of the built-in closed loop::
+Kinds: ``process.first_order`` (a plain lag, the plant of the built-in closed loop),
+``process.fopdt``, ``process.sopdt`` and ``process.ipdt`` (first order, second order and
+integrating plus dead time) and ``process.tf`` (a general transfer function in s or z).
+
+Timing, for every kind: scan k covers (t_{k-1}, t_k] with t_k - t_{k-1} = dt; the input of the
+scan, u_k, is held over it (zero-order hold) and the output is the plant's output at the end of
+the scan, y_k = y(t_k). So a controller that runs after the process in the same scan sees this
+scan's value. The discretisations are exact for such an input (Åström & Wittenmark,
+*Computer-Controlled Systems*, 3rd ed., ch. 2: sampling a continuous-time system, and sampling
+a system with time delay); plant-and-tuning 6.3 asks for exact ZOH discretisation of FOPDT,
+SOPDT and integrating plants [I].
+
+``process.first_order``: a first-order lag::
 
     T·dy/dt = K·u - y      →   y_k = y_{k-1} + (1 - e^(-dt/T))·(K·u_k - y_{k-1})
 
 (exact for an input held over the scan; Åström & Wittenmark, *Computer-Controlled Systems*,
-ch. 2). The output is the state after the scan, so a controller that runs after the process
-in the same scan sees this scan's value. A non-finite input freezes the state and marks ``y``
-Bad (no input, no trustworthy output).
+ch. 2). A non-finite input freezes the state and marks ``y`` Bad (no input, no trustworthy
+output).
+
+### Plants with dead time
+
+``process.fopdt``   G(s) = K·e^(-θs) / (T·s + 1)
+
+``process.sopdt``   G(s) = K·e^(-θs) / ((T1·s + 1)(T2·s + 1)), two real time constants
+(``time_constant_1`` = T1, ``time_constant_2`` = T2, in either order; T1 = T2 allowed). This
+is the process-control parametrisation (SIMC's SOPDT, plant-and-tuning 3.6); an underdamped
+plant is a ``process.tf`` with den ``1/ωn², 2ζ/ωn, 1``.
+
+``process.ipdt``    G(s) = K·e^(-θs) / s, K in y per (u·s): dy/dt = K·(u(t - θ) - u0)
+
+``process.tf``      G(s) = e^(-θs)·N(s)/D(s) (``domain = "s"``) or
+G(z) = z^(-n)·N(z)/D(z) (``domain = "z"``, n = θ/sample_time); N and D are coefficient lists
+in descending powers (``num``, ``den``: text such as ``"1, 2"`` for s + 2, or a Python/TOML
+list of numbers), proper (deg N ≤ deg D), order deg D ≤ ``max_order``.
+
+### Operating point: starting at a chosen steady state
+
+Every kind with dead time is written around an operating point (u0, y0)::
+
+    y(t) = y0 + G(s)·(u(t) - u0)
+
+``u0`` (default 0) is the input the plant has been receiving for ever: the delay line starts
+full of u0, the ``u`` input starts at u0, and the states start at the equilibrium, so an
+undisturbed block stays at y0. ``y0`` is the output at that steady state; left out it is the
+plant's own steady state: K·u0 for fopdt/sopdt, G(0)·u0 (s) or G(1)·u0 (z) for tf, and 0 for
+ipdt and integrating transfer functions. For the integrating plants u0 is the balancing input
+(the input bias): the level moves with u - u0.
+
+### Equations (per piece of constant delayed input w over a duration h)
+
+fopdt and sopdt run in absolute form with the bias b = y0 - K·u0 (0 unless y0 is given), so
+that ``process.fopdt`` with θ = 0 and y0 = K·u0 is ``process.first_order`` bit for bit: both
+call the same ``lag_step`` primitive with the same arguments::
+
+    target = K·w + b
+    fopdt:  y ← lag_step(y, target, h, T) = y + (1 - e^(-h/T))·(target - y)
+    sopdt:  x1 ← lag_step(x1, target, h, T1)
+            y  ← lag_step(y, target, h, T2) + (x1_old - target)·g,
+            g = T1·(e^(-h/T1) - e^(-h/T2))/(T1 - T2)
+              = (h/T2)·e^(-min(a, b))·φ(-|a - b|),  a = h/T1, b = h/T2, φ(z) = (e^z - 1)/z
+
+(the second lag's exact response: its own lag to the target plus the first lag's transient
+passing through it; the φ form has no cancellation when T1 ≈ T2 and gives (h/T)·e^(-h/T) at
+T1 = T2). T2 = 0 makes sopdt the fopdt, T = 0 a pure gain. ipdt: y ← y + K·(w - u0)·h.
+
+``process.tf`` is realised with ``scipy.signal.tf2ss`` (controller canonical form,
+ξ' = Aξ + B·w, y = y0 + Cξ + D·w, w = u - u0) and discretised once, at construction, with
+``scipy.signal.cont2discrete(method="zoh")`` at the scan time ``sample_time``. With
+θ = (n + f)·dt (n whole scans, 0 ≤ f < 1) the delayed input during a scan is w_{k-n-1} for
+the first f·dt and w_{k-n} for the rest (the modified z-transform)::
+
+    ξ_k = Φ·ξ_{k-1} + Γ1·w_{k-n-1} + Γ0·w_{k-n}
+    y_k = y0 + C·ξ_k + D·w_{k-n}
+    Φ = e^(A·dt),  Γ0 = Γ((1-f)·dt),  Γ1 = e^(A(1-f)dt)·Γ(f·dt),  Γ(h) = ∫_0^h e^(As) ds·B
+
+(f = 0: Γ1 = 0, Γ0 = Γ(dt)). The kernel runs it as y_k = y0 + CΦ·ξ_{k-1} + CΓ1·w_{k-n-1} +
+(CΓ0 + D)·w_{k-n}, then updates ξ. A z-domain transfer function is the literal difference
+equation over the scan index, y_k = y0 + C·ξ_{k-1} + D·w_{k-n}, ξ_k = A·ξ_{k-1} + B·w_{k-n}
+(Y(z) = G(z)·U(z)): the ZOH equivalent of a strictly proper G(s) from a textbook table,
+which carries one sample of delay, behaves as the same G(s) with θ increased by one scan;
+z·G_zoh(z) behaves as G(s) itself.
+
+### Dead time: an exact delay line
+
+The line records the input of each scan (after bad-input handling) with the scan's duration.
+A scan integrates the model over the delayed input u(t - θ), t in (t_{k-1}, t_k]: the pieces
+of the recorded inputs that fall in (t_{k-1} - θ, t_k - θ], oldest first, each with the
+exact step above. So the output is the exact continuous-time response for any θ and any
+sequence of dt (a replay's ``t`` column may vary):
+
+- θ = n·dt (a whole number of scans): one piece, y_k = model(u_{k-n}) exactly; in particular
+  with T = 0, y_k = K·u_{k-n}, and with θ = 0 the model sees u_k;
+- θ = (n + f)·dt: two pieces, f·dt of u_{k-n-1} then (1 - f)·dt of u_{k-n}; a plant with no
+  lag (T = 0) shows u_{k-n}, the held input at t_k - θ;
+- before the first input reaches the plant, the line gives u0;
+- piece boundaries within 1e-9·(θ + dt) s of a scan boundary are taken as on it (rounding of
+  sums of dt; the last piece always ends exactly at t_k).
+
+While every scan the window reaches lasted the current dt (a module's fixed scan), the pieces
+follow from θ/dt directly (constant work per scan); after a change of dt the line is walked
+back through the recorded durations until the new dt has filled the window (work grows with
+θ/dt). Both are the exact response; they may differ in the last bits.
+
+``delay_capacity`` is the number of past scans the line keeps (default 1000; memory: two
+floats per scan). It must cover the dead time: θ ≤ delay_capacity·dt. ``step()`` raises an
+InputError naming ``delay_capacity`` when a dt is too small for it. A module or replay runs
+the kernel directly: there a scan whose window reaches past the kept history (only once
+``delay_capacity`` scans have been recorded; until then the missing history is u0) is
+skipped: the plant and the line stay as they were and ``y`` keeps its value with status Bad:
+configuration error (4). ``process.tf`` knows its scan time, so it checks
+n (+1 when f > 0) ≤ ``delay_capacity`` at construction (ParameterError).
+
+Changing ``dead_time`` with ``set_params`` between scans is exact (the line holds the recorded
+times); ``delay_capacity`` and ``max_order`` fix the state layout and cannot be changed. fopdt
+and sopdt keep their output and move towards the new K·u + b; process.tf re-discretises and
+keeps ξ, the deviation from the steady state at u0, so with ``y0`` left at its default (the
+new G(0)·u0) a change of gain moves the output at once, as if the plant had always had it.
+
+### process.tf and dt: a fixed ``sample_time``
+
+The scan time dt arrives with each scan, but the discretisation (scipy, in Python) cannot run
+inside a kernel, and a module or replay calls the kernel directly. So ``process.tf`` takes its
+scan time as the parameter ``sample_time`` (required; for ``domain = "z"`` it is the transfer
+function's own sample time) and runs only at that dt (relative tolerance 1e-6; such a scan is
+taken as exactly ``sample_time``): ``step()`` raises an InputError naming ``sample_time`` for
+another dt; in a module or replay such a scan is skipped with status Bad: configuration error
+(4). A z-domain dead time must be a whole number of samples (ParameterError naming
+``dead_time`` otherwise). fopdt, sopdt and ipdt compute their exact steps from each scan's dt
+and need no such parameter.
+
+### Bad input
+
+A NaN, ±inf or Bad-status ``u`` marks ``y`` Bad (non-specific, 0) for that scan; Uncertain
+inputs are used (``y`` Good). What the plant does meanwhile is the option ``bad_input``:
+
+- ``hold_input`` (default; issue 5: "hold the last input and mark y Bad"): the plant keeps
+  running on the last good input (u0 before any), which also enters the delay line, so the
+  output keeps moving as the real process would with the actuator held;
+- ``freeze``: the scan is skipped (state and line unchanged, ``y`` holds), as
+  ``process.first_order`` does.
+
+### State (``state_dict()``, ``load_state()``)
+
+fopdt/sopdt/ipdt: ``y``; ``lag1`` (sopdt's first lag; equal to y for fopdt, 0 for ipdt);
+``u_held`` (the last good input); the line: ``line_head``, ``line_count``, ``line_run_dt``,
+``line_run_len`` and the ring slots ``line_u_i``/``line_dt_i``. process.tf: ``y``,
+``u_held``, ``xi_i`` (the state vector ξ, deviation from the steady state), ``work_i``
+(scratch of the update, no meaning between scans) and the line.
+
+### Options and decisions
+
+These points interpret issue 5 and plant-and-tuning 6.3 (tagged [I] there); they are not
+vendor facts. Each is named and documented:
+
+- ``bad_input`` = ``hold_input`` | ``freeze`` (above);
+- ``delay_capacity`` = 1000 scans (above); non-multiple dead times are exact (above);
+- sopdt parametrisation: two time constants (above);
+- ``process.tf``: fixed ``sample_time`` instead of re-discretising when dt changes; the
+  z-domain transfer function is the literal difference equation (above);
+- ``max_order`` = 8: the transfer-function order the state reserves room for.
+
+Defaults are the spec's reference plants: fopdt K = 1, T = 10 s, θ = 2 s (plant-and-tuning 2.8,
+3.2, 5.1), ipdt K = 0.1 /s, θ = 2 s (3.2, 5.1).
+
+### Worked example
+
+Python (the unit step reaches the output after θ = 2 s, then y = 1 - e^(-(t-2)/10))::
+
+    import loopworks
+    p = loopworks.create_block("process.fopdt", gain=1.0, time_constant=10.0, dead_time=2.0)
+    ys = [p.step(0.5, u=1.0)["y"].value for _ in range(8)]
+    # [0, 0, 0, 0, 0.0487706, 0.0951626, 0.139292, 0.181269]
+
+    tf = loopworks.create_block("process.tf", num="1", den="10, 1", sample_time=0.5)
+    tf.step(0.5, u=1.0)["y"].value        # 0.0487706 = 1 - e^(-0.05)
+
+Replay (``loopworks replay process.ipdt ramp.csv -p gain=0.1 -p dead_time=1``), ramp.csv::
+
+    t,u
+    0,1
+    0.5,1
+    1.0,1
+    1.5,1
+    2.0,1
+
+gives y = 0, 0, 0.05, 0.1, 0.15: the first row's scan takes its dt from the second row, so
+the input starts at t = -0.5 s, reaches the integrator 1 s later, and the level then ramps at
+0.1/s.
 """
 
 from __future__ import annotations
 
 import math
-from typing import ClassVar
+import re
+from collections.abc import Mapping
+from typing import Any, ClassVar
 
-from loopworks.blocks.block import Block
-from loopworks.blocks.kernel import FloatArray, IntArray
-from loopworks.blocks.params import Param, Port
-from loopworks.blocks.primitives import lag_step
+from loopworks.blocks.block import Block, Outputs
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.params import Param, Port, validate
+from loopworks.blocks.primitives import finite, lag_step
 from loopworks.blocks.registry import register
-from loopworks.blocks.status import BAD, BAD_NON_SPECIFIC, GOOD_NC
+from loopworks.blocks.status import BAD, BAD_CONFIGURATION_ERROR, BAD_NON_SPECIFIC, GOOD_NC
+from loopworks.errors import InputError, ParameterError
 
 GAIN, TAU, Y0 = range(3)
 
@@ -62,3 +246,659 @@ class FirstOrder(Block):
     def reset(self) -> None:
         super().reset()
         self.y[0] = self.p[Y0]
+
+
+# ---------------------------------------------------------------------------------------------
+# Shared primitives: the input check, the delay line and the exact lag steps
+
+#: piece boundaries closer than DELAY_TOL·(θ + dt) to a scan boundary are taken as on it
+DELAY_TOL = 1e-9
+#: process.tf accepts a scan time within DT_RTOL·sample_time of its sample_time
+DT_RTOL = 1e-6
+HOLD_INPUT, FREEZE = 0.0, 1.0
+
+
+@primitive
+def input_good(value: float, status: int) -> bool:
+    """A usable input: finite, and its status is not Bad (Uncertain is used)."""
+    return finite(value) and (status & 0xC0) != BAD
+
+
+# The delay line lives in the state array from index ``base``: [head, count, run_dt, run_len,
+# value_0 .. value_{cap-1}, dt_0 .. dt_{cap-1}], a ring of the last ``cap`` scans' inputs and
+# durations. ``head`` is the slot of the newest entry, ``count`` how many are recorded (at
+# most cap); the newest ``run_len`` entries all lasted exactly ``run_dt`` (the fast path).
+LINE_HEAD, LINE_COUNT, LINE_RUN_DT, LINE_RUN_LEN, LINE_DATA = range(5)
+
+
+@primitive
+def line_slot(x: FloatArray, base: int, cap: int, j: int) -> int:
+    """The ring slot of the entry j scans back (j = 1: the previous scan), j ≤ count."""
+    slot = int(x[base + LINE_HEAD]) - (j - 1)
+    if slot < 0:
+        slot += cap
+    return slot
+
+
+@primitive
+def line_value(x: FloatArray, base: int, cap: int, j: int, fill: float) -> float:
+    """The input recorded j scans back; ``fill`` (u0) beyond the recorded history."""
+    if j > int(x[base + LINE_COUNT]):
+        return fill
+    return float(x[base + LINE_DATA + line_slot(x, base, cap, j)])
+
+
+@primitive
+def line_duration(x: FloatArray, base: int, cap: int, j: int) -> float:
+    """The duration of the scan j back; infinite beyond the history (u0 for ever before)."""
+    if j > int(x[base + LINE_COUNT]):
+        return math.inf
+    return float(x[base + LINE_DATA + cap + line_slot(x, base, cap, j)])
+
+
+@primitive
+def line_push(x: FloatArray, base: int, cap: int, value: float, dt: float) -> None:
+    """Record this scan's input and duration, overwriting the oldest entry when full."""
+    head = int(x[base + LINE_HEAD]) + 1
+    if head >= cap:
+        head = 0
+    x[base + LINE_HEAD] = head
+    x[base + LINE_DATA + head] = value
+    x[base + LINE_DATA + cap + head] = dt
+    if x[base + LINE_COUNT] < cap:
+        x[base + LINE_COUNT] = x[base + LINE_COUNT] + 1.0
+    if dt == x[base + LINE_RUN_DT]:
+        if x[base + LINE_RUN_LEN] < cap:
+            x[base + LINE_RUN_LEN] = x[base + LINE_RUN_LEN] + 1.0
+    else:
+        x[base + LINE_RUN_DT] = dt
+        x[base + LINE_RUN_LEN] = 1.0
+
+
+def line_initial(cap: int, u0: float) -> list[float]:
+    """An empty line (the history before it is u0): head at the last slot, no entries."""
+    return [cap - 1.0, 0.0, 0.0, 0.0, *([u0] * cap), *([0.0] * cap)]
+
+
+@primitive
+def phi(z: float) -> float:
+    """(e^z - 1)/z, 1 at z = 0 (accurate near 0 through expm1)."""
+    if z == 0.0:
+        return 1.0
+    return math.expm1(z) / z
+
+
+@primitive
+def lag2_gain(h: float, t1: float, t2: float) -> float:
+    """g = T1·(e^(-h/T1) - e^(-h/T2))/(T1 - T2) for T1, T2 > 0, written without cancellation:
+    (h/T2)·e^(-min(a, b))·φ(-|a - b|) with a = h/T1, b = h/T2 (module docstring)."""
+    a = h / t1
+    b = h / t2
+    return b * math.exp(-min(a, b)) * phi(-abs(a - b))
+
+
+# Lag/integrator kernel layout. p:
+MODEL, KGAIN, T1, T2, U0, BIAS, THETA, CAP, BAD_MODE, YINIT = range(10)
+LAG, INTEGRATING = 0.0, 1.0
+# x: output, first lag (sopdt; = y for fopdt), last good input, then the delay line
+S_Y, S_X1, S_HELD, S_LINE = range(4)
+
+
+@primitive
+def lag2_step(x: FloatArray, target: float, h: float, t1: float, t2: float) -> None:
+    """Exact step of two lags in series towards a held ``target``: x[S_X1] (T1) feeds
+    x[S_Y] (T2); T2 = 0: one lag (x[S_Y] = x[S_X1]); T1 = 0: the target feeds the second."""
+    x1 = x[S_X1]
+    x1_new = lag_step(x1, target, h, t1)
+    if t2 <= 0.0:
+        x[S_Y] = x1_new
+    elif t1 <= 0.0:
+        x[S_Y] = lag_step(x[S_Y], target, h, t2)
+    else:
+        x[S_Y] = lag_step(x[S_Y], target, h, t2) + (x1 - target) * lag2_gain(h, t1, t2)
+    x[S_X1] = x1_new
+
+
+@primitive
+def plant_advance(p: FloatArray, x: FloatArray, w: float, h: float) -> None:
+    """Advance the plant over a duration h of constant delayed input w (exact)."""
+    if p[MODEL] == INTEGRATING:
+        x[S_Y] = x[S_Y] + p[KGAIN] * (w - p[U0]) * h
+    else:
+        lag2_step(x, p[KGAIN] * w + p[BIAS], h, p[T1], p[T2])
+
+
+def dead_time_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                     y: FloatArray, ys: IntArray) -> None:
+    """One scan of fopdt/sopdt/ipdt: the delayed input's pieces in (t_{k-1} - θ, t_k - θ],
+    oldest first, each an exact step (module docstring)."""
+    good = input_good(u[0], us[0])
+    if good:
+        x[S_HELD] = u[0]
+    elif p[BAD_MODE] == FREEZE:
+        y[0] = x[S_Y]
+        ys[0] = BAD_NON_SPECIFIC
+        return
+    v = x[S_HELD]
+    cap = int(p[CAP])
+    theta = p[THETA]
+    u0 = p[U0]
+    count = int(x[S_LINE + LINE_COUNT])
+    # Fast path: every scan the window touches lasted this dt, so θ = (n + f)·dt gives the
+    # pieces directly: f·dt of the input n + 1 scans back, then (1 - f)·dt of n back.
+    ratio = theta / dt
+    run = x[S_LINE + LINE_RUN_LEN]
+    if dt == x[S_LINE + LINE_RUN_DT] and ratio < cap + 2.0:
+        n = math.floor(ratio + DELAY_TOL * (ratio + 1.0))
+        f = ratio - n
+        if f <= DELAY_TOL * (ratio + 1.0):
+            f = 0.0
+        need = n + 1 if f > 0.0 else n
+        if need <= run or run >= count:
+            if need > count and count >= cap:  # that part of the history is no longer kept
+                y[0] = x[S_Y]
+                ys[0] = BAD_CONFIGURATION_ERROR
+                return
+            if f > 0.0:
+                plant_advance(p, x, line_value(x, S_LINE, cap, n + 1, u0), f * dt)
+                plant_advance(p, x, v if n == 0 else line_value(x, S_LINE, cap, n, u0),
+                              dt - f * dt)
+            else:
+                plant_advance(p, x, v if n == 0 else line_value(x, S_LINE, cap, n, u0), dt)
+            line_push(x, S_LINE, cap, v, dt)
+            y[0] = x[S_Y]
+            ys[0] = GOOD_NC if good else BAD_NON_SPECIFIC
+            return
+    # General path (dt has varied): walk the recorded durations.
+    end = theta + dt
+    tol = DELAY_TOL * end
+    # 1. the oldest entry reaching into the window: entry j (0 = this scan) covers the ages
+    #    [a, a + d] before t_k; the window is [θ, θ + dt].
+    j = 0
+    a = 0.0
+    d = dt
+    while a + d < end - tol:
+        j += 1
+        a += d
+        if j > count and count >= cap:  # that part of the history is no longer kept
+            y[0] = x[S_Y]
+            ys[0] = BAD_CONFIGURATION_ERROR
+            return
+        d = line_duration(x, S_LINE, cap, j)
+    # 2. the pieces, oldest first; the last one ends exactly at t_k - θ
+    remaining = dt
+    while True:
+        last = j == 0 or a <= theta + tol
+        w = v if j == 0 else line_value(x, S_LINE, cap, j, u0)
+        if last:
+            plant_advance(p, x, w, remaining)
+            break
+        h = min(d, end - a)
+        if h > remaining:
+            h = remaining
+        if h > 0.0:
+            plant_advance(p, x, w, h)
+            remaining -= h
+        j -= 1
+        d = dt if j == 0 else line_duration(x, S_LINE, cap, j)
+        a -= d
+    line_push(x, S_LINE, cap, v, dt)
+    y[0] = x[S_Y]
+    ys[0] = GOOD_NC if good else BAD_NON_SPECIFIC
+
+
+# ---------------------------------------------------------------------------------------------
+# Blocks
+
+U_PORT = Port("u", 0.0, "u", "process input (starts at u0)", status=True)
+Y_PORT = Port("y", 0.0, "y", "process output (starts at y0)", status=True)
+
+
+def _common_params(u0_meaning: str, y0_meaning: str, y0_default: str) -> tuple[Param, ...]:
+    return (
+        Param("dead_time", 2.0, "s", "dead time θ; exact for any θ and dt (a delay line)",
+              lo=0.0, lo_open=False),
+        Param("u0", 0.0, "u", u0_meaning),
+        Param("y0", None, "y", y0_meaning, default_text=y0_default),
+        Param("delay_capacity", 1000, "scans", "past scans the delay line keeps; needs "
+              "dead_time ≤ delay_capacity·dt", type="int", lo=1, hi=10_000_000, lo_open=False,
+              hi_open=False),
+        Param("bad_input", "hold_input", "", "on a NaN/inf/Bad u: keep running on the last "
+              "good input (hold_input) or skip the scan (freeze); y is Bad either way",
+              type="choice", choices=("hold_input", "freeze")),
+    )
+
+
+class _LineProcess(Block):
+    """Shared machinery of the plants with a delay line: a per-instance state layout sized
+    by ``delay_capacity``, the steady-state start, and the dt checks of ``step()``."""
+
+    FIXED_LAYOUT = False  # the state size follows delay_capacity (and max_order)
+    LAYOUT_PARAMS: ClassVar[tuple[str, ...]] = ("delay_capacity",)
+
+    def __init__(self, *, jit: bool | None = None, **params: Any) -> None:
+        params = {k: _list_as_text(v) for k, v in params.items()}
+        checked = validate(self.kind, self.PARAMS, params)
+        self.__dict__["STATES"] = self.state_names(checked)
+        super().__init__(jit=jit, **params)
+
+    @classmethod
+    def state_names(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
+        """The names of the state array for these parameters."""
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    @staticmethod
+    def line_names(cap: int) -> tuple[str, ...]:
+        """State names of a delay line of ``cap`` scans (ring slots, not ages)."""
+        return ("line_head", "line_count", "line_run_dt", "line_run_len",
+                *(f"line_u_{i}" for i in range(cap)),
+                *(f"line_dt_{i}" for i in range(cap)))
+
+    def initial_output(self) -> float:
+        """y at the steady state the block starts in."""
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    def reset(self) -> None:
+        super().reset()
+        self.u[0] = self.params["u0"]
+        self.y[0] = self.initial_output()
+
+    def check_dt(self, dt: float) -> None:
+        """Raise InputError if a scan of ``dt`` s cannot run (the kernel would skip it)."""
+        theta = float(self.params["dead_time"])
+        cap = int(self.params["delay_capacity"])
+        if theta - cap * dt > DELAY_TOL * (theta + dt):
+            need = math.ceil(theta / dt * (1.0 - DELAY_TOL))
+            raise InputError(
+                f"{self.kind}: dead_time = {theta:g} s at dt = {dt:g} s needs {need} scans of "
+                f"delay line, more than delay_capacity = {cap}: give delay_capacity ≥ {need}")
+
+    def step(self, dt: float, **inputs: Any) -> Outputs:
+        """One scan (see :meth:`Block.step`); first checks that dt suits the delay line."""
+        if 0.0 < dt < math.inf:
+            self.check_dt(dt)
+        return super().step(dt, **inputs)
+
+    def set_params(self, **changes: Any) -> None:
+        """Change parameters between scans, keeping the state (see :meth:`Block.set_params`).
+        The parameters that size the state cannot change."""
+        changes = {k: _list_as_text(v) for k, v in changes.items()}
+        given = dict(self.given)
+        given.update({k.lower(): v for k, v in changes.items()})
+        new = validate(self.kind, self.PARAMS, given)
+        for name in self.LAYOUT_PARAMS:
+            if new[name] != self.params[name]:
+                raise InputError(f"{self.kind}: {name} sizes the block's state and cannot "
+                                 f"change ({self.params[name]} → {new[name]}); make a new block")
+        super().set_params(**changes)
+
+
+class _DeadTimeProcess(_LineProcess):
+    """fopdt, sopdt and ipdt: one kernel (``dead_time_kernel``), the model chosen in p."""
+
+    kernel = staticmethod(dead_time_kernel)
+    MODEL_CODE: ClassVar[float] = LAG
+
+    @classmethod
+    def state_names(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
+        return ("y", "lag1", "u_held", *cls.line_names(int(params["delay_capacity"])))
+
+    def lag(self) -> tuple[float, float, float]:
+        """(K, T1, T2) of the kind."""
+        raise NotImplementedError  # pragma: no cover - abstract
+
+    def initial_output(self) -> float:
+        y0 = self.params["y0"]
+        if y0 is not None:
+            return float(y0)
+        if self.MODEL_CODE == INTEGRATING:
+            return 0.0
+        return self.lag()[0] * float(self.params["u0"])
+
+    def coefficients(self) -> list[float]:
+        k, t1, t2 = self.lag()
+        u0 = float(self.params["u0"])
+        y0 = self.initial_output()
+        bias = 0.0 if self.MODEL_CODE == INTEGRATING else y0 - k * u0
+        return [self.MODEL_CODE, k, t1, t2, u0, bias, float(self.params["dead_time"]),
+                float(self.params["delay_capacity"]),
+                FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT, y0]
+
+    def initial_state(self) -> list[float]:
+        cap = int(self.params["delay_capacity"])
+        y0 = self.initial_output()
+        u0 = float(self.params["u0"])
+        lag1 = 0.0 if self.MODEL_CODE == INTEGRATING else y0
+        return [y0, lag1, u0, *line_initial(cap, u0)]
+
+
+_GAIN = Param("gain", 1.0, "y/u", "steady-state gain K", lo=-math.inf)
+_STEADY_U0 = "steady input before t = 0: fills the delay line, the u input starts there"
+_STEADY_Y0 = "output at that steady state (an output bias when it differs from gain·u0)"
+
+
+@register
+class FOPDT(_DeadTimeProcess):
+    """First order plus dead time: K·e^(-θs)/(T·s + 1)."""
+
+    kind = "process.fopdt"
+    summary = "first order plus dead time K·e^(-θs)/(T·s + 1), exact ZOH and delay line"
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        _GAIN,
+        Param("time_constant", 10.0, "s", "time constant T; 0 = no lag", lo=0.0,
+              lo_open=False),
+        *_common_params(_STEADY_U0, _STEADY_Y0, "gain·u0"),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (U_PORT,)
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (Y_PORT,)
+    STATES: ClassVar[tuple[str, ...]] = ("y", "lag1", "u_held", *_LineProcess.line_names(1000))
+
+    def lag(self) -> tuple[float, float, float]:
+        return float(self.params["gain"]), float(self.params["time_constant"]), 0.0
+
+
+@register
+class SOPDT(_DeadTimeProcess):
+    """Second order plus dead time: K·e^(-θs)/((T1·s + 1)(T2·s + 1))."""
+
+    kind = "process.sopdt"
+    summary = ("second order plus dead time K·e^(-θs)/((T1·s + 1)(T2·s + 1)), exact ZOH and "
+               "delay line")
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        _GAIN,
+        Param("time_constant_1", 10.0, "s", "first time constant T1; 0 = none", lo=0.0,
+              lo_open=False),
+        Param("time_constant_2", 2.0, "s", "second time constant T2; 0 = none (fopdt)",
+              lo=0.0, lo_open=False),
+        *_common_params(_STEADY_U0, _STEADY_Y0, "gain·u0"),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (U_PORT,)
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (Y_PORT,)
+    STATES: ClassVar[tuple[str, ...]] = FOPDT.STATES
+
+    def lag(self) -> tuple[float, float, float]:
+        return (float(self.params["gain"]), float(self.params["time_constant_1"]),
+                float(self.params["time_constant_2"]))
+
+
+@register
+class IPDT(_DeadTimeProcess):
+    """Integrating plus dead time: K·e^(-θs)/s, dy/dt = K·(u(t - θ) - u0)."""
+
+    kind = "process.ipdt"
+    summary = "integrating plus dead time K·e^(-θs)/s (dy/dt = K·(u(t-θ) - u0)), delay line"
+    MODEL_CODE = INTEGRATING
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("gain", 0.1, "y/(u·s)", "integration rate K: dy/dt per unit of u - u0",
+              lo=-math.inf),
+        *_common_params("balancing input (input bias): y is steady while u = u0; fills the "
+                        "delay line, the u input starts there", "initial output", "0"),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (U_PORT,)
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (Y_PORT,)
+    STATES: ClassVar[tuple[str, ...]] = FOPDT.STATES
+
+    def lag(self) -> tuple[float, float, float]:
+        return float(self.params["gain"]), 0.0, 0.0
+
+
+# ---------------------------------------------------------------------------------------------
+# process.tf
+
+# p layout: header, then C' (nmax), Φ (nmax·nmax, row-major), Γ1 (nmax), Γ0 (nmax)
+(TF_TS, TF_ORDER, TF_NMAX, TF_U0, TF_Y0, TF_NDELAY, TF_CAP, TF_BAD_MODE, TF_E1, TF_E0,
+ TF_HEAD) = range(11)
+# x layout: output, last good input, ξ (nmax), work (nmax), then the delay line
+X_Y, X_HELD, X_XI = range(3)
+
+
+def tf_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+              y: FloatArray, ys: IntArray) -> None:
+    """One scan of the discretised transfer function (module docstring)."""
+    ts = p[TF_TS]
+    if not abs(dt - ts) <= DT_RTOL * ts:  # not the scan time it was discretised for
+        y[0] = x[X_Y]
+        ys[0] = BAD_CONFIGURATION_ERROR
+        return
+    good = input_good(u[0], us[0])
+    if good:
+        x[X_HELD] = u[0]
+    elif p[TF_BAD_MODE] == FREEZE:
+        y[0] = x[X_Y]
+        ys[0] = BAD_NON_SPECIFIC
+        return
+    v = x[X_HELD]
+    order = int(p[TF_ORDER])
+    nmax = int(p[TF_NMAX])
+    n = int(p[TF_NDELAY])
+    cap = int(p[TF_CAP])
+    u0 = p[TF_U0]
+    work = X_XI + nmax
+    line = X_XI + 2 * nmax
+    c_row = TF_HEAD
+    phi_at = TF_HEAD + nmax
+    g1_at = phi_at + nmax * nmax
+    g0_at = g1_at + nmax
+    w_new = (v if n == 0 else line_value(x, line, cap, n, u0)) - u0
+    w_old = line_value(x, line, cap, n + 1, u0) - u0
+    out = p[TF_Y0] + p[TF_E1] * w_old + p[TF_E0] * w_new
+    for i in range(order):
+        out += p[c_row + i] * x[X_XI + i]
+    for i in range(order):
+        s = p[g1_at + i] * w_old + p[g0_at + i] * w_new
+        for jj in range(order):
+            s += p[phi_at + i * nmax + jj] * x[X_XI + jj]
+        x[work + i] = s
+    for i in range(order):
+        x[X_XI + i] = x[work + i]
+    line_push(x, line, cap, v, dt)
+    x[X_Y] = out
+    y[0] = out
+    ys[0] = GOOD_NC if good else BAD_NON_SPECIFIC
+
+
+def _list_as_text(value: Any) -> Any:
+    """A list/tuple of numbers (Python or TOML) as the text form of a coefficient list."""
+    if isinstance(value, list | tuple):
+        return ", ".join(repr(float(v)) for v in value)
+    return value
+
+
+_NUMBER_SPLIT = re.compile(r"[\s,;]+")
+
+
+def parse_coefficients(name: str, text: str, kind: str) -> list[float]:
+    """Coefficients from text such as ``"1, 2"``, ``"1 2"`` or ``"[1, 2]"``."""
+    body = text.strip().strip("[]()").strip()
+    items = [s for s in _NUMBER_SPLIT.split(body) if s]
+    try:
+        values = [float(s) for s in items]
+    except ValueError:
+        values = []
+    if not values or not all(math.isfinite(v) for v in values):
+        raise ParameterError(f"{kind}: parameter '{name}' = {text!r} is not allowed: expected "
+                             "a list of finite numbers in descending powers, e.g. '1, 2'")
+    return values
+
+
+@register
+class TransferFunction(_LineProcess):
+    """General transfer function in s (exact ZOH at sample_time) or z, with dead time."""
+
+    kind = "process.tf"
+    summary = ("transfer function N/D in s (ZOH-discretised with scipy at sample_time) or z, "
+               "with dead time")
+    kernel = staticmethod(tf_kernel)
+    LAYOUT_PARAMS: ClassVar[tuple[str, ...]] = ("delay_capacity", "max_order")
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("num", "1", "", "numerator coefficients N, descending powers (text '1, 2' = "
+              "s + 2, or a list)", type="text"),
+        Param("den", "10, 1", "", "denominator coefficients D, descending powers; leading "
+              "coefficient ≠ 0", type="text"),
+        Param("domain", "s", "", "s: continuous G(s), discretised exactly (ZOH); z: discrete "
+              "G(z) run as its difference equation", type="choice", choices=("s", "z")),
+        Param("sample_time", None, "s", "required: the scan time dt the block runs at (s: the "
+              "ZOH step; z: G(z)'s sample time)", lo=0.0, default_text="required"),
+        Param("dead_time", 0.0, "s", "dead time θ (z: a whole number of samples)", lo=0.0,
+              lo_open=False),
+        Param("u0", 0.0, "u", _STEADY_U0),
+        Param("y0", None, "y", "output at that steady state (an output bias)",
+              default_text="G(0)·u0 (s), G(1)·u0 (z); 0 if integrating"),
+        Param("max_order", 8, "", "largest order deg D the state has room for", type="int",
+              lo=1, hi=50, lo_open=False, hi_open=False),
+        Param("delay_capacity", 1000, "scans", "past scans the delay line keeps; needs "
+              "ceil(dead_time/sample_time) ≤ delay_capacity", type="int", lo=1, hi=10_000_000,
+              lo_open=False, hi_open=False),
+        Param("bad_input", "hold_input", "", "on a NaN/inf/Bad u: keep running on the last "
+              "good input (hold_input) or skip the scan (freeze); y is Bad either way",
+              type="choice", choices=("hold_input", "freeze")),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (U_PORT,)
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (Y_PORT,)
+    STATES: ClassVar[tuple[str, ...]] = (
+        "y", "u_held", *(f"xi_{i}" for i in range(8)), *(f"work_{i}" for i in range(8)),
+        *_LineProcess.line_names(1000))
+
+    @classmethod
+    def state_names(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
+        nmax = int(params["max_order"])
+        return ("y", "u_held", *(f"xi_{i}" for i in range(nmax)),
+                *(f"work_{i}" for i in range(nmax)),
+                *cls.line_names(int(params["delay_capacity"])))
+
+    def _model(self) -> tuple[list[float], list[float]]:
+        """(num, den) normalised: leading zeros of num dropped, den[0] = 1; checked."""
+        kind = self.kind
+        num = parse_coefficients("num", str(self.params["num"]), kind)
+        den = parse_coefficients("den", str(self.params["den"]), kind)
+        if den[0] == 0.0:
+            raise ParameterError(f"{kind}: parameter 'den' = {self.params['den']!r} is not "
+                                 "allowed: its leading coefficient must not be 0")
+        while len(num) > 1 and num[0] == 0.0:
+            num = num[1:]
+        if len(num) > len(den):
+            raise ParameterError(
+                f"{kind}: parameter 'num' = {self.params['num']!r} is not allowed: the "
+                f"transfer function must be proper (deg num {len(num) - 1} > deg den "
+                f"{len(den) - 1})")
+        order = len(den) - 1
+        if order > int(self.params["max_order"]):
+            raise ParameterError(
+                f"{kind}: parameter 'max_order' = {self.params['max_order']} is too small for "
+                f"den of order {order}: give max_order ≥ {order}")
+        lead = den[0]
+        return [c / lead for c in num], [c / lead for c in den]
+
+    def initial_output(self) -> float:
+        y0 = self.params["y0"]
+        if y0 is not None:
+            return float(y0)
+        num, den = self._model()
+        u0 = float(self.params["u0"])
+        if self.params["domain"] == "s":
+            n0, d0 = num[-1], den[-1]
+        else:
+            n0, d0 = sum(num), sum(den)
+        return 0.0 if d0 == 0.0 else n0 / d0 * u0
+
+    def _delay(self, ts: float) -> tuple[int, float]:
+        """θ = (n + f)·sample_time: (n, f), f snapped to 0 within the line's tolerance."""
+        theta = float(self.params["dead_time"])
+        ratio = theta / ts
+        n = math.floor(ratio + DELAY_TOL * (ratio + 1.0))
+        f = ratio - n
+        if f <= DELAY_TOL * (ratio + 1.0):
+            f = 0.0
+        if self.params["domain"] == "z" and f != 0.0:
+            raise ParameterError(
+                f"{self.kind}: parameter 'dead_time' = {theta:g} s is not allowed for a "
+                f"z-domain transfer function: it must be a whole number of samples of "
+                f"sample_time = {ts:g} s")
+        need = n + (1 if f > 0.0 else 0)
+        cap = int(self.params["delay_capacity"])
+        if need > cap:
+            raise ParameterError(
+                f"{self.kind}: parameter 'delay_capacity' = {cap} is too small: dead_time = "
+                f"{theta:g} s at sample_time = {ts:g} s needs {need} scans: give "
+                f"delay_capacity ≥ {need}")
+        return n, f
+
+    def coefficients(self) -> list[float]:
+        ts_given = self.params["sample_time"]
+        if ts_given is None:
+            raise ParameterError(
+                f"{self.kind}: parameter 'sample_time' is required: the scan time dt (s) the "
+                "block runs at (domain s: the ZOH discretisation step; domain z: the sample "
+                "time of G(z))")
+        ts = float(ts_given)
+        num, den = self._model()
+        n, f = self._delay(ts)
+        order = len(den) - 1
+        nmax = int(self.params["max_order"])
+        cprime = [0.0] * nmax
+        phi_m = [0.0] * (nmax * nmax)
+        g1 = [0.0] * nmax
+        g0 = [0.0] * nmax
+        e1 = 0.0
+        e0 = num[0] if order == 0 else 0.0
+        if order > 0:
+            e1, e0 = self._discretise(num, den, ts, f, cprime, phi_m, g1, g0)
+        values = [ts, float(order), float(nmax), float(self.params["u0"]), self.initial_output(),
+                  float(n), float(self.params["delay_capacity"]),
+                  FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT, e1, e0,
+                  *cprime, *phi_m, *g1, *g0]
+        if not all(math.isfinite(v) for v in values):
+            raise ParameterError(
+                f"{self.kind}: num = {self.params['num']!r}, den = {self.params['den']!r} at "
+                f"sample_time = {ts:g} s give non-finite discrete coefficients")
+        return values
+
+    def _discretise(self, num: list[float], den: list[float], ts: float, f: float,
+                    cprime: list[float], phi_m: list[float], g1: list[float],
+                    g0: list[float]) -> tuple[float, float]:
+        """Fill C' = CΦ, Φ, Γ1, Γ0 (module docstring); return (E1, E0) = (CΓ1, CΓ0 + D).
+        For the z domain: C' = C, Φ = A, Γ1 = 0, Γ0 = B, E1 = 0, E0 = D."""
+        import numpy as np
+        from scipy import signal
+
+        a, b, c, d = signal.tf2ss(num, den)
+        order = a.shape[0]
+        nmax = int(self.params["max_order"])
+        if self.params["domain"] == "z":
+            phi_d, gam1, gam0, cp = a, np.zeros((order, 1)), b, c
+            e1, e0 = 0.0, float(d[0, 0])
+        else:
+            phi_d, gam_full = signal.cont2discrete((a, b, c, d), ts, method="zoh")[:2]
+            if f == 0.0:
+                gam0 = gam_full
+                gam1 = np.zeros((order, 1))
+            else:
+                phi0, gam0 = signal.cont2discrete((a, b, c, d), (1.0 - f) * ts,
+                                                  method="zoh")[:2]
+                gam_f = signal.cont2discrete((a, b, c, d), f * ts, method="zoh")[1]
+                gam1 = phi0 @ gam_f
+            cp = c @ phi_d
+            e1 = float((c @ gam1)[0, 0])
+            e0 = float((c @ gam0)[0, 0] + d[0, 0])
+        for i in range(order):
+            cprime[i] = float(cp[0, i])
+            g1[i] = float(gam1[i, 0])
+            g0[i] = float(gam0[i, 0])
+            for j in range(order):
+                phi_m[i * nmax + j] = float(phi_d[i, j])
+        return e1, e0
+
+    def initial_state(self) -> list[float]:
+        nmax = int(self.params["max_order"])
+        cap = int(self.params["delay_capacity"])
+        u0 = float(self.params["u0"])
+        return [self.initial_output(), u0, *([0.0] * (2 * nmax)), *line_initial(cap, u0)]
+
+    def check_dt(self, dt: float) -> None:
+        """Raise InputError unless dt is the ``sample_time`` the block was discretised for."""
+        ts = float(self.params["sample_time"])
+        if not abs(dt - ts) <= DT_RTOL * ts:
+            raise InputError(
+                f"{self.kind}: dt = {dt:g} s is not allowed: this transfer function runs at "
+                f"sample_time = {ts:g} s (give sample_time = {dt:g} to discretise it for "
+                "that scan time)")

@@ -170,6 +170,7 @@ class Module:
             self.reset()
         for block in self.blocks.values():
             block._release_last()
+            block.check_dt(dt)
         n = round(duration / dt)
         if n < 1:
             raise InputError(f"duration = {duration} s is shorter than one scan of dt = {dt} s")

@@ -187,6 +187,8 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
                         raise FileFormatError(f"{source}: a single row with a 't' column gives "
                                               "no scan time: add rows, or use a 'dt' column")
                     dts[0] = dts[1]
+                for step in np.unique(dts):
+                    block.check_dt(float(step))
                 Y = np.empty((n, len(block.OUTPUTS)))
                 YS = np.empty((n, len(block.OUTPUTS)), dtype=np.int64)
                 run_rows(type(block).kernel, dts, block.p, block.x, U, US, Y, YS, jit=block.jit)

@@ -1,0 +1,524 @@
+r"""Generic stiction compensators: kinds ``compensator.knocker``,
+``compensator.constant_reinforcement`` and ``compensator.two_move``.
+
+All three sit where the DeltaV compensator (``deltav.stick_slip``) sits: between the controller
+and the valve. They add a correction u_c to the controller output before the valve,
+x = u_PID + u_c (plant-and-tuning 2.1).
+
+Port convention (the same for the three kinds)
+-----------------------------------------------
+
+* input ``op_in`` (%): the controller output, e.g. ``"comp.op_in" = "pid.out"``;
+* output ``op_out`` (%): the signal to the valve, ``"valve.op" = "comp.op_out"``. It carries the
+  status of ``op_in`` unchanged on every scan (as the DeltaV block's SIGNAL_OUT.ST :=
+  SIGNAL_IN.ST, spec 2.1); it is not clamped (the valve clips its input to 0..100 %);
+* output ``correction`` (%): u_c = op_out - op_in, for the travel and reversal metrics of
+  spec 4.1;
+* input ``enable``: > 0.5 compensates (default 1), otherwise ``op_out = op_in`` (a bypass, e.g.
+  in manual). While bypassed each block keeps watching the controller output, so it resumes
+  with up-to-date memories;
+* inputs ``sp`` and ``pv`` where the algorithm needs the control error e = SP - PV (the
+  knocker's optional error band, the two-move's cycle measurement and release).
+
+The controller does not see the correction (spec 2.1, as in DeltaV). No action factors are
+needed, unlike DeltaV's CNTRL_ACTION·VALVE_ACTION (spec 2.3): every correction here is
+computed from the controller output itself, so it pushes the valve input the way the
+controller is already pushing it, whatever the controller and valve actions.
+
+Time inside the blocks is the sum of the scan times dt; instants are compared with the 1e-9 s
+tolerance of module events (so five 0.2 s scans make 1 s).
+
+``compensator.knocker`` (Hägglund 2002; spec 2.4)
+--------------------------------------------------
+
+Short pulses of amplitude a and width τ, one every h_k (spec 2.4)::
+
+    u_k(t) = a·sign(u(t) - u(t_p'))   for t_p ≤ t < t_p + τ
+    u_k(t) = 0                        for t_p + τ ≤ t < t_p + h_k
+
+t_p is the start of the current pulse (the first at the first scan, then the first scan at
+least h_k after the previous start, so h_k is rounded up to whole scans); the
+pulse direction follows the net change of the controller output u since the *previous* pulse
+start t_p' (spec 2.4: "the pulse direction follows the net change of the PID output since the
+previous pulse"; ``direction_reference = "previous_pulse"``); sign(0) = 0 gives no pulse. The
+first pulse, which has no previous one, refers to its own start. Sampled at scans t = k·dt,
+a pulse is on at the scans with t - t_p < τ: ceil(τ/dt) scans, at least one. This reading
+reproduces every knocker row of the table in spec 2.8 (PV σ, mean |e|, travel, reversals; see
+the tests). ``direction_reference = "pulse_start"`` is the literal sampling of the formula
+with u(t_p) of the current pulse: the first scan of every pulse then has sign(0) = 0, so with
+τ ≤ dt no pulse ever fires; it is there for pulses several scans wide.
+
+Improved knockers stop pulsing inside an error band to save valve wear (Cuadros, Munaro &
+Munareto 2012, spec 2.4 [L]): with ``error_band`` > 0 no pulse is applied on a scan with
+abs(SP - PV) ≤ error_band (the pulse timing runs on). ``error_band`` = 0, the default, is
+Hägglund's knocker.
+
+``compensator.constant_reinforcement`` (Ivan & Lakshminarayanan 2009; spec 2.6)
+--------------------------------------------------------------------------------
+
+A constant bias in the direction the controller output moves::
+
+    u_c(k) = α·sign(u(k) - u(k-1)),   the last non-zero sign held while Δu = 0
+
+so every reversal of the controller output comes with an extra 2α step. The sign is 0 until
+the output first moves. A non-finite u is skipped (the sign and u(k-1) hold). In S/J terms
+(spec 2.6 [V]): α = fd = (S - J)/2 only compensates the lag while moving; α slightly above S/2
+makes every reversal an immediate slip; α = fs = (S + J)/2 over-compensates.
+
+``compensator.two_move`` (Srinivasan & Rengaswamy 2005, 2008; spec 2.5)
+------------------------------------------------------------------------
+
+Instead of letting the integral hunt, place the valve at the position y* that gives zero error
+with two deliberate moves of the valve input, then hold it there. The algebra is the S/J model
+of spec 1.2 with fs = (S + J)/2 (static band) and fd = (S - J)/2 (kinetic band), spec 2.5 [I]:
+
+* a slip that ends in direction d leaves the stem at y = x - d·fd, so the last OP must be
+  x_f = y* + d·fd;
+* move 1 must put the valve into a known state whatever its state before: moving in a known
+  direction and stopped at a known point. A stuck valve whose last stop was at x_ss holds
+  while the OP stays in [x_ss - S, x_ss + J] (upward motion last) or [x_ss - J, x_ss + S]
+  (downward), a band S + J wide, so only a move of more than S + J from the current OP x_0 is
+  sure to slip (a moving valve needs less). Move 1 is therefore at least S + J + m;
+* move 2 starts from a valve stopped at x_1 after moving in direction d_1, and must slip: more
+  than J if it continues (d = d_1), more than S if it reverses (d = -d_1) (spec 2.5). It is at
+  least J + m or S + m.
+
+m = ``margin`` > 0 covers the strict inequalities and errors in the S, J estimates. With
+``approach = "reverse"`` (default; the published method moves out past the target and comes
+back), the final direction is d = -sign(y* - x_0) (d = -1 when y* = x_0): move 1 heads towards
+the target and past it, move 2 comes back::
+
+    x_f = y* + d·fd
+    x_1 = min(x_0 - (S + J + m), x_f - (S + m))   for d = +1
+    x_1 = max(x_0 + (S + J + m), x_f + (S + m))   for d = -1
+
+With ``approach = "auto"`` both moves go towards the target (d = sign(y* - x_0),
+x_1 = x_f - d·(J + m)) when that first move is itself at least S + J + m, i.e. when the target
+is far enough; otherwise as ``reverse``. If x_1 falls outside [op_lo, op_hi], the other final
+direction is tried; if that falls outside too, x_1 and x_f are clamped to the range (the moves
+are then not guaranteed). x_0 is the valve input of the previous scan: the last ``op_out``,
+clamped to [op_lo, op_hi] as the valve clips it (keep op_lo/op_hi at the valve's range).
+
+Target y*. ``target = "cycle_mean"`` (default): the mean controller output over the last
+``cycles`` full cycles of the limit cycle (spec 2.5: "from the mean OP over the limit cycle").
+Over whole periods of a limit cycle under integral action the mean error is zero, so this mean
+is the OP that holds the PV at SP on average. A cycle is measured between crossings of the
+error e = SP - PV: e changes sign when it passes from above ``cycle_band`` to below
+-``cycle_band`` or back; the mean is Σ u·dt / Σ dt over the scans from one crossing up to the
+crossing 2·``cycles`` half cycles later. ``target = "model"``: y* = (SP - model_bias)/model_gain
+from a static process model PV = model_gain·y + model_bias (spec 2.5: "(SP - d)/K with a process
+model"); the block still waits for ``cycles`` measured cycles, i.e. for evidence that the loop
+is cycling, before it moves. The cycle mean includes whatever transient follows the last
+disturbance: in the loop of spec 2.8 (true y* = 51 % after the +1 % set-point step) 1, 2, 4 and
+10 cycles give y* = 50.68, 50.74, 50.82 and 50.91 %, and the PV settles that far below SP; the
+model target lands the valve exactly when the model is right. Either way the result is only as
+good as the S, J and y* estimates (spec 2.5: "sensitive to errors in the stiction estimate").
+
+Sequence (output ``phase``):
+
+* 0, pass: ``op_out = op_in``; the error cycles are measured. When ``cycles`` cycles have been
+  measured and ``enable`` > 0.5, the moves start on that scan (a measurement completed while
+  disabled is kept, and refreshed by later cycles, until the block is enabled);
+* 1, move 1: ``op_out = x_1`` for ``move_time`` seconds (at least one scan);
+* 2, hold: ``op_out = x_f``, until released;
+* release, back to 0 and a fresh measurement: ``enable`` ≤ 0.5, a change of ``sp`` (any change
+  from its value when the moves began: a set-point change wants new moves), or
+  abs(SP - PV) > ``release_band`` (a load disturbance; default inf = off).
+
+While the block holds the valve input the controller's integral keeps running; the release
+then puts its output back on the valve with a bump. To make the release bumpless, let the
+controller track the compensator: for the generic ``pid``, wire ``"pid.track" = "comp.phase"``
+(phase ≥ 1 tracks) and ``"pid.track_value" = "comp.op_out"``.
+
+Options for the spec's [A]/[?] points
+-------------------------------------
+
+The compensator sections are [L] (papers not in the corpus) plus the spec's own [I]
+derivations; these interpretations are parameters (defaults are the spec's reading):
+
+* knocker ``direction_reference`` = ``previous_pulse``: direction from the change since the
+  previous pulse start (spec 2.4 text; reproduces spec 2.8); ``pulse_start`` is the literal
+  formula sampled.
+* knocker ``error_band`` = 0: Hägglund's knocker; > 0 is the improved knocker's band [L].
+* two-move ``approach`` = ``reverse`` (move out past the target, come back) or ``auto``.
+* two-move ``target`` = ``cycle_mean`` or ``model``; ``cycles`` = 2, ``cycle_band`` = 0,
+  ``margin`` = 0.5 %, ``move_time`` = 0 (one scan), ``release_band`` = inf.
+
+Defaults. The papers' settings depend on the valve; the defaults here are the valve of the
+comparison in spec 2.8 (S = 3 %, J = 1 %) and the best row of its table for each method
+[V, spec 2.8]: knocker a = 1.5 %, τ = 0.2 s, h_k = 1.0 s; constant reinforcement α = 1.6 %
+(just above S/2, "the sweet spot in this model"); two-move S = 3 %, J = 1 %.
+
+Example
+-------
+
+Python (constant reinforcement on a controller output that rises, pauses, then falls)::
+
+    import loopworks
+    cr = loopworks.create_block("compensator.constant_reinforcement", alpha=1.6)
+    for u in (50.0, 51.0, 51.0, 50.5):
+        print(cr.step(0.2, op_in=u)["op_out"].value)
+    # 50.0  (no move yet), 52.6, 52.6 (sign held), 48.9
+
+Replay (``loopworks replay compensator.knocker kn.csv -p amplitude=1 -p pulse_width=0.2
+-p interval=0.6``), with ``kn.csv``::
+
+    t,op_in
+    0,50
+    0.2,50.5
+    0.4,51
+    0.6,51.5
+    0.8,52
+    1.0,52.5
+    1.2,52
+
+gives ``op_out`` 50, 50.5, 51, 52.5, 52, 52.5, 53 (pulses start at 0, 0.6 and 1.2 s; the one at
+0.6 s pushes up because u rose from 50 to 51.5 since the first pulse, the one at 1.2 s pushes
+up because u rose from 51.5 to 52).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.primitives import clamp, finite
+from loopworks.blocks.registry import register
+from loopworks.blocks.status import GOOD_NC
+from loopworks.errors import ParameterError
+
+_TOL = 1e-9  # s, the tolerance of module events
+_PCT = "%"
+
+
+@primitive
+def sign(v: float) -> float:
+    """+1, -1 or 0 (also for NaN)."""
+    if v > 0.0:
+        return 1.0
+    if v < 0.0:
+        return -1.0
+    return 0.0
+
+
+_OP_IN = Port("op_in", 0.0, _PCT, "controller output (e.g. pid.out)", status=True)
+_ENABLE = Port("enable", 1.0, "", "> 0.5 compensates; otherwise op_out = op_in (bypass)")
+_SP = Port("sp", 0.0, "pv", "setpoint, for the error e = sp - pv")
+_PV = Port("pv", 0.0, "pv", "process variable, for the error e = sp - pv")
+_OP_OUT = Port("op_out", 0.0, _PCT, "to the valve: op_in + correction, status of op_in",
+               status=True)
+_CORRECTION = Port("correction", 0.0, _PCT, "u_c = op_out - op_in (spec 2.1)")
+
+# -- compensator.knocker -----------------------------------------------------------------------
+
+K_AMP, K_WIDTH, K_INTERVAL, K_BAND, K_FROM_PREVIOUS = range(5)
+K_OP_IN, K_ENABLE, K_SP, K_PV = range(4)
+OP_OUT, CORRECTION = range(2)
+KS_SINCE, KS_REF_PREV, KS_REF_CUR, KS_PULSES = range(4)
+
+
+def knocker_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                   y: FloatArray, ys: IntArray) -> None:
+    """One scan of the knocker (spec 2.4, module docstring). Array elements are read into
+    Python floats (plain IEEE arithmetic when interpreted, free when compiled)."""
+    op = float(u[K_OP_IN])
+    if x[KS_PULSES] == 0.0 or x[KS_SINCE] >= p[K_INTERVAL] - _TOL:  # a new pulse starts
+        x[KS_REF_PREV] = x[KS_REF_CUR]
+        if finite(op) or x[KS_PULSES] == 0.0:
+            x[KS_REF_CUR] = op
+        x[KS_SINCE] = 0.0
+        x[KS_PULSES] = min(x[KS_PULSES] + 1.0, 2.0)
+    ref = float(x[KS_REF_CUR])
+    if p[K_FROM_PREVIOUS] != 0.0 and x[KS_PULSES] >= 2.0:
+        ref = float(x[KS_REF_PREV])
+    kick = 0.0
+    if x[KS_SINCE] < p[K_WIDTH] - _TOL or x[KS_SINCE] == 0.0:  # inside the pulse
+        kick = float(p[K_AMP]) * sign(op - ref)
+    if not u[K_ENABLE] > 0.5:
+        kick = 0.0
+    if p[K_BAND] > 0.0 and abs(float(u[K_SP]) - float(u[K_PV])) <= p[K_BAND]:
+        kick = 0.0
+    x[KS_SINCE] = x[KS_SINCE] + dt
+    y[OP_OUT] = op + kick
+    ys[OP_OUT] = us[K_OP_IN]
+    y[CORRECTION] = kick
+    ys[CORRECTION] = GOOD_NC
+
+
+@register
+class Knocker(Block):
+    """Hägglund's knocker: pulses a·sign(Δu) of width τ every h_k (spec 2.4)."""
+
+    kind = "compensator.knocker"
+    summary = ("Knocker stiction compensator (Hägglund 2002): pulses of amplitude a, width τ, "
+               "every h_k, in the direction the controller output moves (spec 2.4)")
+    kernel = staticmethod(knocker_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("amplitude", 1.5, _PCT, "pulse amplitude a (spec 2.4; default: best row of "
+              "spec 2.8)", lo=0.0, lo_open=False),
+        Param("pulse_width", 0.2, "s", "pulse width τ; at least one scan (spec 2.4)",
+              lo=0.0),
+        Param("interval", 1.0, "s", "time h_k between pulse starts, > pulse_width (spec 2.4)",
+              lo=0.0),
+        Param("error_band", 0.0, "pv", "no pulse while abs(sp - pv) <= band; 0 = off "
+              "(improved knocker, spec 2.4 [L])", lo=0.0, lo_open=False),
+        Param("direction_reference", "previous_pulse", "", "pulse direction from u since the "
+              "previous pulse start, or since this pulse's start (literal formula) [I] "
+              "(spec 2.4)", "choice", choices=("previous_pulse", "pulse_start")),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (_OP_IN, _ENABLE, _SP, _PV)
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (_OP_OUT, _CORRECTION)
+    STATES: ClassVar[tuple[str, ...]] = ("since_pulse", "u_previous_pulse", "u_pulse",
+                                         "pulses")
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        if prm["interval"] <= prm["pulse_width"]:
+            raise ParameterError(
+                f"{self.kind}: parameter 'interval' = {prm['interval']:g} is out of range: it "
+                f"must be above pulse_width = {prm['pulse_width']:g} s")
+        return [float(prm["amplitude"]), float(prm["pulse_width"]), float(prm["interval"]),
+                float(prm["error_band"]),
+                1.0 if prm["direction_reference"] == "previous_pulse" else 0.0]
+
+
+# -- compensator.constant_reinforcement --------------------------------------------------------
+
+C_ALPHA = 0
+C_OP_IN, C_ENABLE = range(2)
+CS_U_PREV, CS_SIGN, CS_STARTED = range(3)
+
+
+def reinforcement_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                         y: FloatArray, ys: IntArray) -> None:
+    """One scan of constant reinforcement (spec 2.6, module docstring)."""
+    op = float(u[C_OP_IN])
+    if finite(op):
+        if x[CS_STARTED] != 0.0:
+            s = sign(op - x[CS_U_PREV])
+            if s != 0.0:
+                x[CS_SIGN] = s
+        x[CS_U_PREV] = op
+        x[CS_STARTED] = 1.0
+    bias = float(p[C_ALPHA]) * float(x[CS_SIGN]) if u[C_ENABLE] > 0.5 else 0.0
+    y[OP_OUT] = op + bias
+    ys[OP_OUT] = us[C_OP_IN]
+    y[CORRECTION] = bias
+    ys[CORRECTION] = GOOD_NC
+
+
+@register
+class ConstantReinforcement(Block):
+    """Constant reinforcement: u_c = α·sign(Δu), last sign held (spec 2.6)."""
+
+    kind = "compensator.constant_reinforcement"
+    summary = ("Constant-reinforcement stiction compensator (Ivan & Lakshminarayanan 2009): "
+               "α·sign(Δu), last non-zero sign held (spec 2.6)")
+    kernel = staticmethod(reinforcement_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("alpha", 1.6, _PCT, "bias α in the direction u moves (spec 2.6; default: just "
+              "above S/2 for the S = 3 % valve of spec 2.8)", lo=0.0, lo_open=False),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (_OP_IN, _ENABLE)
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (_OP_OUT, _CORRECTION)
+    STATES: ClassVar[tuple[str, ...]] = ("u_previous", "direction", "started")
+
+    def coefficients(self) -> list[float]:
+        return [float(self.params["alpha"])]
+
+
+# -- compensator.two_move ----------------------------------------------------------------------
+
+(T_S, T_J, T_MARGIN, T_MODEL, T_CYCLES, T_CYCLE_BAND, T_GAIN, T_BIAS, T_MOVE_TIME,
+ T_RELEASE, T_LO, T_HI, T_AUTO) = range(13)
+T_OP_IN, T_ENABLE, T_SP, T_PV = range(4)
+T_PHASE, T_TARGET = range(2, 4)
+(TS_PHASE, TS_E_SIGN, TS_MEASURING, TS_HALVES, TS_SUM_U, TS_SUM_T, TS_READY, TS_MEAN,
+ TS_TARGET, TS_X1, TS_XF, TS_TIMER, TS_SP, TS_LAST_OUT) = range(14)
+PASS, MOVE1, HOLD = 0.0, 1.0, 2.0
+
+
+@primitive
+def first_move(x0: float, xf: float, d: float, s: float, j: float, m: float) -> float:
+    """x_1 of the reverse approach for final direction d (module docstring)."""
+    if d > 0.0:
+        return min(x0 - (s + j + m), xf - (s + m))
+    return max(x0 + (s + j + m), xf + (s + m))
+
+
+def two_move_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                    y: FloatArray, ys: IntArray) -> None:
+    """One scan of the two-move compensator (spec 2.5, module docstring). Array elements are
+    read into Python floats (plain IEEE arithmetic when interpreted, free when compiled)."""
+    op = float(u[T_OP_IN])
+    sp = float(u[T_SP])
+    e = sp - float(u[T_PV])
+    enabled = u[T_ENABLE] > 0.5
+    phase = x[TS_PHASE]
+    # release? (a NaN sp compares unequal: it releases too)
+    if phase != PASS and (not enabled or sp != x[TS_SP] or abs(e) > p[T_RELEASE]):
+        phase = PASS
+        x[TS_E_SIGN] = 0.0
+        x[TS_MEASURING] = 0.0
+        x[TS_READY] = 0.0
+    if phase == PASS:
+        # measure the error cycles: a crossing is a sign change outside ±cycle_band
+        s = 0.0
+        if e > p[T_CYCLE_BAND]:
+            s = 1.0
+        elif e < -p[T_CYCLE_BAND]:
+            s = -1.0
+        crossing = s != 0.0 and x[TS_E_SIGN] != 0.0 and s != x[TS_E_SIGN]
+        if s != 0.0:
+            x[TS_E_SIGN] = s
+        if crossing:
+            if x[TS_MEASURING] != 0.0:
+                x[TS_HALVES] += 1.0
+                if x[TS_HALVES] >= 2.0 * p[T_CYCLES] and x[TS_SUM_T] > 0.0:
+                    x[TS_MEAN] = float(x[TS_SUM_U]) / float(x[TS_SUM_T])
+                    x[TS_READY] = 1.0
+                    x[TS_HALVES] = 0.0
+                    x[TS_SUM_U] = 0.0
+                    x[TS_SUM_T] = 0.0
+            else:
+                x[TS_MEASURING] = 1.0
+                x[TS_HALVES] = 0.0
+                x[TS_SUM_U] = 0.0
+                x[TS_SUM_T] = 0.0
+        if x[TS_MEASURING] != 0.0 and finite(op):
+            x[TS_SUM_U] = float(x[TS_SUM_U]) + op * dt
+            x[TS_SUM_T] = float(x[TS_SUM_T]) + dt
+        target = float(x[TS_MEAN])
+        if p[T_MODEL] != 0.0:
+            target = (sp - float(p[T_BIAS])) / float(p[T_GAIN])
+        if enabled and x[TS_READY] != 0.0 and finite(target):  # the moves start
+            x0 = float(x[TS_LAST_OUT])
+            if not finite(x0):
+                x0 = op
+            if finite(x0):
+                lo = float(p[T_LO])
+                hi = float(p[T_HI])
+                x0 = clamp(x0, lo, hi)  # what the valve saw (it clips its input)
+                s_ = float(p[T_S])
+                j = float(p[T_J])
+                m = float(p[T_MARGIN])
+                fd = 0.5 * (s_ - j)
+                d = sign(target - x0)
+                xf = target + d * fd
+                x1 = xf - d * (j + m)
+                if not (p[T_AUTO] != 0.0 and d != 0.0 and d * (x1 - x0) >= s_ + j + m
+                        and lo <= x1 <= hi and lo <= xf <= hi):
+                    d = -1.0 if d >= 0.0 else 1.0  # reverse: move 1 heads past the target
+                    xf = target + d * fd
+                    x1 = first_move(x0, xf, d, s_, j, m)
+                    if not (lo <= x1 <= hi):
+                        d2 = -d
+                        xf2 = target + d2 * fd
+                        x12 = first_move(x0, xf2, d2, s_, j, m)
+                        if lo <= x12 <= hi:
+                            xf = xf2
+                            x1 = x12
+                x[TS_X1] = clamp(x1, lo, hi)
+                x[TS_XF] = clamp(xf, lo, hi)
+                x[TS_TARGET] = target
+                x[TS_SP] = sp
+                x[TS_TIMER] = 0.0
+                phase = MOVE1
+    elif phase == MOVE1:
+        x[TS_TIMER] += dt
+        if x[TS_TIMER] >= p[T_MOVE_TIME] - _TOL:
+            phase = HOLD
+    x[TS_PHASE] = phase
+    if phase == PASS:
+        out = op
+        y[T_TARGET] = (float(x[TS_MEAN]) if p[T_MODEL] == 0.0
+                       else (sp - float(p[T_BIAS])) / float(p[T_GAIN]))
+    else:
+        out = float(x[TS_X1]) if phase == MOVE1 else float(x[TS_XF])
+        y[T_TARGET] = x[TS_TARGET]
+    x[TS_LAST_OUT] = out
+    y[OP_OUT] = out
+    ys[OP_OUT] = us[T_OP_IN]
+    y[CORRECTION] = out - op
+    ys[CORRECTION] = GOOD_NC
+    y[T_PHASE] = phase
+    ys[T_PHASE] = GOOD_NC
+    ys[T_TARGET] = GOOD_NC
+
+
+@register
+class TwoMove(Block):
+    """Two-move compensation: two OP moves land the valve at y*, then hold (spec 2.5)."""
+
+    kind = "compensator.two_move"
+    summary = ("Two-move stiction compensator (Srinivasan & Rengaswamy): two OP moves that "
+               "land a S/J valve at the target position, then hold (spec 2.5)")
+    kernel = staticmethod(two_move_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("s", 3.0, _PCT, "estimated deadband + stickband S of the valve (spec 1.1, 2.5)",
+              lo=0.0, lo_open=False),
+        Param("j", 1.0, _PCT, "estimated slip jump J of the valve (spec 1.1, 2.5)",
+              lo=0.0, lo_open=False),
+        Param("margin", 0.5, _PCT, "m: the moves exceed the slip thresholds by this much "
+              "(spec 2.5 [I])", lo=0.0),
+        Param("target", "cycle_mean", "", "y*: mean controller output over the measured "
+              "cycles, or (sp - model_bias)/model_gain (spec 2.5)", "choice",
+              choices=("cycle_mean", "model")),
+        Param("cycles", 2, "", "full error cycles measured before the moves (spec 2.5 [I])",
+              "int", lo=1.0, hi=1e6, lo_open=False, hi_open=False),
+        Param("cycle_band", 0.0, "pv", "hysteresis of the error crossings that delimit cycles",
+              lo=0.0, lo_open=False),
+        Param("model_gain", 1.0, "pv/%", "static process gain K for target = model"),
+        Param("model_bias", 0.0, "pv", "PV at valve position 0 for target = model: "
+              "PV = K·y + bias"),
+        Param("move_time", 0.0, "s", "how long move 1 is held (at least one scan)",
+              lo=0.0, lo_open=False),
+        Param("release_band", math.inf, "pv", "release the hold when abs(sp - pv) exceeds "
+              "this; inf = only on a setpoint change or enable = 0", lo=0.0, hi=math.inf,
+              hi_open=False),
+        Param("op_lo", 0.0, _PCT, "lowest valve input the moves may use"),
+        Param("op_hi", 100.0, _PCT, "highest valve input the moves may use"),
+        Param("approach", "reverse", "", "reverse: move 1 past the target, move 2 back; auto: "
+              "both towards the target when it is far enough (spec 2.5 [I])", "choice",
+              choices=("reverse", "auto")),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (_OP_IN, _ENABLE, _SP, _PV)
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        _OP_OUT, _CORRECTION,
+        Port("phase", 0.0, "", "0 pass, 1 move 1, 2 hold (wire to pid.track for a bumpless "
+             "release)"),
+        Port("target", 0.0, _PCT, "y*: the target of the moves (in pass: the current "
+             "estimate, NaN before the first cycles are measured)"),
+    )
+    STATES: ClassVar[tuple[str, ...]] = (
+        "phase", "error_sign", "measuring", "half_cycles", "sum_u_dt", "sum_dt", "ready",
+        "cycle_mean", "target", "x1", "x_final", "timer", "sp_at_moves", "last_out")
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        if prm["op_lo"] >= prm["op_hi"]:
+            raise ParameterError(
+                f"{self.kind}: parameter 'op_hi' = {prm['op_hi']:g} is out of range: it must "
+                f"be above op_lo = {prm['op_lo']:g}")
+        if prm["target"] == "model" and prm["model_gain"] == 0.0:
+            raise ParameterError(
+                f"{self.kind}: parameter 'model_gain' = 0 is out of range: target = model "
+                "divides by it; allowed any non-zero number")
+        return [float(prm["s"]), float(prm["j"]), float(prm["margin"]),
+                1.0 if prm["target"] == "model" else 0.0, float(prm["cycles"]),
+                float(prm["cycle_band"]), float(prm["model_gain"]), float(prm["model_bias"]),
+                float(prm["move_time"]), float(prm["release_band"]), float(prm["op_lo"]),
+                float(prm["op_hi"]), 1.0 if prm["approach"] == "auto" else 0.0]
+
+    def initial_state(self) -> list[float]:
+        state = [0.0] * len(self.STATES)
+        state[TS_MEAN] = math.nan
+        state[TS_TARGET] = math.nan
+        state[TS_LAST_OUT] = math.nan
+        return state

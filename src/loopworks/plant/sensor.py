@@ -1,0 +1,380 @@
+r"""Transmitters: kind ``sensor.transmitter`` (takes the process output ``y``, gives ``pv``).
+
+A transmitter turns the process variable into the measurement a controller reads. In a
+simulated loop it sits between the process and the controller (``"tt.y" = "process.y"``,
+``"pid.pv" = "tt.pv"``). It adds what a real measurement adds to the true value: a calibration
+(gain and offset), the sensor's own lag (a thermowell, a damping setting), measurement noise,
+the resolution of the A/D conversion, the saturation of the output range, and failures. The
+PV it gives is what the loop metrics of plant-and-tuning section 4 are computed from, so every
+effect is explicit and switchable (all off by default: ``pv = y``).
+
+Signal path, one scan of ``dt`` seconds (k = this scan)::
+
+    m_k  = gain·y_k + offset                                  calibration
+    z_k  = z_{k-1} + (1 - exp(-dt/T))·(m_k - z_{k-1})        first-order lag, T = time_constant
+    v_k  = z_k + noise_std·n_k                                n_k ~ N(0, 1), seeded
+    v_k  = q·floor(v_k/q + 1/2)                               quantisation, q = quantum > 0
+    pv_k = clamp(v_k, pv_lo, pv_hi)                           output range
+
+* The lag is the exact zero-order-hold step of T·dz/dt = m - z (Åström & Wittenmark,
+  *Computer-Controlled Systems*, ch. 2; the shared primitive ``lag_step``); T = 0 is no lag.
+  It starts settled: z takes the first good measurement (no start-up transient).
+* Noise is added after the lag (electronics noise on the sensed value) and before the
+  quantiser (the A/D converter digitises the noisy signal), as in a real transmitter. The
+  quantiser is the memoryless one of plant-and-tuning 1.5 (``y = q·round(x/q)``, halves
+  rounded up).
+* A value clamped at ``pv_lo``/``pv_hi`` (a saturated 4-20 mA signal) gets the limit bits
+  (low 1, high 2) and the quality ``range_status`` says: Uncertain, EU range violation (0x54,
+  the Fieldbus substatus for a value outside its range) by default, or Good (0x80). [I]
+
+Noise generator
+---------------
+
+The Gaussian numbers come from L'Ecuyer's MRG32k3a combined multiple recursive generator
+(P. L'Ecuyer, *Good parameters and implementations for combined multiple recursive random
+number generators*, Operations Research 47(1), 1999, 159-164) in its double-precision form:
+six integers below 2^32 held as floats in the block state, every intermediate product below
+2^53, so the arithmetic is exact in IEEE doubles, interpreted or compiled, and the state
+survives ``state_dict()``/JSON exactly. Period about 2^191. Two uniforms u1, u2 in (0, 1) give
+one normal by Box-Muller, ``n = sqrt(-2 ln u1)·cos(2π u2)`` (Box & Muller, Ann. Math. Stat.
+29, 1958). The ``seed`` (an integer) sets the six starting integers through SplitMix64
+(Steele, Lea & Flood, OOPSLA 2014), mixed with a per-kind stream number so a sensor and a
+disturbance with the same seed draw independent streams. Blocks of the same kind with the same
+seed draw the same numbers: give each noisy block its own seed.
+
+One normal is drawn on every scan while ``noise_std`` > 0, whatever the input or failure state,
+so the noise of scan k is always the k-th number of the stream: a run is reproducible from the
+seed alone, and resuming from a saved state continues the stream exactly.
+
+Failures (injected by parameters)
+---------------------------------
+
+``failure`` selects one failure mode, active while ``failure_start`` ≤ t < ``failure_end`` (t
+in seconds: the ``clock`` input, i.e. the module time or a replay's ``t`` column, else the
+block's own time, the sum of the dt of earlier scans; both ends with a 1e-9 s tolerance, as
+module events). During the failure:
+
+* ``stuck``: the value freezes at the last PV before the failure (no noise); status Good
+  (128): a stuck transmitter (plugged impulse line, frozen electronics) does not know it.
+* ``bad``: the value holds the last PV before the failure (the last usable value); status Bad,
+  sensor failure (0x10): the device detects the fault, as an AI block reports it.
+* ``nan``: the value is NaN; status Good (128): a corrupted value that carries no status, as a
+  PLC float tag or a Modbus register gives it.
+
+``failure_status`` (a status byte) replaces the mode's status.
+
+The sensing element keeps following the process during a failure (the lag keeps running), so
+when the failure ends the PV returns to the current reading at once. If the failure is active
+from the first scan, the frozen value is the first scan's reading.
+
+Input status: an Uncertain ``y`` gives an Uncertain ``pv`` (the input's byte, limit bits
+cleared); a Bad or non-finite ``y`` (a broken process model) holds the PV and the lag, with
+the input's status if it is Bad, else Bad non-specific (0x00). An injected failure takes
+precedence over both.
+
+Options for the spec's [A]/[?] points
+-------------------------------------
+
+The plant-and-tuning spec names measurement noise (section 6, item 3) and the quantiser (1.5)
+without fixing how a transmitter combines them; these interpretations [I] are parameters:
+
+* ``range_status`` = ``uncertain``: status of a value clamped at ``pv_lo``/``pv_hi`` (0x54 plus
+  the limit bits); ``good`` gives 0x80 plus the limit bits.
+* ``failure_status``: the status during a failure; default per mode (table above).
+
+Example
+-------
+
+Python::
+
+    import loopworks
+    tt = loopworks.create_block("sensor.transmitter", time_constant=2.0, noise_std=0.1,
+                                quantum=0.05, seed=7, failure="bad", failure_start=10.0)
+    for k in range(12):
+        r = tt.step(1.0, y=50.0)
+    print(r["pv"])            # the last PV before t = 10 s, [Bad:SensorFailure]
+
+Replay (``loopworks replay sensor.transmitter tt.csv -p quantum=0.5 -p failure=stuck
+-p failure_start=2``), with ``tt.csv``::
+
+    t,y
+    0,10.1
+    1,10.3
+    2,11.0
+    3,12.0
+
+gives ``pv`` 10, 10.5, 10.5, 10.5 (10.3 rounds to 10.5; stuck from t = 2 s at the last PV) and
+``pv.ST`` 128 on every row.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.primitives import finite, lag_step
+from loopworks.blocks.registry import register
+from loopworks.blocks.status import (
+    BAD,
+    BAD_NON_SPECIFIC,
+    BAD_SENSOR_FAILURE,
+    GOOD_NC,
+    HIGH_LIMITED,
+    LOW_LIMITED,
+    UNCERTAIN,
+    UNCERTAIN_EU_RANGE_VIOLATION,
+)
+from loopworks.errors import ParameterError
+
+# -- the seeded generator (shared with loopworks.plant.disturbance) ---------------------------
+
+# MRG32k3a constants (L'Ecuyer 1999, double-precision implementation)
+M1 = 4294967087.0
+M2 = 4294944443.0
+A12 = 1403580.0
+A13N = 810728.0
+A21 = 527612.0
+A23N = 1370589.0
+NORM = 2.328306549295727688e-10  # 1/(M1 + 1)
+TWO_PI = 2.0 * math.pi
+
+#: number of state slots the generator uses (s10, s11, s12, s20, s21, s22)
+RNG_SLOTS = 6
+#: stream numbers mixed into the seed, one per block kind that draws random numbers
+STREAM_SENSOR = 1
+STREAM_DISTURBANCE = 2
+
+_MASK64 = (1 << 64) - 1
+
+
+def _splitmix64(state: int) -> tuple[int, int]:
+    """One SplitMix64 step (Steele, Lea & Flood 2014): (new state, 64-bit output)."""
+    state = (state + 0x9E3779B97F4A7C15) & _MASK64
+    z = state
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _MASK64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _MASK64
+    return state, z ^ (z >> 31)
+
+
+def rng_seed_state(seed: int, stream: int) -> list[float]:
+    """The six MRG32k3a starting integers (as floats) for ``seed`` and a ``stream`` number.
+
+    SplitMix64 of ``seed·2^8 + stream`` gives six 64-bit words, reduced modulo m1 (first
+    three) and m2 (last three). Each triple must not be all zero (L'Ecuyer 1999); a zero triple
+    (probability about 2^-96) is replaced by 12345s, the generator's customary seed."""
+    state = ((int(seed) << 8) + int(stream)) & _MASK64
+    words = []
+    for _ in range(RNG_SLOTS):
+        state, z = _splitmix64(state)
+        words.append(z)
+    first = [float(w % int(M1)) for w in words[:3]]
+    second = [float(w % int(M2)) for w in words[3:]]
+    if first == [0.0, 0.0, 0.0]:  # pragma: no cover - probability 2^-96
+        first = [12345.0] * 3
+    if second == [0.0, 0.0, 0.0]:  # pragma: no cover
+        second = [12345.0] * 3
+    return first + second
+
+
+@primitive
+def rng_uniform(x: FloatArray, i: int) -> float:
+    """Next MRG32k3a number in (0, 1); the state is x[i..i+5] (L'Ecuyer 1999, Fig. 1)::
+
+        p1 = (1403580·s11 - 810728·s10) mod m1,   s1 ← (s11, s12, p1)
+        p2 = (527612·s22 - 1370589·s20) mod m2,   s2 ← (s21, s22, p2)
+        u  = (p1 - p2 mod m1)/(m1 + 1), with p1 ≤ p2 mapped to p1 - p2 + m1
+
+    Every product is below 2^53, so float arithmetic is exact."""
+    p1 = float(A12 * x[i + 1] - A13N * x[i])
+    k = float(int(p1 / M1))
+    p1 -= k * M1
+    if p1 < 0.0:
+        p1 += M1
+    x[i] = x[i + 1]
+    x[i + 1] = x[i + 2]
+    x[i + 2] = p1
+    p2 = float(A21 * x[i + 5] - A23N * x[i + 3])
+    k = float(int(p2 / M2))
+    p2 -= k * M2
+    if p2 < 0.0:
+        p2 += M2
+    x[i + 3] = x[i + 4]
+    x[i + 4] = x[i + 5]
+    x[i + 5] = p2
+    if p1 <= p2:
+        return (p1 - p2 + M1) * NORM
+    return (p1 - p2) * NORM
+
+
+@primitive
+def rng_normal(x: FloatArray, i: int) -> float:
+    """A standard normal number from two uniforms (Box-Muller, cosine branch):
+    n = sqrt(-2·ln u1)·cos(2π·u2). u1 is never 0, so n is always finite."""
+    u1 = rng_uniform(x, i)
+    u2 = rng_uniform(x, i)
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(TWO_PI * u2)
+
+
+@primitive
+def at_or_after(t: float, start: float) -> bool:
+    """t ≥ start with the 1e-9 s tolerance module events use (time sums like 0.1 + 0.1 + ...
+    land a hair below the exact instant)."""
+    return t >= start - 1e-9
+
+
+@primitive
+def scan_time(clock: float, x: FloatArray, i: int, dt: float) -> float:
+    """The time of this scan: the ``clock`` input when finite, else the block's own time
+    x[i]; afterwards x[i] holds the time of the next scan (this one + dt)."""
+    t = clock if finite(clock) else float(x[i])
+    if finite(t + dt):
+        x[i] = t + dt
+    return t
+
+
+# -- sensor.transmitter ------------------------------------------------------------------------
+
+# Coefficient layout (p)
+(GAIN, OFFSET, TAU, NOISE, QUANTUM, PV_LO, PV_HI, RANGE_GOOD, FAILURE, F_START, F_END,
+ F_STATUS) = range(12)
+# Failure modes (p[FAILURE])
+NONE, STUCK, BAD_MODE, NAN_MODE = range(4)
+FAILURES = ("none", "stuck", "bad", "nan")
+# Inputs, outputs
+Y, CLOCK = range(2)
+PV = 0
+# State (x): the lag, its started flag, the PV held for failures, the time, the generator
+S_LAG, S_STARTED, S_HELD, S_HELD_OK, S_TIME, S_RNG = range(6)
+
+# floor() is exact and safe below this magnitude; beyond it a double is already an integer
+_FLOOR_SAFE = 4.0e15
+
+
+def transmitter_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                       y: FloatArray, ys: IntArray) -> None:
+    """One scan of the transmitter (equations in the module docstring)."""
+    # array elements are read into Python floats: plain IEEE arithmetic when interpreted (no
+    # numpy warnings on inf - inf), free when compiled
+    t = scan_time(float(u[CLOCK]), x, S_TIME, dt)
+    noise = 0.0
+    if p[NOISE] > 0.0:  # one normal every scan: scan k always gets the k-th number
+        noise = float(p[NOISE]) * rng_normal(x, S_RNG)
+    status_in = us[Y]
+    reading = float(p[GAIN]) * float(u[Y]) + float(p[OFFSET])
+    if (status_in & 0xC0) == BAD or not finite(reading):
+        value = float(x[S_HELD])  # hold, like the lag
+        status = status_in if (status_in & 0xC0) == BAD else BAD_NON_SPECIFIC
+    else:
+        if x[S_STARTED] == 0.0:  # starts settled at the first good measurement
+            x[S_LAG] = reading
+            x[S_STARTED] = 1.0
+        else:
+            x[S_LAG] = lag_step(x[S_LAG], reading, dt, p[TAU])
+        value = float(x[S_LAG]) + noise
+        q = float(p[QUANTUM])
+        if q > 0.0:
+            w = value / q + 0.5
+            if abs(w) < _FLOOR_SAFE:
+                value = q * float(math.floor(w))
+        status = GOOD_NC
+        if (status_in & 0xC0) == UNCERTAIN:
+            status = status_in & 0xFC
+        base = GOOD_NC if p[RANGE_GOOD] != 0.0 else UNCERTAIN_EU_RANGE_VIOLATION
+        if value > p[PV_HI]:
+            value = p[PV_HI]
+            status = base | HIGH_LIMITED
+        elif value < p[PV_LO]:
+            value = p[PV_LO]
+            status = base | LOW_LIMITED
+    mode = p[FAILURE]
+    failed = mode != NONE and at_or_after(t, p[F_START]) and not at_or_after(t, p[F_END])
+    if failed:
+        if x[S_HELD_OK] == 0.0:  # failed from the first scan: freeze this scan's reading
+            x[S_HELD] = value
+            x[S_HELD_OK] = 1.0
+        value = math.nan if mode == NAN_MODE else float(x[S_HELD])
+        status = int(p[F_STATUS])
+    else:
+        x[S_HELD] = value
+        x[S_HELD_OK] = 1.0
+    y[PV] = value
+    ys[PV] = status
+
+
+_DEFAULT_STATUS = {"none": GOOD_NC, "stuck": GOOD_NC, "bad": BAD_SENSOR_FAILURE,
+                   "nan": GOOD_NC}
+
+
+@register
+class Transmitter(Block):
+    """Transmitter: calibration, lag, seeded noise, quantisation, range, injected failures."""
+
+    kind = "sensor.transmitter"
+    summary = ("Transmitter: gain/offset, first-order lag, seeded Gaussian noise, "
+               "quantisation, output range and injected failures (stuck, Bad, NaN)")
+    kernel = staticmethod(transmitter_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("gain", 1.0, "pv/y", "calibration gain: m = gain·y + offset"),
+        Param("offset", 0.0, "pv", "calibration offset (a zero error or a unit conversion)"),
+        Param("time_constant", 0.0, "s", "sensor lag T (exact ZOH step); 0 = no lag",
+              lo=0.0, lo_open=False),
+        Param("noise_std", 0.0, "pv", "standard deviation of the Gaussian measurement noise; "
+              "0 = none", lo=0.0, lo_open=False),
+        Param("seed", 0, "", "seed of the noise generator (MRG32k3a via SplitMix64)", "int",
+              lo=0.0, hi=2.0 ** 53, lo_open=False, hi_open=False),
+        Param("quantum", 0.0, "pv", "resolution q: pv = q·floor(v/q + 1/2); 0 = none "
+              "(plant-and-tuning 1.5)", lo=0.0, lo_open=False),
+        Param("pv_lo", -math.inf, "pv", "lowest PV the output can give (saturation)",
+              lo=-math.inf, lo_open=False),
+        Param("pv_hi", math.inf, "pv", "highest PV the output can give (saturation)",
+              hi=math.inf, hi_open=False),
+        Param("range_status", "uncertain", "", "quality of a PV clamped at pv_lo/pv_hi: "
+              "Uncertain EU range violation (0x54) or Good (0x80), plus the limit bits [I]",
+              "choice", choices=("uncertain", "good")),
+        Param("failure", "none", "", "injected failure: stuck (frozen value), bad (Bad "
+              "sensor failure, value held), nan (NaN value)", "choice", choices=FAILURES),
+        Param("failure_start", 0.0, "s", "time the failure begins (clock input or own time)"),
+        Param("failure_end", math.inf, "s", "time the failure ends; inf = never",
+              hi=math.inf, hi_open=False),
+        Param("failure_status", None, "", "status byte during the failure", "int",
+              lo=0.0, hi=255.0, lo_open=False, hi_open=False,
+              default_text="stuck 128, bad 16 (0x10), nan 128"),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("y", 0.0, "y", "the true process variable (process output)", status=True),
+        Port("clock", math.nan, "s", "time for the failure window (module time / replay t); "
+             "NaN = the block's own time"),
+    )
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("pv", 0.0, "pv", "the measurement", status=True),
+    )
+    STATES: ClassVar[tuple[str, ...]] = (
+        "lag", "started", "held", "held_ok", "time",
+        "rng_s10", "rng_s11", "rng_s12", "rng_s20", "rng_s21", "rng_s22")
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        if prm["pv_lo"] >= prm["pv_hi"]:
+            raise ParameterError(
+                f"{self.kind}: parameter 'pv_hi' = {prm['pv_hi']:g} is out of range: it must "
+                f"be above pv_lo = {prm['pv_lo']:g}")
+        if prm["failure_end"] < prm["failure_start"]:
+            raise ParameterError(
+                f"{self.kind}: parameter 'failure_end' = {prm['failure_end']:g} is out of "
+                f"range: it must be >= failure_start = {prm['failure_start']:g}")
+        status = prm["failure_status"]
+        if status is None:
+            status = _DEFAULT_STATUS[prm["failure"]]
+        return [float(prm["gain"]), float(prm["offset"]), float(prm["time_constant"]),
+                float(prm["noise_std"]), float(prm["quantum"]), float(prm["pv_lo"]),
+                float(prm["pv_hi"]), 1.0 if prm["range_status"] == "good" else 0.0,
+                float(FAILURES.index(prm["failure"])), float(prm["failure_start"]),
+                float(prm["failure_end"]), float(status)]
+
+    def initial_state(self) -> list[float]:
+        return [0.0, 0.0, 0.0, 0.0, 0.0,
+                *rng_seed_state(int(self.params["seed"]), STREAM_SENSOR)]
