@@ -84,8 +84,10 @@ def simulate(
     for variant, result in results.items():
         for loop in result.controllers():
             key = variant if len(result.controllers()) == 1 else f"{variant}: {loop}"
-            metrics[key] = result.metrics(loop)
-    table = Table(title=f"{title}: {sc.duration:g} s in scans of {sc.dt:g} s")
+            metrics[key] = result.metrics(loop, window=sc.metrics_window)
+    scored = ("" if sc.metrics_window is None
+              else f", scored over {sc.metrics_window[0]:g}..{sc.metrics_window[1]:g} s")
+    table = Table(title=f"{title}: {sc.duration:g} s in scans of {sc.dt:g} s{scored}")
     table.add_column("metric")
     for key in metrics:
         table.add_column(key, justify="right")

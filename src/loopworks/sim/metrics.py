@@ -147,7 +147,8 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
                  window: tuple[float, float] | None = None,
                  reversal_threshold: float = 0.05) -> dict[str, float]:
     """The metrics table of one loop (spec 4.1), over ``window`` = (t0, t1) s (default: the
-    whole run): error integrals, step figures over the window from the last setpoint change,
+    whole run): error integrals, step figures over the window from the last setpoint change
+    (none for a window without a setpoint change in it),
     PV standard deviation and peak to peak, controller output travel and reversals, and the
     valve stem travel and reversals when ``position`` is given."""
     if window is not None:
@@ -160,8 +161,11 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     ts = float(t[1] - t[0]) if len(t) > 1 else 0.0
     e = sp - pv
     changes = np.flatnonzero(np.diff(sp) != 0.0)
-    start = int(changes[-1]) + 1 if len(changes) else 0
-    sm = step_metrics(t[start:], pv[start:], float(sp[-1]))
+    if len(changes) or window is None:
+        start = int(changes[-1]) + 1 if len(changes) else 0
+        sm = step_metrics(t[start:], pv[start:], float(sp[-1]))
+    else:  # a regulatory window (no setpoint change in it): no step figures
+        sm = StepMetrics(math.nan, math.nan, math.nan, math.nan)
     result = {
         "IAE": iae(e, ts),
         "ISE": ise(e, ts),

@@ -1,6 +1,7 @@
 """Scenario files (TOML): build a :class:`~loopworks.sim.module.Module` and its run settings.
 
-    [simulation]            dt (s), duration (s), seed, optional order = ["process", "pid"]
+    [simulation]            dt (s), duration (s), seed, optional order = ["process", "pid"],
+                            optional metrics_window = [t0, t1] (s) for the scores
     [blocks.NAME]           kind = "pid", then parameters, and constants for unwired inputs
     [wires]                 "process.u" = "pid.out"    (destination = source)
     [[events]]              t = 100.0, set = "pid.sp", value = 60.0   (an input or a parameter)
@@ -34,6 +35,9 @@ class _Simulation(BaseModel):
     seed: int | None = None
     order: list[str] | None = None
     title: str = ""
+    metrics_window: list[float] | None = Field(
+        default=None, min_length=2, max_length=2,
+        description="[t0, t1] s over which simulate scores each loop")
 
 
 class _Event(BaseModel):
@@ -65,6 +69,7 @@ class Scenario:
     source: str
     variants: dict[str, Module] = field(default_factory=dict)
     text: str = ""
+    metrics_window: tuple[float, float] | None = None
 
 
 def _format_validation(err: ValidationError, source: str) -> str:
@@ -126,7 +131,10 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         variants[variant] = _build(sc, changed, f"{source} (compare.{variant})")
     sim = sc.simulation
     first = next(iter(variants.values()))
-    return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, variants, text)
+    window = None if sim.metrics_window is None else (sim.metrics_window[0],
+                                                      sim.metrics_window[1])
+    return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, variants, text,
+                    window)
 
 
 def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Module:
