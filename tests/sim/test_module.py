@@ -172,3 +172,26 @@ def test_result_metrics_for_the_first_controller() -> None:
     assert "valve travel" not in m
     late = result.metrics(window=(25.0, 50.0))
     assert late["IAE"] < m["IAE"]
+
+
+def test_metrics_follow_the_wires_to_each_loops_valve() -> None:
+    """Two loops, one through a compensator: each loop's valve travel is its own valve's."""
+    blocks = {}
+    wires = {}
+    for n, comp in (("a", False), ("b", True)):
+        blocks[f"pid_{n}"] = create_block("pid", k=1.0, ti=10.0, bias=50.0)
+        blocks[f"valve_{n}"] = create_block("valve.choudhury", s=3.0, j=1.0, y0=50.0)
+        blocks[f"proc_{n}"] = create_block("process.fopdt", u0=50.0)
+        if comp:
+            blocks[f"comp_{n}"] = create_block("compensator.constant_reinforcement")
+            wires.update({f"comp_{n}.op_in": f"pid_{n}.out", f"valve_{n}.op": f"comp_{n}.op_out"})
+        else:
+            wires[f"valve_{n}.op"] = f"pid_{n}.out"
+        wires.update({f"proc_{n}.u": f"valve_{n}.position", f"pid_{n}.pv": f"proc_{n}.y"})
+    m = Module(blocks, wires=wires, inputs={"pid_a": {"sp": 51.0}, "pid_b": {"sp": 51.0}})
+    r = m.run(200.0, 0.2)
+    assert r.controllers() == ["pid_a", "pid_b"]
+    assert (r.valve_of("pid_a"), r.valve_of("pid_b")) == ("valve_a", "valve_b")
+    for n in ("a", "b"):
+        expected = float(np.sum(np.abs(np.diff(r[f"valve_{n}.position"]))))
+        assert r.metrics(f"pid_{n}")["valve travel"] == pytest.approx(expected)

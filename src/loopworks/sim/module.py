@@ -204,8 +204,8 @@ class Module:
             for i, port in enumerate(b.OUTPUTS):
                 values[f"{name}.{port.name}"] = Y[:, i].copy()
                 status[f"{name}.{port.name}"] = YS[:, i].copy()
-        return SimResult(t=t, values=values, status=status, kinds={n: self.blocks[n].kind
-                                                                   for n in names})
+        return SimResult(t=t, values=values, status=status,
+                         kinds={n: self.blocks[n].kind for n in names}, wires=dict(self.wires))
 
     def state_dict(self) -> dict[str, Any]:
         """Time, scan count and every block's state: enough to resume a run exactly."""

@@ -34,7 +34,7 @@ def trend_plot(result: SimResult, path: Path, title: str) -> None:
     fig, axes = plt.subplots(panels, 1, sharex=True, figsize=(10, 2.8 * panels), squeeze=False)
     ax = axes[0, 0]
     for loop in loops:
-        ax.plot(result.t, result[f"{loop}.sp"], label=f"{loop} SP", linestyle="--")
+        ax.plot(result.t, result.working_sp(loop), label=f"{loop} SP", linestyle="--")
         ax.plot(result.t, result[f"{loop}.pv"], label=f"{loop} PV")
     ax.set_ylabel("PV, SP (EU)")
     ax = axes[1, 0]

@@ -19,6 +19,7 @@ class SimResult:
     values: dict[str, np.ndarray]
     status: dict[str, np.ndarray]
     kinds: dict[str, str] = field(default_factory=dict)
+    wires: dict[str, str] = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
         """``result["pid.out"]``; ``result["pid.out.ST"]`` gives the status array."""
@@ -43,7 +44,8 @@ class SimResult:
                 window: tuple[float, float] | None = None) -> dict[str, float]:
         """Loop metrics (spec plant-and-tuning 4.1) of controller ``loop`` (default: the first
         controller), with valve stem travel when ``valve`` names a block with a ``position``
-        output (default: the first such block), over ``window`` = (t0, t1) s."""
+        output (default: the valve the loop drives, found along the wires), over ``window``
+        = (t0, t1) s."""
         from loopworks.sim.metrics import loop_metrics
 
         loops = self.controllers()
@@ -52,10 +54,39 @@ class SimResult:
                 raise KeyError("no controller (a block with sp and pv inputs and an out output)")
             loop = loops[0]
         if valve is None:
-            valve = next((n for n in self.kinds if f"{n}.position" in self.values), None)
+            valve = self.valve_of(loop)
         position = self.values[f"{valve}.position"] if valve is not None else None
-        return loop_metrics(self.t, self[f"{loop}.sp"], self[f"{loop}.pv"],
+        return loop_metrics(self.t, self.working_sp(loop), self[f"{loop}.pv"],
                             self[f"{loop}.out"], position=position, window=window)
+
+    def valve_of(self, loop: str) -> str | None:
+        """The first block with a ``position`` output downstream of ``loop.out`` along the
+        wires (through compensators), or None."""
+        frontier, seen = [loop], {loop}
+        while frontier:
+            block = frontier.pop(0)
+            for dest, src in self.wires.items():
+                if src.rsplit(".", 1)[0] == block:
+                    nxt = dest.rsplit(".", 1)[0]
+                    if nxt in seen:
+                        continue
+                    if f"{nxt}.position" in self.values:
+                        return nxt
+                    seen.add(nxt)
+                    frontier.append(nxt)
+        return None
+
+    def working_sp(self, loop: str) -> np.ndarray:
+        """The setpoint a controller worked to: its ``working_sp`` output when it has one
+        (deltav.pid), else ``cas_sp`` in the scans its ``mode`` was CAS (code 2, the generic
+        pid), else its ``sp`` input."""
+        if f"{loop}.working_sp" in self.values:
+            return self.values[f"{loop}.working_sp"]
+        sp = self[f"{loop}.sp"]
+        if f"{loop}.cas_sp" in self.values and f"{loop}.mode" in self.values:
+            return np.where(self.values[f"{loop}.mode"] == 2.0, self.values[f"{loop}.cas_sp"],
+                            sp)
+        return sp
 
     def to_pandas(self) -> Any:
         """A pandas DataFrame indexed by ``t`` (s), with a ``NAME.ST`` column per signal.
