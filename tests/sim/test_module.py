@@ -129,7 +129,7 @@ def test_run_rejects_bad_dt_and_duration() -> None:
 
 
 def test_to_pandas_and_plot() -> None:
-    pd = pytest.importorskip("pandas")
+    import pandas as pd  # a test extra
     result = closed_loop().run(duration=5.0, dt=DT)
     df = result.to_pandas()
     assert isinstance(df, pd.DataFrame)

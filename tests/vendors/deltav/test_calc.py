@@ -313,14 +313,6 @@ SEED_NAMES = ("resolution", "deadband", "process_gain", "cntrl_action", "valve_a
 OPTIONS = list(itertools.product(["float32", "float64"], [False, True]))
 
 
-def native_available() -> bool:
-    return NATIVE in loopworks.kinds()
-
-
-needs_native = pytest.mark.skipif(not native_available(), reason="deltav.stick_slip not yet "
-                                  "registered")
-
-
 def random_params(rng: np.random.Generator) -> dict[str, float]:
     """The seed's module parameters, random (exact 0/1 and ±1 where the text compares)."""
     return {
@@ -391,7 +383,6 @@ def assert_identical(a: Block, ya: tuple[np.ndarray, np.ndarray], b: Block,
         np.testing.assert_array_equal(ya[1][:, i], yb[1][:, j], err_msg=f"{name}.ST")
 
 
-@needs_native
 @pytest.mark.parametrize(("precision", "deferred"), OPTIONS)
 def test_seed_text_equals_native_stick_slip_bit_for_bit(precision: str, deferred: bool) -> None:
     """The seed's 28 lines run as text give exactly the outputs of deltav.stick_slip
@@ -413,7 +404,6 @@ def test_seed_text_equals_native_stick_slip_bit_for_bit(precision: str, deferred
         assert (got[0][:, text._out_index["signal_out"]] == rows["signal_in"]).any()
 
 
-@needs_native
 @pytest.mark.parametrize(("precision", "deferred"), OPTIONS)
 def test_seed_text_equals_native_through_the_block_api(precision: str, deferred: bool) -> None:
     """The same through step(), with the interpreted text kernel and random statuses."""
@@ -434,7 +424,6 @@ def test_seed_text_equals_native_through_the_block_api(precision: str, deferred:
             assert ra[name].status == rb[name].status, (k, name)
 
 
-@needs_native
 @pytest.mark.parametrize(("upper", "lower"), [(1.0, 1.0), (0.5, 0.5), (0.25, 2.0)])
 def test_edited_band_factors_equal_the_native_options(upper: float, lower: float) -> None:
     """spec 6.4 [A]: the native upper/lower_band_factor options are the literals of lines 15
@@ -453,8 +442,6 @@ def test_edited_band_factors_equal_the_native_options(upper: float, lower: float
                      native, run_kernel(native, rows, jit=True))
 
 
-@pytest.mark.skipif("deltav.sggn" not in loopworks.kinds() or not native_available(),
-                    reason="deltav.sggn / deltav.stick_slip not yet registered")
 def test_seed_module_sggn1_then_calc_equals_the_native_internal_dither() -> None:
     """spec 6.5 [A]: SGGN1 (#3) square wave of last scan's DITHER_AMP, alternating every
     scan, then the CALC (#4); the native block's internal dither (dither_out NaN) is the same
