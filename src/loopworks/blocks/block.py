@@ -144,6 +144,11 @@ class Block:
         """State right after construction or ``reset()``; zeros unless overridden."""
         return [0.0] * len(self.STATES)
 
+    def initial_outputs(self) -> list[float]:
+        """Outputs before the first scan (what a module's blocks read from this one until it
+        runs); zeros unless overridden. Called after the state is initialised."""
+        return [0.0] * len(self.OUTPUTS)
+
     # -- the block API ------------------------------------------------------------------------
     def _packed_interpreted(self, dt: float, F: FloatArray, S: IntArray) -> None:
         self._run(dt, self.p, self.x, self.u, self.us, self.y, self.ys)
@@ -155,7 +160,7 @@ class Block:
         self.u[:] = [port.default for port in self.INPUTS]
         self.us[:] = st.GOOD_NC
         self._all_good = True
-        self.y[:] = 0.0
+        self.y[:] = self.initial_outputs()
         self.ys[:] = st.GOOD_NC
 
     def step(self, dt: float, **inputs: Any) -> Outputs:

@@ -384,6 +384,10 @@ class PID(Block):
         coeffs[BADPV] = float(BAD_SAFE if prm["bad_pv"] == "safe" else BAD_HOLD)
         return coeffs
 
+    def initial_outputs(self) -> list[float]:
+        """Before its first scan the controller's output is where it starts: bias, limited."""
+        return [self.x[S_U], 0.0, 0.0, 0.0]
+
     def initial_state(self) -> list[float]:
         x = [0.0] * len(self.STATES)
         bias = self.p[BIAS]
