@@ -185,23 +185,13 @@ from typing import Any, ClassVar
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
-from loopworks.blocks.primitives import clamp, finite
+from loopworks.blocks.primitives import clamp, finite, sign
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import GOOD_NC
 from loopworks.errors import ParameterError
 
 _TOL = 1e-9  # s, the tolerance of module events
 _PCT = "%"
-
-
-@primitive
-def sign(v: float) -> float:
-    """+1, -1 or 0 (also for NaN)."""
-    if v > 0.0:
-        return 1.0
-    if v < 0.0:
-        return -1.0
-    return 0.0
 
 
 _OP_IN = Port("op_in", 0.0, _PCT, "controller output (e.g. pid.out)", status=True)

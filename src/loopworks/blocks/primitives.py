@@ -18,6 +18,17 @@ def finite(x: float) -> bool:
 
 
 @primitive
+def sign(v: float) -> float:
+    """+1, -1 or 0: sign(0) = 0 and sign(NaN) = 0 (used by the valve models, spec
+    plant-and-tuning 1.2 step 2, and the compensators, 2.4-2.6)."""
+    if v > 0.0:
+        return 1.0
+    if v < 0.0:
+        return -1.0
+    return 0.0
+
+
+@primitive
 def clamp(x: float, lo: float, hi: float) -> float:
     """min(max(x, lo), hi)."""
     if x > hi:

@@ -132,9 +132,8 @@ import numpy as np
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
-from loopworks.blocks.primitives import clamp, finite
+from loopworks.blocks.primitives import clamp, sign
 from loopworks.blocks.registry import register
-from loopworks.blocks.status import BAD_NON_SPECIFIC, GOOD_NC
 from loopworks.errors import ParameterError
 from loopworks.plant.valve import (
     C_Y0,
@@ -150,7 +149,7 @@ from loopworks.plant.valve import (
     hold,
     op_in,
     op_status,
-    sign,
+    publish_rest_position,
     sj_from_resolution_deadband,
 )
 
@@ -457,9 +456,4 @@ class Karnopp(Block):
 
     def reset(self) -> None:
         super().reset()
-        pos = self.x[S_POS]
-        self.y[POS] = pos
-        self.y[FLOW] = flow_of(self.p, pos)
-        status = GOOD_NC if finite(pos) else BAD_NON_SPECIFIC
-        self.ys[POS] = status
-        self.ys[FLOW] = status
+        publish_rest_position(self, self.x[S_POS])

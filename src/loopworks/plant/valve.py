@@ -174,7 +174,7 @@ import numpy as np
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
-from loopworks.blocks.primitives import clamp, finite
+from loopworks.blocks.primitives import clamp, finite, sign
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import (
     BAD,
@@ -235,16 +235,6 @@ POS, FLOW = 0, 1
 
 
 # -- shared primitives ----------------------------------------------------------------------------
-
-
-@primitive
-def sign(v: float) -> float:
-    """sign(v) with sign(0) = 0 (spec 1.2 step 2)."""
-    if v > 0.0:
-        return 1.0
-    if v < 0.0:
-        return -1.0
-    return 0.0
 
 
 @primitive
@@ -666,12 +656,17 @@ class _Valve(Block):
 
     def reset(self) -> None:
         super().reset()
-        pos = self.x[S_POS]
-        self.y[POS] = pos
-        self.y[FLOW] = flow_of(self.p, pos)
-        status = GOOD_NC if finite(pos) else BAD_NON_SPECIFIC
-        self.ys[POS] = status
-        self.ys[FLOW] = status
+        publish_rest_position(self, self.x[S_POS])
+
+
+def publish_rest_position(block: Block, pos: float) -> None:
+    """Before the first scan a valve at rest shows its position and flow (Good), or Bad when
+    the first op will set it (y0 not given)."""
+    block.y[POS] = pos
+    block.y[FLOW] = flow_of(block.p, pos)
+    status = GOOD_NC if finite(pos) else BAD_NON_SPECIFIC
+    block.ys[POS] = status
+    block.ys[FLOW] = status
 
 
 class _StictionValve(_Valve):
