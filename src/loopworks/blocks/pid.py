@@ -68,6 +68,7 @@ import math
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
+from loopworks.blocks.forms import series_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite
@@ -401,14 +402,3 @@ class PID(Block):
 def _or(value: Any, default: float) -> float:
     return default if value is None else float(value)
 
-
-def series_to_ideal(k: float, ti: float, td: float) -> tuple[float, float, float]:
-    """Series (K', Ti', Td') to ideal (K, Ti, Td), plant-and-tuning 3.5:
-
-        K = K'(1 + Td'/Ti'),  Ti = Ti' + Td',  Td = Ti'·Td'/(Ti' + Td')
-
-    Ti' = inf (no integral) gives K = K', Ti = inf, Td = Td'.
-    """
-    if ti == math.inf:
-        return k, math.inf, td
-    return k * (1.0 + td / ti), ti + td, ti * td / (ti + td)

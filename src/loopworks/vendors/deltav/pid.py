@@ -220,6 +220,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from loopworks.blocks.block import Block
+from loopworks.blocks.forms import series_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite, lag_step
@@ -609,11 +610,8 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
 
 def series_to_standard(gain: float, reset: float, rate: float) -> tuple[float, float, float]:
     """Series (GAIN', RESET', RATE') to the Standard equivalent, ignoring the derivative filter
-    (spec 4.2 [D], textbook): Kc = GAIN'(1 + RATE'/RESET'), Ti = RESET' + RATE',
-    Td = RESET'·RATE'/(RESET' + RATE'). RESET' = inf (no I) gives (GAIN', inf, RATE')."""
-    if math.isinf(reset):
-        return gain, reset, rate
-    return gain * (1.0 + rate / reset), reset + rate, reset * rate / (reset + rate)
+    (spec 4.2 [D], textbook; the equations live in ``loopworks.blocks.forms``)."""
+    return series_to_ideal(gain, reset, rate)
 
 
 _PCT = "%"

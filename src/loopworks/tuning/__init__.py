@@ -1,0 +1,1 @@
+"""Relay experiment, identification, tuning rules and conversion between controllers."""
