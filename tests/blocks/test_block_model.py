@@ -224,6 +224,14 @@ VARIANTS: dict[str, list[dict[str, object]]] = {
         {"walk_std": 0.5, "seed": 4, "walk_start": 10.0},
         {"walk_std": 2.0, "walk_time_constant": 15.0, "seed": 99, "ramp_rate": -1e300},
     ],
+    "relay": [
+        {},
+        {"amplitude": 2.0, "amplitude_down": 1.0, "hysteresis": 0.5, "biased_stage": True,
+         "stable_cycles": 1, "tolerance": 10.0, "discard_cycles": 0, "action": "direct",
+         "u0": 40.0, "max_deviation": 50.0, "timeout": 30.0, "max_half_period": 5.0},
+        {"amplitude": 1.0, "hysteresis": 0.1, "stable_cycles": 5, "tolerance": 0.5,
+         "max_cycles": 8, "out_lo": -10.0, "out_hi": 10.0},
+    ],
     "compensator.knocker": [
         {},
         {"amplitude": 3.0, "pulse_width": 0.5, "interval": 2.0, "error_band": 20.0},

@@ -27,6 +27,7 @@ BLOCK_MODULES: tuple[str, ...] = (
     "loopworks.plant.sensor",
     "loopworks.plant.disturbance",
     "loopworks.blocks.compensators",
+    "loopworks.blocks.relay",
 )
 
 _REGISTRY: dict[str, type[Block]] = {}

@@ -1,0 +1,327 @@
+r"""The relay experiment: kind ``relay`` (Åström & Hägglund 1984; plant-and-tuning 3.1, 3.3, 3.4).
+
+The block sits between a loop's controller and what the controller drives. While ``enable`` is
+off it passes the controller's output ``u_in`` through unchanged. When ``enable`` rises it takes
+over the loop for a relay test around the operating point and afterwards hands the loop back.
+
+Relay law (3.1), with u0 the output when the test starts (``u_in`` then, or the ``u0``
+parameter when given), e the error and ε the ``hysteresis`` (half-width; total band 2ε)::
+
+    e = SP - PV (action reverse) or PV - SP (action direct)
+    r = +1 when e > +ε,  r = -1 when e < -ε,  otherwise r keeps its last value
+    out = clamp(u0 + d_up, out_lo, out_hi)    when r = +1
+    out = clamp(u0 - d_down, out_lo, out_hi)  when r = -1
+
+At the start r = +1 when e ≥ 0, else -1. ``amplitude_down`` (d_down) different from
+``amplitude`` (d_up) gives the biased (asymmetric) relay of 3.3, from which the static gain
+follows. With ``biased_stage`` the test runs in two stages: first the symmetric relay (d_down =
+d_up) until it converges, then the biased relay with ``amplitude_down``, again until it
+converges; the ``stage`` output says which (1, 2).
+
+Cycles and convergence (3.4). A cycle runs from one switch to r = +1 to the next. For every
+cycle the block measures its period and its PV amplitude (half the peak-to-peak). The first
+``discard_cycles`` cycles of a stage are ignored; the stage has converged when the last
+``stable_cycles`` cycles agree: (max - min)/mean ≤ ``tolerance`` for the periods and for the
+amplitudes (the "2-3 stable cycles with ≤ 5 % spread" default of 3.4).
+
+End of the test. The test ends when it has converged (``phase`` 2) or is aborted (3.4 item 7):
+``timeout`` seconds since the start (3), |SP - PV| > ``max_deviation`` (4, runaway),
+``max_cycles`` cycles in a stage without convergence (5), no relay switch for
+``max_half_period`` seconds (6: no oscillation, e.g. a valve that never reverses), or a Bad or
+non-finite PV or SP (7). On the scan that ends it the output returns to u0 (item 7: restore u0)
+with ``active`` still 1, so a controller that tracks ``out`` while ``active`` is on holds u0;
+from the next scan on the block passes ``u_in`` through again and ``active`` is 0. A controller
+that re-initialises when tracking stops (every loopworks controller does) then continues from
+u0: the handback is bumpless. ``enable`` must fall and rise again for a new test.
+
+Hand-over wiring (``loopworks.sim.tune`` does it): the controller's output goes to ``u_in``,
+the consumers of the controller's output read ``out``, and the controller tracks ``out`` while
+``active`` (generic ``pid``: ``track``/``track_value``; ``deltav.pid``: ``trk_in_d``/
+``trk_val`` with ``track_enable``, the LO mode DeltaV uses for its tuner, vendor-blocks 5.1;
+GE: ``man``/``manual_command``; S5: ``auto`` = ``inactive``, ``yh``; E2: ``override`` =
+the ``override`` output, NaN when inactive).
+
+Outputs ``cycles``, ``period`` and ``amplitude`` report the latest full cycle of the running
+stage; the full analysis (Ku, Pu, gains, dead time) is done on the recorded signals by
+``loopworks.tuning.identify``.
+
+Time. t is the ``clock`` input when finite, else the block's own time (the sum of dt).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.params import Param, Port
+from loopworks.blocks.primitives import clamp, finite
+from loopworks.blocks.registry import register
+from loopworks.blocks.status import CONSTANT, GOOD_NC, UNCERTAIN
+from loopworks.errors import ParameterError
+
+# Phase codes (output ``phase``)
+IDLE, RUNNING, CONVERGED, TIMEOUT, RUNAWAY, NOT_CONVERGED, NO_OSCILLATION, BAD_INPUT = range(8)
+PHASE_NAMES = ("idle", "running", "converged", "timeout", "runaway", "not_converged",
+               "no_oscillation", "bad_input")
+N_SLOTS = 5  # cycles remembered for the convergence test (stable_cycles ≤ N_SLOTS)
+
+# Coefficient layout (p)
+(D_UP, D_DOWN, HYST, SIGN, LO, HI, U0, TIMEOUT_S, MAX_DEV, MAX_CYC, MAX_HALF, DISCARD, STABLE,
+ TOL, BIASED) = range(15)
+# Inputs
+SP, PV, U_IN, ENABLE, CLOCK = range(5)
+# Outputs
+OUT, ACTIVE, INACTIVE, OVERRIDE, RELAY, PHASE, STAGE, CYCLES, PERIOD, AMPLITUDE = range(10)
+# State (x)
+(S_TIME, S_PHASE, S_R, S_U0, S_T0, S_T_SWITCH, S_T_UP, S_N_UP, S_PV_MAX, S_PV_MIN, S_STAGE,
+ S_ENABLE_PREV, S_OUT, S_PERIOD, S_AMP) = range(15)
+S_PERIODS = 15                  # N_SLOTS latest periods
+S_AMPS = S_PERIODS + N_SLOTS    # N_SLOTS latest amplitudes
+N_STATES = S_AMPS + N_SLOTS
+
+
+@primitive
+def _spread_ok(x: FloatArray, first: int, n: int, tol: float) -> bool:
+    """(max - min)/mean ≤ tol over x[first:first + n] (all positive)."""
+    lo = math.inf
+    hi = -math.inf
+    total = 0.0
+    for i in range(first, first + n):
+        v = float(x[i])
+        lo = min(lo, v)
+        hi = max(hi, v)
+        total += v
+    mean = total / n
+    return mean > 0.0 and (hi - lo) <= tol * mean
+
+
+def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                 y: FloatArray, ys: IntArray) -> None:
+    """One scan of the relay experiment (equations in the module docstring)."""
+    clock = float(u[CLOCK])
+    t = clock if finite(clock) else float(x[S_TIME])
+    if finite(t + dt):
+        x[S_TIME] = t + dt
+    enable = float(u[ENABLE]) > 0.5
+    rising = enable and float(x[S_ENABLE_PREV]) < 0.5
+    x[S_ENABLE_PREV] = 1.0 if enable else 0.0
+    sign = float(p[SIGN])
+    sp = float(u[SP])
+    pv = float(u[PV])
+    inputs_ok = finite(sp) and finite(pv) and us[SP] >= UNCERTAIN and us[PV] >= UNCERTAIN
+    phase = int(x[S_PHASE])
+    if rising and phase != RUNNING:  # a new test
+        u0 = float(p[U0]) if finite(float(p[U0])) else float(u[U_IN])
+        if not finite(u0):
+            u0 = float(x[S_OUT])
+        x[S_U0] = u0
+        x[S_T0] = t
+        x[S_T_SWITCH] = t
+        x[S_T_UP] = math.nan
+        x[S_N_UP] = 0.0
+        x[S_STAGE] = 1.0
+        x[S_PERIOD] = math.nan
+        x[S_AMP] = math.nan
+        e0 = sign * (sp - pv) if inputs_ok else 0.0
+        x[S_R] = 1.0 if e0 >= 0.0 else -1.0
+        x[S_PV_MAX] = pv
+        x[S_PV_MIN] = pv
+        phase = RUNNING
+    elif not enable and phase != RUNNING:
+        phase = IDLE
+    r = float(x[S_R])
+    u0 = float(x[S_U0])
+    ending = False
+    if phase == RUNNING:
+        if not enable:
+            phase = IDLE
+            ending = True
+        elif not inputs_ok:
+            phase = BAD_INPUT
+            ending = True
+        elif abs(sp - pv) > float(p[MAX_DEV]):
+            phase = RUNAWAY
+            ending = True
+        elif t - float(x[S_T0]) > float(p[TIMEOUT_S]) + 1e-9:
+            phase = TIMEOUT
+            ending = True
+        elif t - float(x[S_T_SWITCH]) > float(p[MAX_HALF]) + 1e-9:
+            phase = NO_OSCILLATION
+            ending = True
+    if phase == RUNNING:
+        e = sign * (sp - pv)
+        hyst = float(p[HYST])
+        new_r = r
+        if e > hyst:
+            new_r = 1.0
+        elif e < -hyst:
+            new_r = -1.0
+        if new_r != r:
+            x[S_T_SWITCH] = t
+            if new_r > 0.0:  # a switch up closes a cycle
+                if finite(float(x[S_T_UP])):
+                    # shift the cycle memories and store this cycle
+                    for i in range(N_SLOTS - 1):
+                        x[S_PERIODS + i] = x[S_PERIODS + i + 1]
+                        x[S_AMPS + i] = x[S_AMPS + i + 1]
+                    period = t - float(x[S_T_UP])
+                    amp = 0.5 * (float(x[S_PV_MAX]) - float(x[S_PV_MIN]))
+                    x[S_PERIODS + N_SLOTS - 1] = period
+                    x[S_AMPS + N_SLOTS - 1] = amp
+                    x[S_PERIOD] = period
+                    x[S_AMP] = amp
+                    x[S_N_UP] = float(x[S_N_UP]) + 1.0
+                    n = int(x[S_N_UP])
+                    stable = int(p[STABLE])
+                    tol = float(p[TOL])
+                    if (n >= int(p[DISCARD]) + stable
+                            and _spread_ok(x, S_PERIODS + N_SLOTS - stable, stable, tol)
+                            and _spread_ok(x, S_AMPS + N_SLOTS - stable, stable, tol)):
+                        if float(p[BIASED]) > 0.5 and float(x[S_STAGE]) < 1.5:
+                            x[S_STAGE] = 2.0  # the biased stage starts with this cycle
+                            x[S_N_UP] = 0.0
+                        else:
+                            phase = CONVERGED
+                            ending = True
+                    elif n >= int(p[MAX_CYC]):
+                        phase = NOT_CONVERGED
+                        ending = True
+                x[S_T_UP] = t
+                x[S_PV_MAX] = pv
+                x[S_PV_MIN] = pv
+            r = new_r
+            x[S_R] = r
+    if phase == RUNNING or ending:
+        x[S_PV_MAX] = max(float(x[S_PV_MAX]), pv) if finite(pv) else x[S_PV_MAX]
+        x[S_PV_MIN] = min(float(x[S_PV_MIN]), pv) if finite(pv) else x[S_PV_MIN]
+    lo = float(p[LO])
+    hi = float(p[HI])
+    if ending:
+        out = clamp(u0, lo, hi)
+        active = True
+        x[S_R] = 0.0
+    elif phase == RUNNING:
+        d_down = float(p[D_DOWN]) if float(x[S_STAGE]) > 1.5 or float(p[BIASED]) < 0.5 \
+            else float(p[D_UP])
+        out = clamp(u0 + float(p[D_UP]) if r > 0.0 else u0 - d_down, lo, hi)
+        active = True
+    else:
+        out = float(u[U_IN])
+        active = False
+    x[S_PHASE] = float(phase)
+    x[S_OUT] = out
+    y[OUT] = out
+    ys[OUT] = (GOOD_NC | CONSTANT) if active else us[U_IN]
+    y[ACTIVE] = 1.0 if active else 0.0
+    y[INACTIVE] = 0.0 if active else 1.0
+    y[OVERRIDE] = out if active else math.nan
+    y[RELAY] = r if phase == RUNNING or ending else 0.0
+    y[PHASE] = float(phase)
+    y[STAGE] = float(x[S_STAGE]) if phase == RUNNING or ending else 0.0
+    y[CYCLES] = float(x[S_N_UP])
+    y[PERIOD] = float(x[S_PERIOD])
+    y[AMPLITUDE] = float(x[S_AMP])
+    for i in range(ACTIVE, AMPLITUDE + 1):
+        ys[i] = GOOD_NC
+
+
+@register
+class Relay(Block):
+    """Relay experiment: symmetric or biased relay with hysteresis, limits, abort rules."""
+
+    kind = "relay"
+    summary = ("relay auto-tuning experiment: symmetric or biased relay with hysteresis, "
+               "convergence and abort rules, bumpless handback (plant-and-tuning 3.1-3.4)")
+    kernel = staticmethod(relay_kernel)
+
+    PARAMS: ClassVar[tuple[Param, ...]] = (
+        Param("amplitude", 5.0, "out", "relay amplitude d (d_up): out = u0 + d while the error "
+              "is above the band (3.1)", lo=0.0),
+        Param("amplitude_down", None, "out", "d_down: out = u0 - d_down below the band; differs "
+              "from amplitude for the biased relay of 3.3", lo=0.0,
+              default_text="amplitude"),
+        Param("hysteresis", 0.0, "pv", "ε, half-width of the switching band around SP; above "
+              "the noise band, 2-3 σ of the noise (3.4)", lo=0.0, lo_open=False),
+        Param("action", "reverse", "", "reverse: e = SP - PV; direct: e = PV - SP", "choice",
+              choices=("reverse", "direct")),
+        Param("out_lo", 0.0, "out", "low limit of the relay output"),
+        Param("out_hi", 100.0, "out", "high limit of the relay output (> out_lo)"),
+        Param("u0", None, "out", "centre of the relay; NaN = u_in when the test starts",
+              default_text="u_in at the start"),
+        Param("timeout", 3600.0, "s", "abort when the test has run this long (3.4)", lo=0.0,
+              hi=math.inf, hi_open=False),
+        Param("max_deviation", math.inf, "pv", "abort when |SP - PV| exceeds this (runaway)",
+              lo=0.0, hi=math.inf, hi_open=False),
+        Param("max_cycles", 10, "", "abort when a stage has run this many cycles without "
+              "converging (osPID: 20 peaks, 3.4)", "int", lo=1.0, hi=1e6, lo_open=False,
+              hi_open=False),
+        Param("max_half_period", 300.0, "s", "abort when the relay has not switched for this "
+              "long: no oscillation (osPID: 5 min without a peak, 3.4)", lo=0.0, hi=math.inf,
+              hi_open=False),
+        Param("discard_cycles", 1, "", "cycles ignored at the start of each stage (3.4)", "int",
+              lo=0.0, hi=1e6, lo_open=False, hi_open=False),
+        Param("stable_cycles", 2, "", f"cycles that must agree for convergence (≤ {N_SLOTS})",
+              "int", lo=1.0, hi=float(N_SLOTS), lo_open=False, hi_open=False),
+        Param("tolerance", 0.05, "", "convergence: (max - min)/mean of the periods and of the "
+              "amplitudes of those cycles (3.4: 5 %)", lo=0.0),
+        Param("biased_stage", False, "", "after the symmetric relay converges, run a second "
+              "stage with amplitude_down (static gain, 3.3)", "bool"),
+    )
+    INPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("sp", 0.0, "pv", "setpoint the relay switches around", status=True),
+        Port("pv", 0.0, "pv", "process variable", status=True),
+        Port("u_in", 0.0, "out", "the controller's output, passed through when no test runs",
+             status=True),
+        Port("enable", 0.0, "", "a rise (> 0.5) starts a test; a fall stops it"),
+        Port("clock", math.nan, "s", "time (module time); NaN = the block's own time"),
+    )
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (
+        Port("out", 0.0, "out", "relay output during the test, else u_in", status=True),
+        Port("active", 0.0, "", "1 while the relay drives the loop (controller tracks out)"),
+        Port("inactive", 1.0, "", "1 - active (for S5 auto)"),
+        Port("override", math.nan, "out", "out while active, else NaN (for E2 override)"),
+        Port("relay", 0.0, "", "relay state +1 / -1 while running (on the scan that ends "
+             "the test: the state it switched to), else 0"),
+        Port("phase", 0.0, "", "0 idle, 1 running, 2 converged, 3 timeout, 4 runaway, 5 not "
+             "converged, 6 no oscillation, 7 bad input"),
+        Port("stage", 0.0, "", "1 symmetric, 2 biased, 0 not running (the ending scan keeps "
+             "its stage)"),
+        Port("cycles", 0.0, "", "cycles completed in the running stage"),
+        Port("period", math.nan, "s", "period of the latest cycle"),
+        Port("amplitude", math.nan, "pv", "PV amplitude (half peak-to-peak) of the latest "
+             "cycle"),
+    )
+    STATES: ClassVar[tuple[str, ...]] = (
+        "time", "phase", "r", "u0", "t0", "t_switch", "t_up", "n_up", "pv_max", "pv_min",
+        "stage", "enable_prev", "out", "period", "amplitude",
+        *(f"period_{i}" for i in range(N_SLOTS)), *(f"amplitude_{i}" for i in range(N_SLOTS)))
+
+    def coefficients(self) -> list[float]:
+        prm: dict[str, Any] = self.params
+        lo, hi = float(prm["out_lo"]), float(prm["out_hi"])
+        if not lo < hi:
+            raise ParameterError(
+                f"relay: parameter 'out_hi' = {hi:g} must be greater than out_lo = {lo:g}")
+        d_up = float(prm["amplitude"])
+        d_down = d_up if prm["amplitude_down"] is None else float(prm["amplitude_down"])
+        if prm["biased_stage"] and d_down == d_up:
+            raise ParameterError(
+                f"relay: parameter 'amplitude_down' = {d_down:g} must differ from amplitude "
+                f"= {d_up:g} when biased_stage is on (the biased stage needs d_up != d_down)")
+        return [d_up, d_down, float(prm["hysteresis"]),
+                1.0 if prm["action"] == "reverse" else -1.0, lo, hi,
+                math.nan if prm["u0"] is None else float(prm["u0"]),
+                float(prm["timeout"]), float(prm["max_deviation"]), float(prm["max_cycles"]),
+                float(prm["max_half_period"]), float(prm["discard_cycles"]),
+                float(prm["stable_cycles"]), float(prm["tolerance"]),
+                1.0 if prm["biased_stage"] else 0.0]
+
+    def initial_state(self) -> list[float]:
+        x = [0.0] * N_STATES
+        x[S_U0] = x[S_T_UP] = x[S_PERIOD] = x[S_AMP] = math.nan
+        return x
+
+    def initial_outputs(self) -> list[float]:
+        return [0.0, 0.0, 1.0, math.nan, 0.0, 0.0, 0.0, 0.0, math.nan, math.nan]

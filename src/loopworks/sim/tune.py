@@ -1,0 +1,243 @@
+r"""Relay auto-tuning of a loop in a module (plant-and-tuning 3.4; vendor-blocks 5.1).
+
+:func:`relay_test` takes a module (a loaded scenario's), the name of a loop's controller, and
+runs the procedure of 3.4 on the module's own plant:
+
+1. The module runs under its controller until ``start`` (s); events after ``start`` are left
+   out. PV0 and the noise σn are measured over the last quarter of that settling time (σn
+   from the scan-to-scan differences, σn = std(ΔPV)/√2, which a slow drift does not inflate).
+2. A ``relay`` block is put between the controller and what it drives; the controller tracks
+   the relay's output while the test runs (its LO/manual-tracking path, the hand-over table
+   ``HANDOVER``), so it hands back bumplessly when the test ends.
+3. Hysteresis ε defaults to 3σn (3.4 item 2: above the noise band, 2-3 σn); the relay
+   amplitude d defaults to 5 % of the controller's output span. With ``biased`` (default) a
+   symmetric stage is followed by a biased stage with d_down = d/2 (γ = 2, 3.3) for the
+   static gain.
+4. The test ends when the relay block reports convergence or aborts (timeout, runaway, no
+   oscillation, bad PV); the loop then runs ``handback`` more seconds under its controller.
+5. :func:`loopworks.tuning.identify.identify` analyses the recorded cycles.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from loopworks.blocks.block import Block
+from loopworks.blocks.relay import PHASE_NAMES, RUNNING, Relay
+from loopworks.errors import InputError
+from loopworks.sim.module import Module
+from loopworks.tuning.identify import Identification, RelayTest, identify
+
+#: kind: (output port, pv port, sp port, [(controller input, relay output)], params to set)
+HANDOVER: dict[str, tuple[str, str, str, list[tuple[str, str]], dict[str, Any]]] = {
+    "pid": ("out", "pv", "sp", [("track", "active"), ("track_value", "out")], {}),
+    "deltav.pid": ("out", "pv", "sp", [("trk_in_d", "active"), ("trk_val", "out")],
+                   {"track_enable": True}),
+    "ge.pid_ind": ("cv", "pv", "sp", [("man", "active"), ("manual_command", "out")], {}),
+    "ge.pid_isa": ("cv", "pv", "sp", [("man", "active"), ("manual_command", "out")], {}),
+    "s5.pid": ("y", "x", "w", [("auto", "inactive"), ("yh", "out")], {}),
+    "e2.pid": ("out", "pv", "sp", [("override", "override")], {"override_updates_pid": True}),
+}
+RELAY = "relay_test"
+
+
+@dataclass
+class RelayRun:
+    """A relay test on a module: what was applied, the record, and the outcome."""
+
+    loop: str
+    kind: str
+    test: RelayTest
+    outcome: str
+    start: float
+    t: np.ndarray
+    pv: np.ndarray
+    u: np.ndarray
+    stage: np.ndarray
+    relay: np.ndarray
+    controller_out: np.ndarray
+    noise_std: float
+    identification: Identification | None = None
+    notes: list[str] = field(default_factory=list)
+
+
+def direct_acting(block: Block) -> bool:
+    """True when the controller's error is PV - SP (the output rises with the PV): deltav and
+    GE ``direct_acting``, pid ``action = direct``, E2 ``error_sign = input_minus_setpoint``
+    (its default, vendor-blocks 3.3), S5 with K < 0 (vendor-blocks 2.5)."""
+    prm = block.params
+    return bool({"pid": lambda: prm["action"] == "direct",
+                 "deltav.pid": lambda: prm["direct_acting"],
+                 "ge.pid_ind": lambda: prm["direct_acting"],
+                 "ge.pid_isa": lambda: prm["direct_acting"],
+                 "e2.pid": lambda: prm["error_sign"] == "input_minus_setpoint",
+                 "s5.pid": lambda: prm["k"] < 0}[block.kind]())
+
+
+def _controller_limits(block: Block) -> tuple[float, float]:
+    """The controller's output range in its own units (for the default amplitude, limits)."""
+    prm = block.params
+    for lo, hi in (("out_lo", "out_hi"), ("output_min", "output_max"), ("bgug", "bgog"),
+                   ("lower_clamp", "upper_clamp"), ("out_lo_lim", "out_hi_lim")):
+        if lo in prm and prm[lo] is not None and prm[hi] is not None:
+            return float(prm[lo]), float(prm[hi])
+    if block.kind == "deltav.pid":
+        return float(prm["out_scale_eu_0"]), float(prm["out_scale_eu_100"])
+    return 0.0, 100.0
+
+
+def relay_test(module: Module, loop: str, dt: float, *, start: float | None = None,
+               amplitude: float | None = None, hysteresis: float | None = None,
+               biased: bool = True, bias_ratio: float = 0.5, timeout: float = 7200.0,
+               handback: float | None = None, stable_cycles: int = 2,
+               max_deviation: float = math.inf, ku_convention: str = "hysteresis_corrected",
+               amplitude_estimate: str = "peaks",
+               progress: Callable[[float], None] | None = None) -> RelayRun:
+    """Run a relay test on controller ``loop`` of ``module`` with scans of ``dt`` seconds
+    (procedure in the module docstring). Raises InputError for a loop that is not a known
+    controller or is not wired to a PV."""
+    if loop not in module.blocks:
+        raise InputError(f"--loop '{loop}': no such block; blocks: {', '.join(module.blocks)}")
+    ctrl = module.blocks[loop]
+    if ctrl.kind not in HANDOVER:
+        raise InputError(f"--loop '{loop}' is a {ctrl.kind} block, not a controller; "
+                         "controllers: " + ", ".join(n for n, b in module.blocks.items()
+                                                     if b.kind in HANDOVER))
+    if ctrl.kind == "s5.pid" and ctrl.params["velocity"]:
+        raise InputError(f"--loop '{loop}': an s5.pid in velocity mode outputs increments; "
+                         "the relay test needs the positioning algorithm (velocity = false)")
+    out_port, pv_port, sp_port, links, settings = HANDOVER[ctrl.kind]
+    pv_src = module.wires.get(f"{loop}.{pv_port}")
+    if pv_src is None:
+        raise InputError(f"--loop '{loop}': its input '{pv_port}' is not wired to a PV")
+    if not 0.0 < dt < math.inf:
+        raise InputError(f"dt = {dt!r} s is not allowed: dt must be > 0 and finite")
+    lo, hi = _controller_limits(ctrl)
+    d = 0.05 * (hi - lo) if amplitude is None else float(amplitude)
+    relay_params: dict[str, Any] = {
+        "amplitude": d, "out_lo": lo, "out_hi": hi, "timeout": timeout,
+        "stable_cycles": stable_cycles, "max_deviation": max_deviation,
+        "biased_stage": biased}
+    if biased:
+        relay_params["amplitude_down"] = bias_ratio * d
+    if direct_acting(ctrl):
+        relay_params["action"] = "direct"
+    start = _default_start(module, dt) if start is None else float(start)
+    if not 0.0 <= start < math.inf:
+        raise InputError(f"start = {start!r} s is not allowed: must be finite and >= 0")
+
+    # settle under the controller (events up to start only)
+    module.events = [e for e in module.events if e.t < start - 1e-9]
+    module.reset()
+    n_settle = round(start / dt)
+    pv_hist = np.empty(n_settle)
+    for k in range(n_settle):
+        module.scan(dt)
+        pv_hist[k] = _read(module, pv_src)
+    tail = pv_hist[n_settle - max(n_settle // 4, 2):] if n_settle >= 8 else pv_hist
+    pv0 = float(np.mean(tail)) if len(tail) else _read(module, pv_src)
+    noise = float(np.std(np.diff(tail)) / math.sqrt(2.0)) if len(tail) > 2 else 0.0
+    eps = 3.0 * noise if hysteresis is None else float(hysteresis)
+    relay_params["hysteresis"] = eps
+
+    # splice the relay in
+    relay = Relay(**relay_params)
+    wires = {}
+    for dest, src in module.wires.items():
+        wires[dest] = f"{RELAY}.out" if src == f"{loop}.{out_port}" else src
+    wires[f"{RELAY}.u_in"] = f"{loop}.{out_port}"
+    wires[f"{RELAY}.pv"] = pv_src
+    sp_value: float | None = None
+    if "working_sp" in ctrl._out_index:
+        wires[f"{RELAY}.sp"] = f"{loop}.working_sp"
+    elif f"{loop}.{sp_port}" in module.wires:
+        wires[f"{RELAY}.sp"] = module.wires[f"{loop}.{sp_port}"]
+    else:
+        sp_value = float(ctrl.u[ctrl._in_index[sp_port]])
+    for dest, src in links:
+        wires[f"{loop}.{dest}"] = f"{RELAY}.{src}"
+    if settings:
+        ctrl.set_params(**settings)
+    order = list(module.order)
+    order.insert(order.index(loop) + 1, RELAY)
+    constants = {name: {port: value for port, value in values.items()
+                        if f"{name}.{port}" not in wires}
+                 for name, values in module.constants.items()}
+    constants[RELAY] = {"enable": 1.0, **({} if sp_value is None else {"sp": sp_value})}
+    saved = module.state_dict()
+    spliced = Module({**module.blocks, RELAY: relay}, wires=wires, inputs=constants,
+                     order=order, events=[])
+    for name, block in module.blocks.items():  # continue from the settled state
+        block.load_state(saved["blocks"][name])
+    spliced.t, spliced.k = module.t, module.k
+    u0 = float(ctrl.y[ctrl._out_index[out_port]])
+    sp = sp_value if sp_value is not None else _read(spliced, wires[f"{RELAY}.sp"])
+    test = RelayTest(sp=sp, pv0=pv0, u0=u0, amplitude=d,
+                     amplitude_down=relay_params.get("amplitude_down", d), hysteresis=eps,
+                     action=relay_params.get("action", "reverse"))
+
+    # the test, then the handback
+    rec_t: list[float] = []
+    rec_pv: list[float] = []
+    rec_u: list[float] = []
+    rec_stage: list[float] = []
+    rec_r: list[float] = []
+    rec_c: list[float] = []
+    y = relay.y
+    c_out = ctrl._out_index[out_port]
+    limit = timeout + 10.0 * dt
+    outcome = "timeout"
+    while spliced.t - start <= limit:
+        spliced.scan(dt)
+        rec_t.append(spliced.t - dt)
+        rec_pv.append(float(relay.u[1]))
+        rec_u.append(float(y[0]))
+        rec_stage.append(float(y[6]))
+        rec_r.append(float(y[4]))
+        rec_c.append(float(ctrl.y[c_out]))
+        phase = int(y[5])
+        if progress is not None and len(rec_t) % 1000 == 0:
+            progress(spliced.t - start)
+        if phase != RUNNING:
+            outcome = PHASE_NAMES[phase]
+            break
+    run = RelayRun(loop=loop, kind=ctrl.kind, test=test, outcome=outcome, start=start,
+                   t=np.asarray(rec_t), pv=np.asarray(rec_pv), u=np.asarray(rec_u),
+                   stage=np.asarray(rec_stage), relay=np.asarray(rec_r),
+                   controller_out=np.asarray(rec_c), noise_std=noise)
+    if outcome == "converged":
+        run.identification = identify(run.t, run.pv, run.u, test, relay=run.relay,
+                                      stage=run.stage,
+                                      cycles=stable_cycles, ku_convention=ku_convention,
+                                      amplitude_estimate=amplitude_estimate)
+    extra = (2.0 * run.identification.period if run.identification else 10.0 * dt) \
+        if handback is None else handback
+    spliced.blocks[RELAY].set_inputs({"enable": 0.0})
+    for _ in range(round(extra / dt)):
+        spliced.scan(dt)
+        run.t = np.append(run.t, spliced.t - dt)
+        run.pv = np.append(run.pv, float(relay.u[1]))
+        run.u = np.append(run.u, float(y[0]))
+        run.stage = np.append(run.stage, 0.0)
+        run.relay = np.append(run.relay, 0.0)
+        run.controller_out = np.append(run.controller_out, float(ctrl.y[c_out]))
+    return run
+
+
+def _read(module: Module, ref: str) -> float:
+    """The current value of output ``ref`` ("block.port")."""
+    name, port = ref.rsplit(".", 1)
+    block = module.blocks[name]
+    return float(block.y[block._out_index[port]])
+
+
+def _default_start(module: Module, dt: float) -> float:
+    """Settle until 60 s after the last event (at least 100 scans): the loop at rest."""
+    last = max((e.t for e in module.events), default=0.0)
+    return max(last + 60.0, 100.0 * dt)
+
