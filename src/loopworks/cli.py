@@ -169,11 +169,7 @@ def replay(
     values: dict[str, Any] = {}
     if params is not None:
         values.update(read_params_file(params, cls.kind))
-    for item in param or []:
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip():
-            _fail(f"-p {item!r}: expected NAME=VALUE")
-        values[name.strip()] = value.strip()
+    values.update(_pairs(param, "-p"))
     block = cls(**values)
     from rich.console import Console
 
@@ -195,6 +191,128 @@ def replay(
     if output is not None:
         typer.echo(f"replayed {summary.rows} rows (t = {summary.t_start:g}..{summary.t_end:g} s) "
                    f"through {cls.kind}; wrote {output}", err=True)
+
+
+def _pairs(items: list[str] | None, option: str) -> dict[str, str]:
+    """NAME=VALUE options into a dict (names lower-cased)."""
+    values: dict[str, str] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            _fail(f"{option} {item!r}: expected NAME=VALUE")
+        values[name.strip().lower()] = value.strip()
+    return values
+
+
+def _json_safe(value: Any) -> Any:
+    """inf and NaN as strings ("inf", "-inf", "nan") so the output is strict JSON."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    return value
+
+
+def _fmt_value(value: Any) -> str:
+    return f"{value:.6g}" if isinstance(value, float) else str(value)
+
+
+@app.command()
+@_user_errors
+def tune(
+    scenario: Annotated[Path | None, typer.Argument(
+        help="scenario TOML file; omit for the built-in scenario")] = None,
+    loop: Annotated[str, typer.Option("--loop", help="the controller block to tune")] = "",
+    rule: Annotated[str | None, typer.Option(
+        "--rule", help="tuning rule (docs/tuning-rules.md); default: chosen from what the "
+        "test identifies")] = None,
+    controller: Annotated[str, typer.Option(
+        "--controller", help="controller type: P, PI or PID")] = "PI",
+    amplitude: Annotated[float | None, typer.Option(
+        "--amplitude", help="relay amplitude d, controller output units (default 5 % of the "
+        "output range)")] = None,
+    hysteresis: Annotated[float | None, typer.Option(
+        "--hysteresis", help="relay hysteresis ε, PV units (default 3 σ of the PV noise)")] = None,
+    symmetric: Annotated[bool, typer.Option(
+        "--symmetric", help="symmetric relay only (no biased stage, no static gain)")] = False,
+    start: Annotated[float | None, typer.Option(
+        "--start", help="start of the test, s (default 60 s after the last event)")] = None,
+    option: Annotated[list[str] | None, typer.Option(
+        "--option", "-O", metavar="NAME=VALUE", help="rule option: tau_c, lam, t2 (s)")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
+) -> None:
+    """Relay-test a loop of a scenario; print the identified model and the settings in the
+    loop controller's own parameters."""
+    import json
+
+    from loopworks.errors import InputError
+    from loopworks.sim.scenario import load_scenario
+    from loopworks.sim.tune import tune_loop
+
+    sc = load_scenario(scenario)
+    if not loop:
+        raise InputError("--loop is required: the name of the controller block to tune")
+    options = {k: float(v) for k, v in _pairs(option, "--option").items()}
+    report = tune_loop(sc.module, loop, sc.dt, rule=rule, controller=controller.upper(),
+                       options=options, amplitude=amplitude, hysteresis=hysteresis,
+                       biased=not symmetric, start=start)
+    data = report.as_dict()
+    if as_json:
+        typer.echo(json.dumps(_json_safe(data), indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console()
+    ident = Table(title=f"relay test on {loop} ({data['kind']}): {data['outcome']}")
+    ident.add_column("quantity")
+    ident.add_column("value", justify="right")
+    for key in ("relay_amplitude", "relay_amplitude_down", "hysteresis", "amplitude", "period",
+                "ku", "ku_describing_function", "ku_hysteresis_corrected", "pu",
+                "process_type", "process_gain", "integrating_gain", "dead_time",
+                "time_constant"):
+        if data[key] is not None:
+            ident.add_row(key, _fmt_value(data[key]))
+    console.print(ident)
+    settings = Table(title=f"{data['rule']} {data['controller']} in {data['kind']} parameters")
+    settings.add_column("parameter")
+    settings.add_column("value", justify="right")
+    for key, value in data["settings"].items():
+        settings.add_row(key, _fmt_value(value))
+    console.print(settings)
+    if data["note"]:
+        console.print(data["note"])
+
+
+@app.command()
+@_user_errors
+def convert(
+    from_kind: Annotated[str, typer.Option("--from", help="source controller kind")],
+    to_kind: Annotated[str, typer.Option("--to", help="target controller kind")],
+    param: Annotated[list[str] | None, typer.Option(
+        "--param", "-p", metavar="NAME=VALUE", help="a source parameter (repeatable)")] = None,
+    target: Annotated[list[str] | None, typer.Option(
+        "--target", "-t", metavar="NAME=VALUE", help="a fixed target setting: form, spans, "
+        "throttling_range, scale, ... (repeatable)")] = None,
+    sample_time: Annotated[float | None, typer.Option(
+        "--sample-time", help="loop sample time, s (S5 OB 13 interval, E2 update interval)")
+    ] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
+) -> None:
+    """Convert controller settings between the controllers of loopworks (docs/conversion.md)."""
+    import json
+
+    from loopworks.tuning.convert import convert as run_convert
+
+    result = run_convert(from_kind, _pairs(param, "-p"), to_kind, sample_time=sample_time,
+                         target=_pairs(target, "-t"))
+    if as_json:
+        data = {**dict(result.params), "exact": result.exact, "note": result.note}
+        typer.echo(json.dumps(_json_safe(data), indent=2))
+        return
+    for key, value in result.params.items():
+        typer.echo(f"{key} = {_fmt_value(value)}")
+    typer.echo(("exact: " if result.exact else "not exact: ") + result.note)
 
 
 def read_params_file(path: Path, kind: str) -> dict[str, Any]:

@@ -110,12 +110,24 @@ def test_biased_relay_gives_static_gain_dead_time_and_time_constant() -> None:
     assert idn.process_gain == pytest.approx(1.0, rel=0.02)
     assert idn.dead_time == pytest.approx(2.0, rel=0.02)
     assert idn.time_constant == pytest.approx(10.0, rel=0.02)
+    # the 3.3 on-half-period relation solved with the measured L
+    on = _identify(rec, 0.05, d_down=0.5, time_constant_method="dead_time")
+    assert on.time_constant == pytest.approx(10.0, rel=0.02)
     # Berner's half-period ratio: τ̂ within 6 % of L/(L + T) = 1/6 (spec 3.3: 0.160 at γ = 2)
     ratio = _identify(rec, 0.05, d_down=0.5, time_constant_method="half_period_ratio")
     tau = ratio.dead_time / (ratio.dead_time + ratio.time_constant)
     assert tau == pytest.approx(1 / 6, rel=0.06)
     # the symmetric stage still gives the ultimate point of the 3.2 table (ε = 0.05)
     assert idn.amplitude == pytest.approx(0.22221, rel=0.01)
+
+
+def test_biased_relay_without_hysteresis_keeps_the_time_constant() -> None:
+    # ε = 0 (no noise): the trajectory method stays within 2 % of T = 10 s
+    rec = relay_loop(FOPDT, amplitude=1.0, amplitude_down=0.5, biased_stage=True,
+                     duration=250.0)
+    idn = _identify(rec, 0.0, d_down=0.5)
+    assert idn.process_gain == pytest.approx(1.0, rel=0.02)
+    assert idn.time_constant == pytest.approx(10.0, rel=0.02)
 
 
 def test_an_integrator_under_a_biased_relay_is_recognised() -> None:

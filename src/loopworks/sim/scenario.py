@@ -7,6 +7,14 @@
     [[events]]              t = 100.0, set = "pid.sp", value = 60.0   (an input or a parameter)
     [compare.NAME]          "compensator.comp_start" = 1.0   (a variant: parameters or input
                             constants changed; variants run side by side, in file order)
+    [autotune]              loop = "pid", process_gain = ["compensator.process_gain"]: before
+                            the run, a relay test on that controller (loopworks.sim.tune, on
+                            the ``variant`` named, default the first) identifies the process
+                            gain, and the parameters listed take it (normalised to % of PV
+                            span per % of output span with the loop controller's scales).
+                            Optional: variant, amplitude, hysteresis, start (s), and
+                            set = {"load.walk_std" = 0.0}: parameters changed for the test
+                            only (a quiet plant, as a test would be scheduled).
 
 Blocks run in the order their tables appear, unless ``[simulation] order`` says otherwise. Keys
 match parameter and input names in any letter case. Errors name the file and the table.
@@ -47,6 +55,17 @@ class _Event(BaseModel):
     value: float | str
 
 
+class _Autotune(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+    loop: str
+    process_gain: list[str] = Field(min_length=1)
+    variant: str | None = None
+    amplitude: float | None = Field(default=None, gt=0, allow_inf_nan=False)
+    hysteresis: float | None = Field(default=None, ge=0, allow_inf_nan=False)
+    start: float | None = Field(default=None, ge=0, allow_inf_nan=False)
+    set: dict[str, float | int | bool | str] = {}
+
+
 class _Scenario(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=False)
     simulation: _Simulation
@@ -54,6 +73,7 @@ class _Scenario(BaseModel):
     wires: dict[str, str] = {}
     events: list[_Event] = []
     compare: dict[str, dict[str, float | int | bool | str]] = {}
+    autotune: _Autotune | None = None
 
 
 @dataclass
@@ -70,6 +90,7 @@ class Scenario:
     variants: dict[str, Module] = field(default_factory=dict)
     text: str = ""
     metrics_window: tuple[float, float] | None = None
+    autotune: dict[str, Any] | None = None
 
 
 def _format_validation(err: ValidationError, source: str) -> str:
@@ -113,9 +134,9 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
             raise FileFormatError(f"{source}: [blocks.{name}]: expected a table with "
                                   "kind = \"...\"")
         tables[name] = {k.lower(): v for k, v in table.items()}
-    variants: dict[str, Module] = {}
+    variants: dict[str, dict[str, dict[str, Any]]] = {}
     if not sc.compare:
-        variants["base"] = _build(sc, tables, source)
+        variants["base"] = tables
     for variant, overrides in sc.compare.items():
         changed = {name: dict(table) for name, table in tables.items()}
         for key, value in overrides.items():
@@ -128,13 +149,69 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
                 raise FileFormatError(f"{source}: compare.{variant}: '{key}': a variant "
                                       "changes parameters and inputs, not the kind")
             changed[block][fname.lower()] = value
-        variants[variant] = _build(sc, changed, f"{source} (compare.{variant})")
+        variants[variant] = changed
+
+    def where(name: str) -> str:
+        return source if name == "base" else f"{source} (compare.{name})"
+
+    autotune = None if sc.autotune is None else _autotune(sc, variants, source)
+    modules = {name: _build(sc, t, where(name)) for name, t in variants.items()}
     sim = sc.simulation
-    first = next(iter(variants.values()))
+    first = next(iter(modules.values()))
     window = None if sim.metrics_window is None else (sim.metrics_window[0],
                                                       sim.metrics_window[1])
-    return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, variants, text,
-                    window)
+    return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, modules, text,
+                    window, autotune)
+
+
+def _autotune(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]],
+              source: str) -> dict[str, Any]:
+    """Run the [autotune] relay test and write the identified process gain into the block
+    tables of every variant; returns what was identified (for reports)."""
+    from loopworks.sim.tune import relay_test
+    from loopworks.tuning.convert import port_spans
+
+    at = sc.autotune
+    assert at is not None
+    where = f"{source}: [autotune]"
+    name = at.variant or next(iter(variants))
+    if name not in variants:
+        raise FileFormatError(f"{where}: variant = {name!r} is not a [compare] variant of this "
+                              f"scenario ({', '.join(variants)})")
+    targets = []
+    for ref in at.process_gain:
+        block, sep, param = ref.rpartition(".")
+        if not sep or block.lower() not in variants[name]:
+            raise FileFormatError(f"{where}: process_gain entry {ref!r} must be "
+                                  f"'block.parameter' with a block of this scenario")
+        targets.append((block.lower(), param.lower()))
+    tables = {block: dict(table) for block, table in variants[name].items()}
+    for ref, value in at.set.items():
+        block, sep, param = ref.rpartition(".")
+        if not sep or block.lower() not in tables:
+            raise FileFormatError(f"{where}: set entry {ref!r} must be 'block.parameter' with "
+                                  "a block of this scenario")
+        tables[block.lower()][param.lower()] = value
+    module = _build(sc, tables, f"{source} (autotune)")
+    try:
+        run = relay_test(module, at.loop.lower(), sc.simulation.dt, amplitude=at.amplitude,
+                         hysteresis=at.hysteresis, start=at.start)
+    except LoopworksError as exc:
+        raise FileFormatError(f"{where}: {exc}") from None
+    idn = run.identification
+    if idn is None or idn.process_gain is None:
+        raise FileFormatError(f"{where}: the relay test on '{at.loop}' ended with "
+                              f"'{run.outcome}' and gave no process gain")
+    ctrl = module.blocks[at.loop.lower()]
+    pv_span, out_span = port_spans(ctrl.kind, {k: v for k, v in ctrl.params.items()
+                                               if v is not None})
+    gain = idn.process_gain * out_span / pv_span
+    for table in variants.values():
+        for block, param in targets:
+            table[block][param] = gain
+    return {"loop": at.loop, "variant": name, "outcome": run.outcome,
+            "process_gain": gain, **{k: v for k, v in idn.as_dict().items()
+                                     if k not in ("process_gain", "notes")}}
 
 
 def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Module:

@@ -31,7 +31,9 @@ from loopworks.blocks.block import Block
 from loopworks.blocks.relay import PHASE_NAMES, RUNNING, Relay
 from loopworks.errors import InputError
 from loopworks.sim.module import Module
+from loopworks.tuning.convert import Conversion
 from loopworks.tuning.identify import Identification, RelayTest, identify
+from loopworks.tuning.rules import Tuning
 
 #: kind: (output port, pv port, sp port, [(controller input, relay output)], params to set)
 HANDOVER: dict[str, tuple[str, str, str, list[tuple[str, str]], dict[str, Any]]] = {
@@ -241,3 +243,83 @@ def _default_start(module: Module, dt: float) -> float:
     last = max((e.t for e in module.events), default=0.0)
     return max(last + 60.0, 100.0 * dt)
 
+
+
+@dataclass
+class TuneReport:
+    """A relay test, the rule's settings and the settings in the controller's own parameters."""
+
+    run: RelayRun
+    identification: Identification
+    tuning: Tuning
+    conversion: Conversion
+    handback_jump: float
+
+    def as_dict(self) -> dict[str, Any]:
+        """The ``loopworks tune --json`` object (documented in docs/tune.md)."""
+        idn = self.identification.as_dict()
+        out: dict[str, Any] = {
+            "loop": self.run.loop, "kind": self.run.kind, "outcome": self.run.outcome,
+            "relay_amplitude": idn["relay_amplitude"],
+            "relay_amplitude_down": idn["relay_amplitude_down"],
+            "hysteresis": idn["hysteresis"], "noise_std": self.run.noise_std,
+            "amplitude": idn["amplitude"], "amplitude_harmonic": idn["amplitude_harmonic"],
+            "period": idn["period"], "ku": idn["ku"], "ku_convention": idn["ku_convention"],
+            "ku_describing_function": idn["ku_describing_function"],
+            "ku_hysteresis_corrected": idn["ku_hysteresis_corrected"],
+            "ku_harmonic": idn["ku_harmonic"], "pu": idn["pu"], "phase_lag": idn["phase_lag"],
+            "process_type": idn["process_type"], "process_gain": idn["process_gain"],
+            "integrating_gain": idn["integrating_gain"], "dead_time": idn["dead_time"],
+            "time_constant": idn["time_constant"], "cycles": idn["cycles"],
+            "rule": self.tuning.rule, "controller": self.tuning.controller,
+            "rule_form": self.tuning.form,
+            "tuning": {"kc": self.tuning.kc, "ti": _finite(self.tuning.ti),
+                       "td": self.tuning.td},
+            "settings": dict(self.conversion.params),
+            "exact": self.conversion.exact,
+            "note": " ".join(s for s in (self.tuning.note, self.conversion.note,
+                                         *self.identification.notes) if s),
+            "handback_jump": self.handback_jump,
+        }
+        return out
+
+
+def _finite(x: float) -> float | None:
+    return x if math.isfinite(x) else None
+
+
+def tune_loop(module: Module, loop: str, dt: float, *, rule: str | None = None,
+              controller: str = "PI", options: dict[str, float] | None = None,
+              **relay_options: Any) -> TuneReport:
+    """Relay test on ``loop`` (:func:`relay_test`), identification, tuning ``rule`` (default:
+    :func:`loopworks.tuning.rules.default_rule` for what was identified) for a ``controller``
+    of type P, PI or PID, and the result in the loop controller's own parameters
+    (:func:`loopworks.tuning.convert.from_loop_units`, the module's dt as sample time)."""
+    from loopworks.tuning.convert import from_loop_units
+    from loopworks.tuning.rules import default_rule, tune
+
+    run = relay_test(module, loop, dt, **relay_options)
+    if run.identification is None:
+        raise InputError(
+            f"the relay test on '{loop}' ended with '{run.outcome}' after "
+            f"{run.t[-1] - run.start if len(run.t) else 0.0:.0f} s: no identification. Try a "
+            "larger --amplitude (2d must move a sticky valve), a larger --hysteresis (noise), "
+            "or a longer timeout")
+    data = run.identification.process_data()
+    name = default_rule(data) if rule is None else rule
+    tuning = tune(name, data, controller, **(options or {}))
+    ideal = tuning.ideal()
+    ctrl = module.blocks[loop]
+    context = {k: v for k, v in ctrl.params.items() if v is not None}
+    conversion = from_loop_units(run.kind, ideal.kc, ideal.ti, ideal.td,
+                                 direct=ideal.direct, sample_time=dt, context=context)
+    return TuneReport(run, run.identification, tuning, conversion, _handback_jump(run))
+
+
+def _handback_jump(run: RelayRun) -> float:
+    """Largest scan-to-scan change of the controller output after the test, relative to the
+    relay amplitude's scale: 0 when the handback is bumpless (the controller continues from
+    u0 and moves only as its own law moves it)."""
+    end = int(np.flatnonzero(run.stage > 0.0)[-1]) if np.any(run.stage > 0.0) else 0
+    after = run.controller_out[end + 1:end + 4]  # tracking u0, then free
+    return float(np.max(np.abs(np.diff(after)))) if len(after) > 1 else 0.0

@@ -30,14 +30,31 @@ Static gain from the biased relay (3.3, Shen, Wu & Yu 1996; Berner 2017), over w
 
     K = ∫(PV - PV0) dt / ∫(u - u0) dt
 
-With a symmetric relay the denominator is ≈ 0 and K comes from the ultimate point (below).
+With a symmetric stage before the biased one, the same periodic-steady-state balance is taken
+between the two stages, which cancels whatever offset PV0 and u0 carry (a loop not quite at
+rest, a valve stuck away from its signal)::
+
+    K = (mean PV over the biased cycles - mean PV over the symmetric cycles)
+        / (mean u over the biased cycles - mean u over the symmetric cycles)
+
+With a symmetric relay only, the denominator is ≈ 0 and K comes from the ultimate point (below).
 
 Dead time (3.3): for FOPDT the PV keeps moving for exactly L after each switch, so L = mean
 time from a switch to the next PV extremum (an apparent dead time for other plants).
 
 Time constant, ``time_constant_method``:
 
-* ``dead_time`` (default, K from the biased stage): the 3.3 "on" half-period relation with the
+* ``trajectory`` (default, K from the biased stage): the exact FOPDT trajectory behind 3.3.
+  After a switch to the high level the PV moves on for L to its trough y_lo (relative to
+  PV0), then rises toward K·d_up and crosses +ε at t_on; likewise after a switch to the low
+  level, from its peak y_hi toward -K·d_down, crossing -ε at t_off. With the measured L,
+  y_lo and y_hi, each half period gives T; the two are averaged::
+
+      T_on  = (t_on - L)  / ln( (K·d_up - y_lo)   / (K·d_up - ε) )
+      T_off = (t_off - L) / ln( (K·d_down + y_hi) / (K·d_down - ε) )
+
+  (better conditioned than the next method when ε is small).
+* ``dead_time``: the 3.3 "on" half-period relation with the
   measured L in place of τ/(1 - τ) = L/T, solved for T::
 
       t_on = T·ln( (e^(L/T)·(d_up + d_down) - d_down + ε/|K|) / (d_up - ε/|K|) )
@@ -69,7 +86,7 @@ from loopworks.tuning.settings import ProcessData
 
 KU_CONVENTIONS = ("hysteresis_corrected", "describing_function", "harmonic")
 AMPLITUDE_ESTIMATES = ("peaks", "harmonic")
-TIME_CONSTANT_METHODS = ("dead_time", "half_period_ratio")
+TIME_CONSTANT_METHODS = ("trajectory", "dead_time", "half_period_ratio")
 PROCESS_TYPES = ("auto", "self_regulating", "integrating")
 
 
@@ -160,6 +177,27 @@ def first_harmonic(t: np.ndarray, x: np.ndarray, period: float, i0: int, i1: int
     return complex(2.0 / total * np.sum(seg * np.exp(-1j * w * t[i0:i1]) * dts))
 
 
+def _trajectory_time_constant(y: np.ndarray, high: np.ndarray, i0: int, i1: int, t_on: float,
+                              t_off: float, lag: float, k: float, d_up: float, d_down: float,
+                              eps: float) -> float:
+    """T from the measured trough/peak of the biased stage (``trajectory`` method); y is PV -
+    PV0 and the loop was at rest at its setpoint before the test (SP = PV0)."""
+    sw = _slice_switches(high, i0, i1)
+    lows = [float(np.min(y[a:b + 1])) for a, b in _pairs(sw.ups, sw.downs)]
+    highs = [float(np.max(y[a:b + 1])) for a, b in _pairs(sw.downs, sw.ups)]
+    if not lows or not highs:
+        raise InputError("the biased relay stage has no complete on and off half periods")
+    y_lo, y_hi = float(np.mean(lows)), float(np.mean(highs))
+    t_up = (t_on - lag) / math.log((k * d_up - y_lo) / (k * d_up - eps))
+    t_dn = (t_off - lag) / math.log((k * d_down + y_hi) / (k * d_down - eps))
+    return 0.5 * (t_up + t_dn)
+
+
+def _pairs(starts: np.ndarray, ends: np.ndarray) -> list[tuple[int, int]]:
+    """(start, the next end after it) for each start that has one."""
+    return [(int(a), int(ends[ends > a][0])) for a in starts if np.any(ends > a)]
+
+
 def _solve_time_constant(t_on: float, lag_ratio: float | None, dead_time: float | None,
                          d_up: float, d_down: float, eps_k: float) -> float:
     """T from the 3.3 "on" half-period relation; lag_ratio = τ/(1 - τ) when known, else L/T
@@ -187,7 +225,7 @@ def _solve_time_constant(t_on: float, lag_ratio: float | None, dead_time: float 
 def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
              relay: np.ndarray | None = None, stage: np.ndarray | None = None, cycles: int = 2,
              ku_convention: str = "hysteresis_corrected", amplitude_estimate: str = "peaks",
-             process: str = "auto", time_constant_method: str = "dead_time") -> Identification:
+             process: str = "auto", time_constant_method: str = "trajectory") -> Identification:
     """Identify the loop from a recorded relay test (equations in the module docstring).
 
     ``relay`` is the relay state per sample (> 0 high; the ``relay`` block's output of that
@@ -250,6 +288,14 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
         iu = float(np.sum(du * dts))
         iy = float(np.sum((pv[b0:b1] - test.pv0) * dts))
         mean_du = iu / float(t[b1] - t[b0])
+        if not biased_only:  # two levels: differences of the two stages' whole-cycle means
+            s_dts = np.diff(t[i0:i1 + 1])
+            span = float(t[i1] - t[i0])
+            u_sym = float(np.sum((u[i0:i1] - test.u0) * s_dts)) / span
+            y_sym = float(np.sum((pv[i0:i1] - test.pv0) * s_dts)) / span
+            span_b = float(t[b1] - t[b0])
+            iu, iy = mean_du - u_sym, iy / span_b - y_sym
+            mean_du = iu
         if process == "auto":
             kind = "integrating" if abs(mean_du) < 0.01 * max(d_up, d_down) else "self_regulating"
         if kind == "self_regulating":
@@ -276,8 +322,12 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
             time_constant = _solve_time_constant(t_on, tau / (1.0 - tau), None, d_up, d_down,
                                                  eps_k)
             dead_time = time_constant * tau / (1.0 - tau)
-        else:
+        elif time_constant_method == "dead_time":
             time_constant = _solve_time_constant(t_on, None, dead_time, d_up, d_down, eps_k)
+        else:
+            time_constant = _trajectory_time_constant(
+                pv - test.pv0, high, b0, b1, t_on, t_off, dead_time, abs(k_static),
+                d_up, d_down, eps)
     else:
         try:
             k_static, time_constant = fopdt_from_ultimate(ku, period, dead_time)
@@ -328,9 +378,8 @@ def _window(high: np.ndarray, mask: np.ndarray, cycles: int, what: str) -> tuple
 
 def _on_off(t: np.ndarray, sw: Cycles) -> tuple[float, float]:
     """Mean durations of the high (on) and low (off) relay levels between the switches."""
-    ups, downs = sw.ups, sw.downs
-    on = [float(t[downs[downs > i][0]] - t[i]) for i in ups if np.any(downs > i)]
-    off = [float(t[ups[ups > i][0]] - t[i]) for i in downs if np.any(ups > i)]
+    on = [float(t[b] - t[a]) for a, b in _pairs(sw.ups, sw.downs)]
+    off = [float(t[b] - t[a]) for a, b in _pairs(sw.downs, sw.ups)]
     if not on or not off:
         raise InputError("the biased relay stage has no complete on and off half periods")
     return float(np.mean(on)), float(np.mean(off))

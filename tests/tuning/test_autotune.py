@@ -1,0 +1,132 @@
+"""[autotune] in a scenario, and `loopworks tune` / `loopworks convert` from the command line."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from loopworks.errors import FileFormatError
+from loopworks.sim.scenario import parse_scenario
+
+LOOP = """
+[simulation]
+dt = 0.02
+duration = 300.0
+order = ["process", "pid", "compensator"]
+
+[blocks.pid]
+kind = "deltav.pid"
+gain = 2.0
+reset = 10.0
+sp = 50.0
+precision = "float64"
+
+[blocks.compensator]
+kind = "deltav.stick_slip"
+comp_start = 0.0
+process_gain = 5.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.5
+time_constant = 10.0
+dead_time = 2.0
+u0 = 50.0
+y0 = 50.0
+
+[wires]
+"compensator.signal_in" = "pid.out"
+"compensator.sp" = "pid.working_sp"
+"compensator.pv" = "pid.filtered_pv"
+"process.u" = "compensator.signal_out"
+"pid.pv" = "process.y"
+
+[compare.off]
+"compensator.comp_start" = 0.0
+
+[compare.on]
+"compensator.comp_start" = 1.0
+"""
+
+AUTOTUNE = """
+[autotune]
+loop = "pid"
+variant = "off"
+process_gain = ["compensator.process_gain"]
+hysteresis = 0.05
+start = 150.0
+"""
+
+
+def test_autotune_sets_the_identified_process_gain_in_every_variant() -> None:
+    # vendor-blocks 5.1: the compensator's PROCESS_GAIN is the tuner's identified process gain
+    sc = parse_scenario(LOOP + AUTOTUNE)
+    assert sc.autotune is not None and sc.autotune["outcome"] == "converged"
+    for module in sc.variants.values():
+        assert module.blocks["compensator"].params["process_gain"] == pytest.approx(1.5, rel=0.02)
+    assert sc.autotune["process_gain"] == sc.variants["on"].blocks["compensator"].params[
+        "process_gain"]
+
+
+def test_autotune_errors_name_the_table() -> None:
+    with pytest.raises(FileFormatError, match=r"\[autotune\].*variant"):
+        parse_scenario(LOOP + AUTOTUNE.replace('"off"', '"nope"'))
+    with pytest.raises(FileFormatError, match=r"\[autotune\].*process_gain entry"):
+        parse_scenario(LOOP + AUTOTUNE.replace("compensator.process_gain", "valve.gain"))
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "loopworks", *args], capture_output=True,
+                          text=True, env={"LOOPWORKS_JIT": "0", "PATH": ""}, check=False)
+
+
+def test_tune_json_has_the_documented_fields(tmp_path: Path) -> None:
+    path = tmp_path / "loop.toml"
+    path.write_text(LOOP)
+    done = _cli("tune", str(path), "--loop", "pid", "--rule", "amigo", "--json",
+                "--hysteresis", "0.05", "--start", "150")
+    assert done.returncode == 0, done.stderr
+    data = json.loads(done.stdout)
+    for key in ("relay_amplitude", "hysteresis", "amplitude", "period", "ku", "pu",
+                "process_gain", "dead_time", "time_constant", "rule", "settings"):
+        assert key in data
+    assert data["rule"] == "amigo"
+    assert data["process_gain"] == pytest.approx(1.5, rel=0.02)
+    assert data["dead_time"] == pytest.approx(2.0, rel=0.1)
+    # AMIGO PI (spec 3.6) on the identified model, in DeltaV's own units: GAIN %/%, RESET s
+    k, lag, tc = data["process_gain"], data["dead_time"], data["time_constant"]
+    kc = 0.15 / k + (0.35 - lag * tc / (lag + tc) ** 2) * tc / (k * lag)
+    ti = 0.35 * lag + 13 * lag * tc**2 / (tc**2 + 12 * lag * tc + 7 * lag**2)
+    assert data["settings"]["gain"] == pytest.approx(kc, rel=1e-9)
+    assert data["settings"]["reset"] == pytest.approx(ti, rel=1e-9)
+    assert data["handback_jump"] < 0.5  # bumpless: no jump of the output at the handback
+    docs = (Path(__file__).parents[2] / "docs" / "tune.md").read_text()
+    for key in data:
+        assert f"`{key}`" in docs, f"docs/tune.md does not document {key}"
+
+
+def test_tune_without_loop_or_with_a_wrong_loop_is_one_error_line(tmp_path: Path) -> None:
+    path = tmp_path / "loop.toml"
+    path.write_text(LOOP)
+    done = _cli("tune", str(path), "--loop", "process")
+    assert done.returncode == 2
+    assert done.stderr.startswith("error:") and "not a controller" in done.stderr
+    done = _cli("tune", str(path))
+    assert done.returncode == 2 and "--loop is required" in done.stderr
+
+
+def test_convert_json_and_text() -> None:
+    # vendor-blocks 1.6: ISA to IND Kp = Kc, Ki = Kc/Ti, Kd = Kc·Td
+    done = _cli("convert", "--from", "ge.pid_isa", "--to", "ge.pid_ind", "-p", "kc=2",
+                "-p", "ti=20", "-p", "td=1", "--json")
+    assert done.returncode == 0, done.stderr
+    data = json.loads(done.stdout)
+    assert data["kp"] == pytest.approx(2.0) and data["ki"] == pytest.approx(0.1)
+    assert data["kd"] == pytest.approx(2.0)
+    assert data["exact"] is True and isinstance(data["note"], str)
+    done = _cli("convert", "--from", "pid", "--to", "s5.pid", "-p", "k=2", "-p", "ti=10")
+    assert done.returncode == 2 and "sample" in done.stderr.lower()
