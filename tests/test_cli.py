@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import io
+import json
 import math
 import subprocess
 import sys
@@ -427,6 +428,11 @@ def test_simulate_builtin_scenario(tmp_path: Path) -> None:
     assert "overshoot" in result.stdout
     assert result.stderr == ""
     assert (tmp_path / "report" / "report.html").exists()
+    # the built-in scenario's [autotune] relay test (issue 6): printed, and in the report
+    assert "[autotune] relay test on pid" in result.stdout
+    tuned = json.loads((tmp_path / "report" / "autotune.json").read_text())
+    assert tuned["outcome"] == "converged" and tuned["loop"] == "pid"
+    assert "Relay auto-tune" in (tmp_path / "report" / "report.html").read_text()
 
 
 def test_simulate_file_writes_the_report_directory(tmp_path: Path) -> None:

@@ -69,6 +69,11 @@ def simulate(
     sc = load_scenario(scenario)
     console = Console()
     title = sc.title or sc.source
+    if sc.autotune is not None:
+        at = sc.autotune
+        console.print(f"[autotune] relay test on {at['loop']} ({at['variant']}): {at['outcome']}, "
+                      f"process gain {at['process_gain']:.4g} %PV/%OUT, Ku {at['ku']:.4g}, "
+                      f"Pu {at['pu']:.4g} s", markup=False)
     results: dict[str, SimResult] = {}
     with Progress("[progress.description]{task.description}", BarColumn(),
                   MofNCompleteColumn(), TimeRemainingColumn(), console=console,
@@ -99,7 +104,7 @@ def simulate(
     else:
         console.print(f"{title}: no controller to score (a block with sp and pv inputs and an "
                       "out output)")
-    write_report(output, title, sc.text, results, metrics)
+    write_report(output, title, sc.text, results, metrics, sc.autotune)
     console.print(f"wrote {output}/report.html, metrics.json, scenario.toml and "
                   f"{len(results)} trend plot(s)")
 
@@ -222,7 +227,8 @@ def _fmt_value(value: Any) -> str:
 def tune(
     scenario: Annotated[Path | None, typer.Argument(
         help="scenario TOML file; omit for the built-in scenario")] = None,
-    loop: Annotated[str, typer.Option("--loop", help="the controller block to tune")] = "",
+    loop: Annotated[str, typer.Option(
+        "--loop", help="the controller block to tune (default: the [autotune] loop)")] = "",
     rule: Annotated[str | None, typer.Option(
         "--rule", help="tuning rule (docs/tuning-rules.md); default: chosen from what the "
         "test identifies")] = None,
@@ -235,6 +241,11 @@ def tune(
         "--hysteresis", help="relay hysteresis ε, PV units (default 3 σ of the PV noise)")] = None,
     symmetric: Annotated[bool, typer.Option(
         "--symmetric", help="symmetric relay only (no biased stage, no static gain)")] = False,
+    bias_ratio: Annotated[float | None, typer.Option(
+        "--bias-ratio", help="d_down/d of the second stage (default 0.5, or [autotune])")] = None,
+    offset: Annotated[float | None, typer.Option(
+        "--offset", help="second stage switches around SP + offset·a (default 0, or "
+        "[autotune])")] = None,
     start: Annotated[float | None, typer.Option(
         "--start", help="start of the test, s (default 60 s after the last event)")] = None,
     option: Annotated[list[str] | None, typer.Option(
@@ -242,7 +253,8 @@ def tune(
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """Relay-test a loop of a scenario; print the identified model and the settings in the
-    loop controller's own parameters."""
+    loop controller's own parameters. A scenario with an [autotune] table tests its loop (the
+    default --loop) with that table's settings; the options given here override them."""
     import json
 
     from loopworks.errors import InputError
@@ -250,12 +262,19 @@ def tune(
     from loopworks.sim.tune import tune_loop
 
     sc = load_scenario(scenario)
-    if not loop:
+    test = sc.autotune_test
+    if not loop and test is None:
         raise InputError("--loop is required: the name of the controller block to tune")
+    module = sc.module
+    relay: dict[str, Any] = {}
+    if test is not None and loop.lower() in ("", test.loop):  # the scenario's own test
+        loop, module, relay = test.loop, test.build(), dict(test.relay)
+    given = {"amplitude": amplitude, "hysteresis": hysteresis, "start": start,
+             "bias_ratio": bias_ratio, "offset": offset}
+    relay.update({k: v for k, v in given.items() if v is not None})
     options = {k: float(v) for k, v in _pairs(option, "--option").items()}
-    report = tune_loop(sc.module, loop, sc.dt, rule=rule, controller=controller.upper(),
-                       options=options, amplitude=amplitude, hysteresis=hysteresis,
-                       biased=not symmetric, start=start)
+    report = tune_loop(module, loop, sc.dt, rule=rule, controller=controller.upper(),
+                       options=options, biased=not symmetric, **relay)
     data = report.as_dict()
     if as_json:
         typer.echo(json.dumps(_json_safe(data), indent=2))

@@ -231,6 +231,8 @@ VARIANTS: dict[str, list[dict[str, object]]] = {
          "u0": 40.0, "max_deviation": 50.0, "timeout": 30.0, "max_half_period": 5.0},
         {"amplitude": 1.0, "hysteresis": 0.1, "stable_cycles": 5, "tolerance": 0.5,
          "max_cycles": 8, "out_lo": -10.0, "out_hi": 10.0},
+        {"amplitude": 3.0, "hysteresis": 0.2, "biased_stage": True, "offset": -1.5,
+         "stable_cycles": 1, "tolerance": 10.0, "discard_cycles": 0},
     ],
     "compensator.knocker": [
         {},

@@ -15,8 +15,20 @@ parameter when given), e the error and ε the ``hysteresis`` (half-width; total 
 At the start r = +1 when e ≥ 0, else -1. ``amplitude_down`` (d_down) different from
 ``amplitude`` (d_up) gives the biased (asymmetric) relay of 3.3, from which the static gain
 follows. With ``biased_stage`` the test runs in two stages: first the symmetric relay (d_down =
-d_up) until it converges, then the biased relay with ``amplitude_down``, again until it
+d_up) until it converges, then a second stage with ``amplitude_down``, again until it
 converges; the ``stage`` output says which (1, 2).
+
+In the second stage the relay can also switch around a shifted point (``offset``)::
+
+    e = SP + Δ - PV (reverse) or PV - SP - Δ (direct),   Δ = offset · ā1
+
+with ā1 the mean PV amplitude of the first stage's stable cycles (output ``shift`` = Δ). The
+periodic-steady-state balance of 3.3 holds for any relay centre, so the PV mean moves by about Δ
+and the output mean by Δ/K between the stages: a static gain that does not rest on the small
+asymmetry of a biased relay on a lag-dominant plant (the biased relay's mean offsets are a few
+% of d there, the size of a sticky valve's error). Since a = (4d/π)|G(jωu)| and |G(jωu)| ≤ K
+on a low-pass plant, |Δ/K| ≤ (4/π)·|offset|·d: offset ≤ 0.5 keeps both relay levels on their
+side of the new equilibrium.
 
 Cycles and convergence (3.4). A cycle runs from one switch to r = +1 to the next. For every
 cycle the block measures its period and its PV amplitude (half the peak-to-peak). The first
@@ -69,17 +81,18 @@ N_SLOTS = 5  # cycles remembered for the convergence test (stable_cycles ≤ N_S
 
 # Coefficient layout (p)
 (D_UP, D_DOWN, HYST, SIGN, LO, HI, U0, TIMEOUT_S, MAX_DEV, MAX_CYC, MAX_HALF, DISCARD, STABLE,
- TOL, BIASED) = range(15)
+ TOL, BIASED, OFFSET) = range(16)
 # Inputs
 SP, PV, U_IN, ENABLE, CLOCK = range(5)
 # Outputs
-OUT, ACTIVE, INACTIVE, OVERRIDE, RELAY, PHASE, STAGE, CYCLES, PERIOD, AMPLITUDE = range(10)
+OUT, ACTIVE, INACTIVE, OVERRIDE, RELAY, PHASE, STAGE, SHIFT, CYCLES, PERIOD, AMPLITUDE = range(11)
 # State (x)
 (S_TIME, S_PHASE, S_R, S_U0, S_T0, S_T_SWITCH, S_T_UP, S_N_UP, S_PV_MAX, S_PV_MIN, S_STAGE,
  S_ENABLE_PREV, S_OUT, S_PERIOD, S_AMP) = range(15)
 S_PERIODS = 15                  # N_SLOTS latest periods
 S_AMPS = S_PERIODS + N_SLOTS    # N_SLOTS latest amplitudes
-N_STATES = S_AMPS + N_SLOTS
+S_SHIFT = S_AMPS + N_SLOTS      # Δ: the second stage's switching point minus SP
+N_STATES = S_SHIFT + 1
 
 
 @primitive
@@ -124,6 +137,7 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
         x[S_STAGE] = 1.0
         x[S_PERIOD] = math.nan
         x[S_AMP] = math.nan
+        x[S_SHIFT] = 0.0
         e0 = sign * (sp - pv) if inputs_ok else 0.0
         x[S_R] = 1.0 if e0 >= 0.0 else -1.0
         x[S_PV_MAX] = pv
@@ -151,7 +165,7 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
             phase = NO_OSCILLATION
             ending = True
     if phase == RUNNING:
-        e = sign * (sp - pv)
+        e = sign * (sp + float(x[S_SHIFT]) - pv)
         hyst = float(p[HYST])
         new_r = r
         if e > hyst:
@@ -180,8 +194,13 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
                             and _spread_ok(x, S_PERIODS + N_SLOTS - stable, stable, tol)
                             and _spread_ok(x, S_AMPS + N_SLOTS - stable, stable, tol)):
                         if float(p[BIASED]) > 0.5 and float(x[S_STAGE]) < 1.5:
-                            x[S_STAGE] = 2.0  # the biased stage starts with this cycle
+                            x[S_STAGE] = 2.0  # the second stage starts with this cycle
                             x[S_N_UP] = 0.0
+                            # Δ = offset · (mean amplitude of the stable cycles)
+                            total = 0.0
+                            for i in range(N_SLOTS - stable, N_SLOTS):
+                                total += float(x[S_AMPS + i])
+                            x[S_SHIFT] = float(p[OFFSET]) * total / stable
                         else:
                             phase = CONVERGED
                             ending = True
@@ -220,6 +239,7 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
     y[RELAY] = r if phase == RUNNING or ending else 0.0
     y[PHASE] = float(phase)
     y[STAGE] = float(x[S_STAGE]) if phase == RUNNING or ending else 0.0
+    y[SHIFT] = float(x[S_SHIFT]) if phase == RUNNING or ending else 0.0
     y[CYCLES] = float(x[S_N_UP])
     y[PERIOD] = float(x[S_PERIOD])
     y[AMPLITUDE] = float(x[S_AMP])
@@ -267,7 +287,10 @@ class Relay(Block):
         Param("tolerance", 0.05, "", "convergence: (max - min)/mean of the periods and of the "
               "amplitudes of those cycles (3.4: 5 %)", lo=0.0),
         Param("biased_stage", False, "", "after the symmetric relay converges, run a second "
-              "stage with amplitude_down (static gain, 3.3)", "bool"),
+              "stage with amplitude_down and/or the offset switching point (static gain, 3.3)",
+              "bool"),
+        Param("offset", 0.0, "", "second stage: the relay switches around SP + Δ, Δ = offset × "
+              "the first stage's PV amplitude a (signed; 0 = around SP)"),
     )
     INPUTS: ClassVar[tuple[Port, ...]] = (
         Port("sp", 0.0, "pv", "setpoint the relay switches around", status=True),
@@ -286,8 +309,10 @@ class Relay(Block):
              "the test: the state it switched to), else 0"),
         Port("phase", 0.0, "", "0 idle, 1 running, 2 converged, 3 timeout, 4 runaway, 5 not "
              "converged, 6 no oscillation, 7 bad input"),
-        Port("stage", 0.0, "", "1 symmetric, 2 biased, 0 not running (the ending scan keeps "
-             "its stage)"),
+        Port("stage", 0.0, "", "1 symmetric, 2 second (biased and/or offset), 0 not running "
+             "(the ending scan keeps its stage)"),
+        Port("shift", 0.0, "pv", "Δ: the relay's switching point minus SP (0 in the first "
+             "stage)"),
         Port("cycles", 0.0, "", "cycles completed in the running stage"),
         Port("period", math.nan, "s", "period of the latest cycle"),
         Port("amplitude", math.nan, "pv", "PV amplitude (half peak-to-peak) of the latest "
@@ -296,7 +321,8 @@ class Relay(Block):
     STATES: ClassVar[tuple[str, ...]] = (
         "time", "phase", "r", "u0", "t0", "t_switch", "t_up", "n_up", "pv_max", "pv_min",
         "stage", "enable_prev", "out", "period", "amplitude",
-        *(f"period_{i}" for i in range(N_SLOTS)), *(f"amplitude_{i}" for i in range(N_SLOTS)))
+        *(f"period_{i}" for i in range(N_SLOTS)), *(f"amplitude_{i}" for i in range(N_SLOTS)),
+        "shift")
 
     def coefficients(self) -> list[float]:
         prm: dict[str, Any] = self.params
@@ -306,17 +332,18 @@ class Relay(Block):
                 f"relay: parameter 'out_hi' = {hi:g} must be greater than out_lo = {lo:g}")
         d_up = float(prm["amplitude"])
         d_down = d_up if prm["amplitude_down"] is None else float(prm["amplitude_down"])
-        if prm["biased_stage"] and d_down == d_up:
+        if prm["biased_stage"] and d_down == d_up and prm["offset"] == 0.0:
             raise ParameterError(
                 f"relay: parameter 'amplitude_down' = {d_down:g} must differ from amplitude "
-                f"= {d_up:g} when biased_stage is on (the biased stage needs d_up != d_down)")
+                f"= {d_up:g}, or 'offset' must be non-zero, when biased_stage is on (the "
+                "second stage must move the mean output)")
         return [d_up, d_down, float(prm["hysteresis"]),
                 1.0 if prm["action"] == "reverse" else -1.0, lo, hi,
                 math.nan if prm["u0"] is None else float(prm["u0"]),
                 float(prm["timeout"]), float(prm["max_deviation"]), float(prm["max_cycles"]),
                 float(prm["max_half_period"]), float(prm["discard_cycles"]),
                 float(prm["stable_cycles"]), float(prm["tolerance"]),
-                1.0 if prm["biased_stage"] else 0.0]
+                1.0 if prm["biased_stage"] else 0.0, float(prm["offset"])]
 
     def initial_state(self) -> list[float]:
         x = [0.0] * N_STATES
@@ -324,4 +351,4 @@ class Relay(Block):
         return x
 
     def initial_outputs(self) -> list[float]:
-        return [0.0, 0.0, 1.0, math.nan, 0.0, 0.0, 0.0, 0.0, math.nan, math.nan]
+        return [0.0, 0.0, 1.0, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, math.nan, math.nan]

@@ -15,6 +15,7 @@ import html
 import json
 import math
 from pathlib import Path
+from typing import Any
 
 from loopworks.sim.result import SimResult
 
@@ -63,10 +64,34 @@ def _cell(value: float) -> str:
     return "n/a" if math.isnan(value) else f"{value:.4g}"
 
 
+#: what the report shows of an [autotune] relay test (the whole record is in autotune.json)
+AUTOTUNE_ROWS = ("loop", "variant", "outcome", "process_gain", "ku", "pu", "dead_time",
+                 "time_constant", "relay_amplitude", "hysteresis", "amplitude")
+
+
+def _autotune_html(autotune: dict[str, Any] | None) -> str:
+    if autotune is None:
+        return ""
+    rows = "\n".join(
+        f"<tr><th>{html.escape(k)}</th><td>"
+        + html.escape(f"{autotune[k]:.4g}" if isinstance(autotune[k], float)
+                      else str(autotune[k])) + "</td></tr>"
+        for k in AUTOTUNE_ROWS if autotune.get(k) is not None)
+    return ("<h2>Relay auto-tune ([autotune])</h2>\n<p>Before the run a relay test identified "
+            "the process gain that the scenario's [autotune] parameters took (% PV per % "
+            "output); all of it is in <a href=\"autotune.json\">autotune.json</a>.</p>\n"
+            f"<table>{rows}</table>")
+
+
 def write_report(directory: Path, title: str, scenario_text: str,
-                 results: dict[str, SimResult], metrics: dict[str, dict[str, float]]) -> None:
-    """Write the report directory (created if needed)."""
+                 results: dict[str, SimResult], metrics: dict[str, dict[str, float]],
+                 autotune: dict[str, Any] | None = None) -> None:
+    """Write the report directory (created if needed); ``autotune`` is the scenario's
+    [autotune] result (autotune.json and a section of the page)."""
     directory.mkdir(parents=True, exist_ok=True)
+    if autotune is not None:
+        (directory / "autotune.json").write_text(json.dumps(autotune, indent=2) + "\n",
+                                                 encoding="utf-8")
     (directory / "scenario.toml").write_text(scenario_text, encoding="utf-8")
     clean = {v: {k: (None if math.isnan(x) else x) for k, x in m.items()}
              for v, m in metrics.items()}
@@ -92,6 +117,7 @@ td,th{{border:1px solid #ccc;padding:4px 8px;text-align:right}}img{{max-width:10
 <table><tr><th>metric</th>{head}</tr>
 {rows}
 </table>
+{_autotune_html(autotune)}
 <p>Data: <a href="metrics.json">metrics.json</a>, <a href="scenario.toml">scenario.toml</a>,
 {", ".join(f'<a href="{html.escape(v)}.csv">{html.escape(v)}.csv</a>' for v in results)}.</p>
 {images}

@@ -12,9 +12,12 @@
                             the ``variant`` named, default the first) identifies the process
                             gain, and the parameters listed take it (normalised to % of PV
                             span per % of output span with the loop controller's scales).
-                            Optional: variant, amplitude, hysteresis, start (s), and
-                            set = {"load.walk_std" = 0.0}: parameters changed for the test
-                            only (a quiet plant, as a test would be scheduled).
+                            Optional: variant, amplitude, hysteresis, start (s),
+                            bias_ratio (d_down/d, default 0.5), offset (the second stage's
+                            switching point SP + offset·a, default 0), stable_cycles
+                            (default 2), and set = {"load.walk_std" = 0.0}: parameters
+                            changed for the test only (a quiet plant, as a test would be
+                            scheduled). ``loopworks tune`` uses the same test settings.
 
 Blocks run in the order their tables appear, unless ``[simulation] order`` says otherwise. Keys
 match parameter and input names in any letter case. Errors name the file and the table.
@@ -23,6 +26,7 @@ match parameter and input names in any letter case. Errors name the file and the
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -63,6 +67,9 @@ class _Autotune(BaseModel):
     amplitude: float | None = Field(default=None, gt=0, allow_inf_nan=False)
     hysteresis: float | None = Field(default=None, ge=0, allow_inf_nan=False)
     start: float | None = Field(default=None, ge=0, allow_inf_nan=False)
+    bias_ratio: float = Field(default=0.5, gt=0, le=1, allow_inf_nan=False)
+    offset: float = Field(default=0.0, allow_inf_nan=False)
+    stable_cycles: int = Field(default=2, ge=1, le=5)
     set: dict[str, float | int | bool | str] = {}
 
 
@@ -91,6 +98,19 @@ class Scenario:
     text: str = ""
     metrics_window: tuple[float, float] | None = None
     autotune: dict[str, Any] | None = None
+    autotune_test: AutotuneTest | None = None
+
+
+@dataclass
+class AutotuneTest:
+    """How the scenario's ``[autotune]`` relay-tests its loop: the controller ``loop``, the
+    :func:`loopworks.sim.tune.relay_test` keyword arguments ``relay``, and ``build``, which
+    makes a fresh module of the tested variant with the ``set`` changes applied."""
+
+    loop: str
+    variant: str
+    relay: dict[str, Any]
+    build: Callable[[], Module]
 
 
 def _format_validation(err: ValidationError, source: str) -> str:
@@ -154,17 +174,48 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     def where(name: str) -> str:
         return source if name == "base" else f"{source} (compare.{name})"
 
-    autotune = None if sc.autotune is None else _autotune(sc, variants, source)
+    test = None if sc.autotune is None else _autotune_test(sc, variants, source)
+    autotune = None if test is None else _autotune(sc, test, variants, source)
     modules = {name: _build(sc, t, where(name)) for name, t in variants.items()}
     sim = sc.simulation
     first = next(iter(modules.values()))
     window = None if sim.metrics_window is None else (sim.metrics_window[0],
                                                       sim.metrics_window[1])
     return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, modules, text,
-                    window, autotune)
+                    window, autotune, test)
 
 
-def _autotune(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]],
+def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]],
+                   source: str) -> AutotuneTest:
+    """The [autotune] table checked: the variant, the test-only changes, the relay options."""
+    at = sc.autotune
+    assert at is not None
+    where = f"{source}: [autotune]"
+    name = at.variant or next(iter(variants))
+    if name not in variants:
+        raise FileFormatError(f"{where}: variant = {name!r} is not a [compare] variant of this "
+                              f"scenario ({', '.join(variants)})")
+    for ref in at.process_gain:
+        block, sep, _ = ref.rpartition(".")
+        if not sep or block.lower() not in variants[name]:
+            raise FileFormatError(f"{where}: process_gain entry {ref!r} must be "
+                                  f"'block.parameter' with a block of this scenario")
+    tables = {block: dict(table) for block, table in variants[name].items()}
+    for ref, value in at.set.items():
+        block, sep, param = ref.rpartition(".")
+        if not sep or block.lower() not in tables:
+            raise FileFormatError(f"{where}: set entry {ref!r} must be 'block.parameter' with "
+                                  "a block of this scenario")
+        tables[block.lower()][param.lower()] = value
+    _build(sc, tables, f"{source} (autotune)")  # report a bad `set` now
+    relay = {"amplitude": at.amplitude, "hysteresis": at.hysteresis, "start": at.start,
+             "bias_ratio": at.bias_ratio, "offset": at.offset,
+             "stable_cycles": at.stable_cycles}
+    return AutotuneTest(at.loop.lower(), name, relay,
+                        lambda: _build(sc, tables, f"{source} (autotune)"))
+
+
+def _autotune(sc: _Scenario, test: AutotuneTest, variants: dict[str, dict[str, dict[str, Any]]],
               source: str) -> dict[str, Any]:
     """Run the [autotune] relay test and write the identified process gain into the block
     tables of every variant; returns what was identified (for reports)."""
@@ -174,44 +225,27 @@ def _autotune(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]],
     at = sc.autotune
     assert at is not None
     where = f"{source}: [autotune]"
-    name = at.variant or next(iter(variants))
-    if name not in variants:
-        raise FileFormatError(f"{where}: variant = {name!r} is not a [compare] variant of this "
-                              f"scenario ({', '.join(variants)})")
-    targets = []
-    for ref in at.process_gain:
-        block, sep, param = ref.rpartition(".")
-        if not sep or block.lower() not in variants[name]:
-            raise FileFormatError(f"{where}: process_gain entry {ref!r} must be "
-                                  f"'block.parameter' with a block of this scenario")
-        targets.append((block.lower(), param.lower()))
-    tables = {block: dict(table) for block, table in variants[name].items()}
-    for ref, value in at.set.items():
-        block, sep, param = ref.rpartition(".")
-        if not sep or block.lower() not in tables:
-            raise FileFormatError(f"{where}: set entry {ref!r} must be 'block.parameter' with "
-                                  "a block of this scenario")
-        tables[block.lower()][param.lower()] = value
-    module = _build(sc, tables, f"{source} (autotune)")
+    module = test.build()
     try:
-        run = relay_test(module, at.loop.lower(), sc.simulation.dt, amplitude=at.amplitude,
-                         hysteresis=at.hysteresis, start=at.start)
+        run = relay_test(module, test.loop, sc.simulation.dt, **test.relay)
     except LoopworksError as exc:
         raise FileFormatError(f"{where}: {exc}") from None
     idn = run.identification
     if idn is None or idn.process_gain is None:
+        why = "" if idn is None else " (" + "; ".join(idn.notes) + ")"
         raise FileFormatError(f"{where}: the relay test on '{at.loop}' ended with "
-                              f"'{run.outcome}' and gave no process gain")
-    ctrl = module.blocks[at.loop.lower()]
+                              f"'{run.outcome}' and gave no process gain{why}")
+    ctrl = module.blocks[test.loop]
     pv_span, out_span = port_spans(ctrl.kind, {k: v for k, v in ctrl.params.items()
                                                if v is not None})
     gain = idn.process_gain * out_span / pv_span
     for table in variants.values():
-        for block, param in targets:
-            table[block][param] = gain
-    return {"loop": at.loop, "variant": name, "outcome": run.outcome,
-            "process_gain": gain, **{k: v for k, v in idn.as_dict().items()
-                                     if k not in ("process_gain", "notes")}}
+        for ref in at.process_gain:
+            block, _, param = ref.rpartition(".")
+            table[block.lower()][param.lower()] = gain
+    return {"loop": at.loop, "variant": test.variant, "outcome": run.outcome,
+            "process_gain": gain, "relay_shift": run.test.offset,
+            **{k: v for k, v in idn.as_dict().items() if k not in ("process_gain", "notes")}}
 
 
 def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Module:

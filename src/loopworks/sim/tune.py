@@ -11,8 +11,11 @@ runs the procedure of 3.4 on the module's own plant:
    ``HANDOVER``), so it hands back bumplessly when the test ends.
 3. Hysteresis ε defaults to 3σn (3.4 item 2: above the noise band, 2-3 σn); the relay
    amplitude d defaults to 5 % of the controller's output span. With ``biased`` (default) a
-   symmetric stage is followed by a biased stage with d_down = d/2 (γ = 2, 3.3) for the
-   static gain.
+   symmetric stage is followed by a second stage for the static gain: a biased relay with
+   d_down = ``bias_ratio``·d (default d/2, γ = 2, 3.3), switching around SP + ``offset``·a
+   (default offset 0; the relay block's ``offset``, docs/blocks/relay.md), a being the first
+   stage's PV amplitude. The relay's switching-point shift Δ is recorded in the
+   :class:`~loopworks.tuning.identify.RelayTest` (``offset``).
 4. The test ends when the relay block reports convergence or aborts (timeout, runaway, no
    oscillation, bad PV); the loop then runs ``handback`` more seconds under its controller.
 5. :func:`loopworks.tuning.identify.identify` analyses the recorded cycles.
@@ -22,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -95,8 +98,8 @@ def _controller_limits(block: Block) -> tuple[float, float]:
 
 def relay_test(module: Module, loop: str, dt: float, *, start: float | None = None,
                amplitude: float | None = None, hysteresis: float | None = None,
-               biased: bool = True, bias_ratio: float = 0.5, timeout: float = 7200.0,
-               handback: float | None = None, stable_cycles: int = 2,
+               biased: bool = True, bias_ratio: float = 0.5, offset: float = 0.0,
+               timeout: float = 7200.0, handback: float | None = None, stable_cycles: int = 2,
                max_deviation: float = math.inf, ku_convention: str = "hysteresis_corrected",
                amplitude_estimate: str = "peaks",
                progress: Callable[[float], None] | None = None) -> RelayRun:
@@ -127,6 +130,7 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
         "biased_stage": biased}
     if biased:
         relay_params["amplitude_down"] = bias_ratio * d
+        relay_params["offset"] = offset
     if direct_acting(ctrl):
         relay_params["action"] = "direct"
     start = _default_start(module, dt) if start is None else float(start)
@@ -190,6 +194,7 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
     rec_stage: list[float] = []
     rec_r: list[float] = []
     rec_c: list[float] = []
+    shift = 0.0
     y = relay.y
     c_out = ctrl._out_index[out_port]
     limit = timeout + 10.0 * dt
@@ -202,12 +207,14 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
         rec_stage.append(float(y[6]))
         rec_r.append(float(y[4]))
         rec_c.append(float(ctrl.y[c_out]))
+        shift = float(y[7]) if y[6] > 1.5 else shift
         phase = int(y[5])
         if progress is not None and len(rec_t) % 1000 == 0:
             progress(spliced.t - start)
         if phase != RUNNING:
             outcome = PHASE_NAMES[phase]
             break
+    test = replace(test, offset=shift)
     run = RelayRun(loop=loop, kind=ctrl.kind, test=test, outcome=outcome, start=start,
                    t=np.asarray(rec_t), pv=np.asarray(rec_pv), u=np.asarray(rec_u),
                    stage=np.asarray(rec_stage), relay=np.asarray(rec_r),
@@ -262,6 +269,7 @@ class TuneReport:
             "loop": self.run.loop, "kind": self.run.kind, "outcome": self.run.outcome,
             "relay_amplitude": idn["relay_amplitude"],
             "relay_amplitude_down": idn["relay_amplitude_down"],
+            "relay_shift": self.run.test.offset,
             "hysteresis": idn["hysteresis"], "noise_std": self.run.noise_std,
             "amplitude": idn["amplitude"], "amplitude_harmonic": idn["amplitude_harmonic"],
             "period": idn["period"], "ku": idn["ku"], "ku_convention": idn["ku_convention"],
@@ -311,8 +319,9 @@ def tune_loop(module: Module, loop: str, dt: float, *, rule: str | None = None,
     ideal = tuning.ideal()
     ctrl = module.blocks[loop]
     context = {k: v for k, v in ctrl.params.items() if v is not None}
+    # the relay oscillated under the loop's own action, so that action is the right one
     conversion = from_loop_units(run.kind, ideal.kc, ideal.ti, ideal.td,
-                                 direct=ideal.direct, sample_time=dt, context=context)
+                                 direct=direct_acting(ctrl), sample_time=dt, context=context)
     return TuneReport(run, run.identification, tuning, conversion, _handback_jump(run))
 
 

@@ -37,6 +37,13 @@ rest, a valve stuck away from its signal)::
     K = (mean PV over the biased cycles - mean PV over the symmetric cycles)
         / (mean u over the biased cycles - mean u over the symmetric cycles)
 
+The second stage may also switch around a shifted point SP + Δ (``RelayTest.offset``, the relay
+block's ``offset``): the balance holds for any relay centre, so the PV mean moves by about Δ and
+the output mean by Δ/K, a gain that does not rest on the small mean offsets of a biased relay
+on a lag-dominant plant. A relay that oscillated under reverse action proves K > 0 (direct:
+K < 0); a K of the other sign (the means moved with a load, or a sticky valve's error) is
+refused with a note, and K then comes from the ultimate point as without a biased stage.
+
 With a symmetric relay only, the denominator is ≈ 0 and K comes from the ultimate point (below).
 
 Dead time (3.3): for FOPDT the PV keeps moving for exactly L after each switch, so L = mean
@@ -44,9 +51,18 @@ time from a switch to the next PV extremum (an apparent dead time for other plan
 
 Time constant, ``time_constant_method``:
 
+The time-constant methods take the second stage about its switching point c = SP + Δ, with
+the relay levels relative to the input u_c that holds the PV at c on the static line through
+the stage's whole-cycle means (ū2, ȳ2)::
+
+    u_c = ū2 + (c - ȳ2)/K,   d_up = u0 + d_up,set - u_c,   d_down = u_c - (u0 - d_down,set)
+
+(for Δ = 0 and a loop at rest at its setpoint, u_c = u0 and these are the relay's own
+amplitudes); y below is (PV - c), negated for direct action.
+
 * ``trajectory`` (default, K from the biased stage): the exact FOPDT trajectory behind 3.3.
   After a switch to the high level the PV moves on for L to its trough y_lo (relative to
-  PV0), then rises toward K·d_up and crosses +ε at t_on; likewise after a switch to the low
+  c), then rises toward K·d_up and crosses +ε at t_on; likewise after a switch to the low
   level, from its peak y_hi toward -K·d_down, crossing -ε at t_off. With the measured L,
   y_lo and y_hi, each half period gives T; the two are averaged::
 
@@ -94,7 +110,8 @@ PROCESS_TYPES = ("auto", "self_regulating", "integrating")
 class RelayTest:
     """What a relay test applied: setpoint ``sp`` and PV before the test ``pv0`` (PV units),
     relay centre ``u0`` and amplitudes ``amplitude`` (d_up), ``amplitude_down`` (OUT units),
-    ``hysteresis`` ε (PV units, half-width), and the error sign ``action``."""
+    ``hysteresis`` ε (PV units, half-width), the error sign ``action``, and ``offset`` Δ (PV
+    units): the second stage's switching point minus SP (the relay block's ``shift``)."""
 
     sp: float
     pv0: float
@@ -103,6 +120,7 @@ class RelayTest:
     amplitude_down: float
     hysteresis: float = 0.0
     action: str = "reverse"
+    offset: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -180,8 +198,9 @@ def first_harmonic(t: np.ndarray, x: np.ndarray, period: float, i0: int, i1: int
 def _trajectory_time_constant(y: np.ndarray, high: np.ndarray, i0: int, i1: int, t_on: float,
                               t_off: float, lag: float, k: float, d_up: float, d_down: float,
                               eps: float) -> float:
-    """T from the measured trough/peak of the biased stage (``trajectory`` method); y is PV -
-    PV0 and the loop was at rest at its setpoint before the test (SP = PV0)."""
+    """T from the measured trough/peak of the biased stage (``trajectory`` method); y is the PV
+    relative to the stage's switching point, signed so that a high output raises it, and
+    d_up, d_down the relay levels relative to the equilibrium input there."""
     sw = _slice_switches(high, i0, i1)
     lows = [float(np.min(y[a:b + 1])) for a, b in _pairs(sw.ups, sw.downs)]
     highs = [float(np.max(y[a:b + 1])) for a, b in _pairs(sw.downs, sw.ups)]
@@ -281,25 +300,26 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
     k_static: float | None = None
     kv: float | None = None
     kind = process
+    mean_u2 = mean_y2 = math.nan
     if bia is not None:
         b0, b1 = bia
-        du = u[b0:b1] - test.u0
-        dts = np.diff(t[b0:b1 + 1])
-        iu = float(np.sum(du * dts))
-        iy = float(np.sum((pv[b0:b1] - test.pv0) * dts))
-        mean_du = iu / float(t[b1] - t[b0])
-        if not biased_only:  # two levels: differences of the two stages' whole-cycle means
-            s_dts = np.diff(t[i0:i1 + 1])
-            span = float(t[i1] - t[i0])
-            u_sym = float(np.sum((u[i0:i1] - test.u0) * s_dts)) / span
-            y_sym = float(np.sum((pv[i0:i1] - test.pv0) * s_dts)) / span
-            span_b = float(t[b1] - t[b0])
-            iu, iy = mean_du - u_sym, iy / span_b - y_sym
-            mean_du = iu
+        mean_u2, mean_y2 = _mean(t, u, b0, b1), _mean(t, pv, b0, b1)
+        if biased_only:
+            mean_du, mean_dy = mean_u2 - test.u0, mean_y2 - test.pv0
+        else:  # two levels: differences of the two stages' whole-cycle means
+            mean_du = mean_u2 - _mean(t, u, i0, i1)
+            mean_dy = mean_y2 - _mean(t, pv, i0, i1)
         if process == "auto":
             kind = "integrating" if abs(mean_du) < 0.01 * max(d_up, d_down) else "self_regulating"
         if kind == "self_regulating":
-            k_static = iy / iu
+            k_static = mean_dy / mean_du
+            if (k_static < 0.0) != (test.action == "direct"):
+                notes.append(
+                    f"the two stages give K = {k_static:.4g}, whose sign contradicts the "
+                    f"{test.action} action under which the relay oscillated: the stages' means "
+                    "moved with something else (a load change, a sticky valve); no static gain "
+                    "(a larger offset or amplitude, or a quieter plant, helps)")
+                k_static = None
     elif process == "auto":
         kind = "self_regulating"
         notes.append("symmetric relay only: the process is taken as self-regulating and its "
@@ -312,22 +332,32 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
         b0, b1 = bia
         t_on, t_off = _on_off(t, _slice_switches(high, b0, b1))
         eps_k = eps / abs(k_static)
+        # the relay levels relative to the input that holds the PV at the switching point c,
+        # on the static line through the stage's means: y = ȳ2 + K·(u - ū2)
+        centre = test.sp + (test.offset if has_biased else 0.0)
+        u_eq = mean_u2 + (centre - mean_y2) / k_static
+        e_up = test.u0 + test.amplitude - u_eq
+        e_down = u_eq - (test.u0 - test.amplitude_down)
+        if min(e_up, e_down) <= 0.0:
+            raise InputError(f"the second stage's equilibrium input {u_eq:.4g} is outside the "
+                             "relay levels: the static gain is not consistent with the cycle")
         if time_constant_method == "half_period_ratio":
-            gamma = max(d_up, d_down) / min(d_up, d_down)
+            gamma = max(e_up, e_down) / min(e_up, e_down)
             rho = max(t_on, t_off) / min(t_on, t_off)
             tau = (gamma - rho) / ((gamma - 1.0) * (0.35 * rho + 0.65))
             if not 0.0 < tau < 1.0:
                 raise InputError(f"half-period ratio ρ = {rho:.4g} gives τ = {tau:.4g}, outside "
                                  "(0, 1): the process is not FOPDT-like (spec 3.3 needs ρ < γ)")
-            time_constant = _solve_time_constant(t_on, tau / (1.0 - tau), None, d_up, d_down,
+            time_constant = _solve_time_constant(t_on, tau / (1.0 - tau), None, e_up, e_down,
                                                  eps_k)
             dead_time = time_constant * tau / (1.0 - tau)
         elif time_constant_method == "dead_time":
-            time_constant = _solve_time_constant(t_on, None, dead_time, d_up, d_down, eps_k)
+            time_constant = _solve_time_constant(t_on, None, dead_time, e_up, e_down, eps_k)
         else:
+            sign = 1.0 if test.action == "reverse" else -1.0
             time_constant = _trajectory_time_constant(
-                pv - test.pv0, high, b0, b1, t_on, t_off, dead_time, abs(k_static),
-                d_up, d_down, eps)
+                sign * (pv - centre), high, b0, b1, t_on, t_off, dead_time, abs(k_static),
+                e_up, e_down, eps)
     else:
         try:
             k_static, time_constant = fopdt_from_ultimate(ku, period, dead_time)
@@ -374,6 +404,11 @@ def _window(high: np.ndarray, mask: np.ndarray, cycles: int, what: str) -> tuple
         raise InputError(f"the {what} relay stage has {max(len(ups) - 1, 0)} full cycles; "
                          f"the analysis needs {cycles}")
     return int(ups[-cycles - 1]), int(ups[-1])
+
+
+def _mean(t: np.ndarray, x: np.ndarray, i0: int, i1: int) -> float:
+    """Time-weighted mean of x over samples i0..i1-1 (zero-order hold)."""
+    return float(np.sum(x[i0:i1] * np.diff(t[i0:i1 + 1])) / (t[i1] - t[i0]))
 
 
 def _on_off(t: np.ndarray, sw: Cycles) -> tuple[float, float]:
