@@ -286,7 +286,8 @@ def tune(
     ident = Table(title=f"relay test on {loop} ({data['kind']}): {data['outcome']}")
     ident.add_column("quantity")
     ident.add_column("value", justify="right")
-    for key in ("relay_amplitude", "relay_amplitude_down", "hysteresis", "amplitude", "period",
+    for key in ("relay_amplitude", "relay_amplitude_down", "relay_shift", "hysteresis",
+                "amplitude", "period",
                 "ku", "ku_describing_function", "ku_hysteresis_corrected", "pu",
                 "process_type", "process_gain", "integrating_gain", "dead_time",
                 "time_constant"):
