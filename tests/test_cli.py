@@ -414,6 +414,79 @@ def test_blocks_first_order() -> None:
     assert list(tables["outputs"]) == ["y"]
 
 
+def squeeze(text: str) -> str:
+    return "".join(text.split())
+
+
+def test_blocks_prints_bracketed_text_as_written() -> None:
+    """Rich markup once swallowed "[output: its initial value]" (deltav.calc) and other
+    bracketed text; every kind's every meaning now reads as declared."""
+    from loopworks.blocks import reference
+    from loopworks.blocks.registry import block_class, kinds
+
+    calc = invoke("blocks", "deltav.calc", columns=250)
+    assert calc.exit_code == 0, calc.output
+    assert "dither amplitude (line 2) [output: its initial value]" in calc.stdout
+    for kind in kinds():
+        cls = block_class(kind)
+        result = invoke("blocks", kind, columns=250)
+        assert result.exit_code == 0, (kind, result.output)
+        tables = parse_tables(result.stdout)
+        for title, rows in (("parameters", reference.parameter_rows(cls)),
+                            ("inputs", reference.input_rows(cls)),
+                            ("outputs", reference.output_rows(cls))):
+            for row in rows:
+                shown = tables[title][row[0]]
+                assert [squeeze(c) for c in shown] == [squeeze(c) for c in row], (kind, row[0])
+    listing = squeeze(invoke("blocks", columns=400).stdout)
+    for kind in kinds():
+        assert squeeze(block_class(kind).describe()) in listing, kind
+
+
+def test_help_prints_bracketed_text_as_written() -> None:
+    """"[compare]" and "[autotune]" are TOML tables, not markup: they stay in --help."""
+    simulate = invoke("simulate", "--help", columns=120)
+    assert "each [compare] variant" in simulate.stdout
+    tune = invoke("tune", "--help", columns=200)
+    assert squeeze("A scenario with an [autotune] table") in squeeze(tune.stdout)
+    assert squeeze("(default: the [autotune] loop)") in squeeze(tune.stdout)
+
+
+def test_version() -> None:
+    from importlib.metadata import version
+
+    import loopworks
+
+    result = invoke("--version")
+    assert result.exit_code == 0, result.output
+    assert result.stdout == f"loopworks {version('loopworks')}\n"
+    assert loopworks.__version__ == version("loopworks")
+
+
+def test_dir_shows_the_lazy_names_and_import_stays_light() -> None:
+    code = ("import sys, loopworks\nnames = dir(loopworks)\n"
+            "print('Module' in names, 'Signal' in names, "
+            "sorted(m for m in ('numba', 'numpy', 'scipy', 'matplotlib') if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=60, check=True)
+    assert proc.stdout.split() == ["True", "True", "[]"]
+
+
+def test_help_of_create_block_names_every_kind() -> None:
+    """The kinds are written in loopworks.create_block's docstring (import stays light);
+    this keeps that list equal to the registry."""
+    import pydoc
+    import re
+
+    import loopworks
+    from loopworks.blocks.registry import kinds
+
+    shown = pydoc.plain(pydoc.render_doc(loopworks.create_block))  # what help() prints
+    kinds_part = shown.split("The kinds")[1].split(">>>")[0]
+    listed = re.findall(r"``([a-z0-9_.]+)``", kinds_part)
+    assert sorted(listed) == kinds()
+
+
 def test_blocks_unknown_kind() -> None:
     assert_user_error(invoke("blocks", "nosuch"), "nosuch", "pid", "process.first_order")
 

@@ -25,8 +25,11 @@ from loopworks.blocks.block import Block
 from loopworks.cli import app
 from loopworks.errors import ParameterError
 from tests.csvfiles import write_csv
+from tests.properties.test_controller_properties import raw_step
 
 NAN = math.nan
+INF = math.inf
+BAD = 0x00
 GOOD = 0x80
 OOS = 0x1C
 KNOCKER = "compensator.knocker"
@@ -279,7 +282,9 @@ def test_constant_reinforcement_skips_non_finite_output_and_bypass(make: Make) -
     cr = make(CR, alpha=1.0)
     got = corrections(cr, [10.0, 11.0, NAN, 11.0, 10.0], 1.0)
     assert got == [0, 1, 1, 1, -1]                   # NaN skipped: 11 -> 11 holds +
-    assert math.isnan(cr.step(1.0, op_in=NAN)["op_out"].value)
+    # issue 11 point 1 (it was NaN with a Good status): a NaN op_in is Bad, op_out holds its
+    # last value (10 - 1 = 9) with status Bad
+    assert tuple(cr.step(1.0, op_in=NAN)["op_out"]) == (9.0, BAD)
     assert cr.step(1.0, op_in=12.0, enable=0.0)["op_out"].value == 12.0
 
 
@@ -460,6 +465,169 @@ def test_bad_parameters_name_the_parameter(kind: str, params: dict[str, Any],
                                            name: str) -> None:
     with pytest.raises(ParameterError, match=f"'{name}'"):
         create_block(kind, **params)
+
+
+# -- non-finite values (issue 11 point 1) and the output before the first scan (point 8) --------
+
+SPECIALS = [NAN, INF, -INF, 1e308, -1e308]
+
+
+def error_inputs(kind: str, sp: float, pv: float) -> dict[str, float]:
+    return {} if kind == CR else {"sp": sp, "pv": pv}
+
+
+PORTS = [(kind, port) for kind in (KNOCKER, CR, TWO_MOVE)
+         for port in ("op_in", "enable", "sp", "pv") if kind != CR or port in ("op_in", "enable")]
+
+
+@pytest.mark.parametrize(("kind", "port"), PORTS)
+@pytest.mark.parametrize("value", SPECIALS, ids=["nan", "inf", "-inf", "1e308", "-1e308"])
+def test_non_finite_inputs_give_no_non_finite_good_output(make: Make, kind: str, port: str,
+                                                          value: float) -> None:
+    """Issue 11 point 1: NaN, ±inf or ±1e308 into any input (scans 8-13 of a cycling loop, so
+    the two-move measures and moves meanwhile) gives no inf/NaN output unless its status is
+    Bad, and no non-finite state, through the block and through its kernel alone (no
+    fallback of the guard needed); after it finite inputs give finite Good outputs again."""
+    params: dict[str, Any] = {"cycles": 1} if kind == TWO_MOVE else {}
+    for comp, scan in ((make(kind, **params), None), (create_block(kind, jit=False, **params),
+                                                      raw_step)):
+        for k in range(30):
+            inputs = {"op_in": 50.0 + (k % 5), "enable": 1.0,
+                      **error_inputs(kind, 0.0, cycling_pv(k))}
+            if 8 <= k < 14:
+                inputs[port] = value
+            if scan is None:
+                comp.step(0.2, **inputs)
+            else:
+                scan(comp, 0.2, inputs)
+            for i, out in enumerate(comp.OUTPUTS):
+                v, st = float(comp.y[i]), int(comp.ys[i])
+                assert math.isfinite(v) or (out.status and st & 0xC0 == BAD), (
+                    f"scan {k}: {out.name} = {v}, status {st}")
+            assert np.isfinite(comp.x).all(), comp.state()
+        assert comp.ys[0] == GOOD and math.isfinite(comp.y[0]) and math.isfinite(comp.y[1])
+
+
+@pytest.mark.parametrize("kind", [KNOCKER, CR, TWO_MOVE])
+@pytest.mark.parametrize("value", [NAN, INF, -INF])
+def test_non_finite_op_in_holds_op_out_bad_then_recovers(make: Make, kind: str,
+                                                         value: float) -> None:
+    """A non-finite op_in is Bad: op_out holds its last value with status Bad (0, or the
+    Bad status it came with, substatus kept) and correction holds; the next finite op_in
+    passes through as before (enable = 0: op_out = op_in)."""
+    comp = make(kind)
+    err = error_inputs(kind, 0.0, 0.0)
+    assert comp.step(0.2, op_in=40.0, enable=0.0, **err)["op_out"] == (40.0, GOOD)
+    r = comp.step(0.2, op_in=value)
+    assert (tuple(r["op_out"]), r["correction"].value) == ((40.0, BAD), 0.0)
+    assert tuple(comp.step(0.2, op_in=(value, OOS))["op_out"]) == (40.0, OOS)
+    assert tuple(comp.step(0.2, op_in=41.0)["op_out"]) == (41.0, GOOD)
+
+
+def test_op_out_holds_bad_when_the_sum_overflows(make: Make) -> None:
+    """1.7e308 + α with α = 1e308 overflows: op_out holds (Bad); the sign memory still follows
+    u, so u falling to 1 gives 1 - α."""
+    cr = make(CR, alpha=1e308)
+    assert cr.step(1.0, op_in=0.0)["op_out"] == (0.0, GOOD)
+    assert tuple(cr.step(1.0, op_in=1.7e308)["op_out"]) == (0.0, BAD)
+    assert cr.step(1.0, op_in=1.0)["op_out"] == (1.0 - 1e308, GOOD)  # u fell: -α
+
+
+def test_knocker_without_a_known_reference_gives_no_pulse(make: Make) -> None:
+    """The pulse direction needs u at the pulse start: a NaN there (first pulse) gives no
+    pulse until the next pulse start with a finite u (a = 1, τ = 0.5 s, h_k = 1 s, 0.25 s)."""
+    kn = make(KNOCKER, amplitude=1.0, pulse_width=0.5, interval=1.0)
+    ops = [NAN, 50.1, 50.2, 50.3, 50.4, 50.5, 50.6, 50.7, 50.8, 50.9]
+    got = corrections(kn, ops, 0.25)
+    # scan 0: NaN, correction holds 0; scans 1-3 have no reference; scan 4 (pulse start,
+    # u = 50.4 becomes the reference, the previous one unknown): no pulse; scan 8: +1 since 50.4
+    assert got == [0, 0, 0, 0, 0, 0, 0, 0, 1, 1]
+    assert np.isfinite(kn.x).all()
+
+
+def test_knocker_unmeasured_error_does_not_stop_the_pulses(make: Make) -> None:
+    """error_band (spec 2.4 [L]) stops pulses while |e| <= band; a NaN or overflowing error
+    (1e308 - -1e308) is not inside the band: the pulses go on."""
+    for sp, pv in ((NAN, 0.0), (1e308, -1e308)):
+        kn = make(KNOCKER, amplitude=1.0, pulse_width=0.2, interval=0.4, error_band=0.5)
+        got = [kn.step(0.2, op_in=float(k), sp=sp, pv=pv)["correction"].value
+               for k in range(6)]
+        assert got == [0, 0, 1, 0, 1, 0]
+
+
+def test_two_move_target_is_bad_until_known() -> None:
+    """The target port has a status (issue 11): NaN and Bad before the cycle mean is
+    measured, Good after; target = model: Bad while (sp - bias)/gain is not finite."""
+    tm = create_block(TWO_MOVE, cycles=1)
+    assert math.isnan(tm.outputs()["target"].value) and tm.outputs()["target"].status == BAD
+    got = [tm.step(1.0, op_in=50.0 + k, sp=0.0, pv=cycling_pv(k))["target"] for k in range(7)]
+    assert all(math.isnan(t.value) and t.status == BAD for t in got[:6])
+    assert got[6] == (53.5, GOOD)
+    model = create_block(TWO_MOVE, target="model", model_gain=1e-300)
+    assert model.outputs()["target"] == (0.0, GOOD)   # (0 - 0)/1e-300, from the initial sp
+    t = model.step(1.0, op_in=50.0, sp=1e10, pv=0.0)["target"]
+    assert math.isnan(t.value) and t.status == BAD  # 1e10/1e-300 = inf
+    assert model.step(1.0, sp=1e-290)["target"] == (pytest.approx(1e10), GOOD)
+
+
+def test_two_move_holds_x_final_through_a_bad_controller_output() -> None:
+    """In hold the valve input is x_f whatever op_in is; a NaN op_in passes its Bad status
+    on with x_f (correction held); the hold goes on when op_in is finite again."""
+    tm = create_block(TWO_MOVE, cycles=1)
+    drive(tm, [50.0 + k for k in range(9)])      # as in the first two-move test: x_f = 54.5
+    r = tm.step(1.0, op_in=NAN, sp=0.0, pv=1.0)
+    assert (tuple(r["op_out"]), r["correction"].value, r["phase"].value) == (
+        (54.5, BAD), 54.5 - 58.0, 2.0)
+    assert tuple(tm.step(1.0, op_in=47.0)["op_out"]) == (54.5, GOOD)
+
+
+def test_two_move_non_finite_setpoint_releases_and_blocks_the_moves() -> None:
+    """A NaN sp is not the setpoint of the moves: release; with sp NaN no moves start
+    (ready as they are), they start at the first finite sp."""
+    tm = create_block(TWO_MOVE, cycles=1)
+    drive(tm, [50.0] * 9)
+    assert tm.step(1.0, op_in=50.0, sp=NAN, pv=0.0)["phase"].value == 0.0
+    tm = create_block(TWO_MOVE, cycles=1)
+    drive(tm, [50.0] * 7, enable=[0.0] * 7)      # measured, ready
+    assert tm.step(1.0, op_in=50.0, enable=1.0, sp=NAN, pv=0.0)["phase"].value == 0.0
+    assert tm.step(1.0, op_in=50.0, sp=0.0, pv=1.0)["phase"].value == 1.0
+
+
+def test_two_move_mean_takes_u_as_the_valve_sees_it() -> None:
+    """The cycle mean uses u clamped to [op_lo, op_hi] (the valve clips it): a 1e308 sample
+    counts as op_hi = 100 (without the clamp the sum overflowed to inf). cycles = 1, mean over
+    scans 2..5 of u = 50, 1e308, 50, 50: (50 + 100 + 50 + 50)/4 = 62.5."""
+    tm = create_block(TWO_MOVE, cycles=1)
+    ops = [50.0, 50.0, 50.0, 1e308, 50.0, 50.0, 50.0]
+    got = drive(tm, ops)
+    assert got[6][2] == 62.5
+    assert np.isfinite(tm.x).all()
+
+
+@pytest.mark.parametrize("kind", [KNOCKER, CR, TWO_MOVE])
+@pytest.mark.parametrize("enable", [NAN, INF])
+def test_non_finite_enable_is_a_bypass(make: Make, kind: str, enable: float) -> None:
+    """A NaN or infinite enable is not a switch: bypass, op_out = op_in."""
+    comp = make(kind)
+    ops = [50.0, 53.0, 49.0, 55.0, 45.0, 60.0]
+    got = [comp.step(0.2, op_in=op, enable=enable,
+                     **error_inputs(kind, 0.0, cycling_pv(k)))["op_out"].value
+           for k, op in enumerate(ops)]
+    assert got == ops
+
+
+@pytest.mark.parametrize("kind", [KNOCKER, CR, TWO_MOVE])
+def test_op_out_before_the_first_scan_passes_op_in_through(kind: str) -> None:
+    """Issue 11 point 8: before the first scan op_out is op_in passed through (a compensator
+    with no correction yet, at steady state), correction 0: 0 % for the input's default, the
+    given op_in when the initial outputs are taken from it, 0 for a non-finite one."""
+    comp = create_block(kind)
+    assert comp.outputs()["op_out"] == (0.0, GOOD)
+    assert comp.outputs()["correction"] == (0.0, GOOD)
+    comp.set_inputs({"op_in": 42.0})
+    assert comp.initial_outputs()[:2] == [42.0, 0.0]
+    comp.set_inputs({"op_in": NAN})
+    assert comp.initial_outputs()[:2] == [0.0, 0.0]
 
 
 def test_replay_cli_runs_the_knocker_docstring_example(tmp_path: Path) -> None:

@@ -24,7 +24,25 @@ if TYPE_CHECKING:
 
 
 def create_block(kind: str, **params: Any) -> Block:
-    """Make a block of ``kind`` (see ``loopworks blocks``) with validated parameters."""
+    """Make a block of ``kind`` with validated parameters (names in any letter case).
+
+    The kinds (``loopworks blocks KIND`` describes each: parameters, inputs, outputs):
+
+    * controllers: ``pid`` (generic), ``deltav.pid``, ``e2.pid``, ``s5.pid``, ``ge.pid_ind``,
+      ``ge.pid_isa``
+    * compensators and signals: ``deltav.stick_slip``, ``deltav.sggn``, ``deltav.calc``,
+      ``compensator.constant_reinforcement``, ``compensator.knocker``,
+      ``compensator.two_move``
+    * tuning: ``relay``
+    * processes: ``process.first_order``, ``process.fopdt``, ``process.sopdt``,
+      ``process.ipdt``, ``process.tf``
+    * valves: ``valve.choudhury``, ``valve.kano``, ``valve.he``, ``valve.karnopp``,
+      ``valve.backlash``, ``valve.quantiser``, ``valve.resolution``
+    * sensors and disturbances: ``sensor.transmitter``, ``disturbance.load``
+
+    >>> create_block("process.fopdt", gain=2.0, time_constant=10.0, dead_time=1.0).kind
+    'process.fopdt'
+    """
     from loopworks.blocks.registry import create_block as _create
 
     return _create(kind, **params)
@@ -42,6 +60,11 @@ def block_class(kind: str) -> type[Block]:
     from loopworks.blocks.registry import block_class as _bc
 
     return _bc(kind)
+
+
+def __dir__() -> list[str]:
+    """The module's names, with the lazily imported ``Module`` and ``Signal``."""
+    return sorted({*globals(), *__all__})
 
 
 def __getattr__(name: str) -> Any:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -21,7 +22,25 @@ app = typer.Typer(
     add_completion=False,
     no_args_is_help=True,
     pretty_exceptions_enable=False,
+    rich_markup_mode=None,  # help texts are plain: "[compare]" is a TOML table, not markup
 )
+
+
+def _version(value: bool) -> None:
+    if value:
+        from loopworks import __version__
+
+        typer.echo(f"loopworks {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: Annotated[bool, typer.Option(
+        "--version", callback=_version, is_eager=True, help="print the version and exit")
+    ] = False,
+) -> None:
+    """Industrial PID control loops: vendor blocks, simulation and historian replay."""
 
 
 def _fail(message: str) -> None:
@@ -59,6 +78,7 @@ def simulate(
 ) -> None:
     """Run a scenario (each [compare] variant), print the metrics, write a report directory."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
     from rich.table import Table
 
@@ -66,14 +86,17 @@ def simulate(
     from loopworks.sim.result import SimResult
     from loopworks.sim.scenario import load_scenario
 
+    _check_report_directory(output)
     sc = load_scenario(scenario)
+    for warning in sc.warnings:
+        typer.echo(f"warning: {warning}", err=True)
     console = Console()
     title = sc.title or sc.source
     if sc.autotune is not None:
         at = sc.autotune
         console.print(f"[autotune] relay test on {at['loop']} ({at['variant']}): {at['outcome']}, "
-                      f"process gain {at['process_gain']:.4g} %PV/%OUT, Ku {at['ku']:.4g}, "
-                      f"Pu {at['pu']:.4g} s", markup=False)
+                      f"process gain {_g(at['process_gain'])} %PV/%OUT, Ku {_g(at.get('ku'))}, "
+                      f"Pu {_g(at.get('pu'))} s", markup=False)
     results: dict[str, SimResult] = {}
     with Progress("[progress.description]{task.description}", BarColumn(),
                   MofNCompleteColumn(), TimeRemainingColumn(), console=console,
@@ -92,10 +115,10 @@ def simulate(
             metrics[key] = result.metrics(loop, window=sc.metrics_window)
     scored = ("" if sc.metrics_window is None
               else f", scored over {sc.metrics_window[0]:g}..{sc.metrics_window[1]:g} s")
-    table = Table(title=f"{title}: {sc.duration:g} s in scans of {sc.dt:g} s{scored}")
+    table = Table(title=escape(f"{title}: {sc.duration:g} s in scans of {sc.dt:g} s{scored}"))
     table.add_column("metric")
     for key in metrics:
-        table.add_column(key, justify="right")
+        table.add_column(escape(key), justify="right")
     for name in next(iter(metrics.values()), {}):
         table.add_row(name, *("n/a" if math.isnan(m.get(name, math.nan))
                               else f"{m[name]:.4g}" for m in metrics.values()))
@@ -103,10 +126,38 @@ def simulate(
         console.print(table)
     else:
         console.print(f"{title}: no controller to score (a block with sp and pv inputs and an "
-                      "out output)")
-    write_report(output, title, sc.text, results, metrics, sc.autotune)
+                      "out output)", markup=False)
+    try:
+        write_report(output, title, sc.text, results, metrics, sc.autotune, sc.metrics_window)
+    except OSError as exc:
+        _fail(f"{exc.filename or output}: cannot write the report: {exc.strerror}")
     console.print(f"wrote {output}/report.html, metrics.json, scenario.toml and "
-                  f"{len(results)} trend plot(s)")
+                  f"{len(results)} trend plot(s)", markup=False)
+
+
+def _g(value: Any) -> str:
+    """A figure for a summary line; n/a when there is none."""
+    return "n/a" if not isinstance(value, float | int) or not math.isfinite(value) \
+        else f"{value:.4g}"
+
+
+def _check_report_directory(output: Path) -> None:
+    """Before a run: ``output`` is an existing directory, or one that can be created (its
+    nearest existing ancestor is a writable directory)."""
+    if output.exists():
+        if not output.is_dir():
+            _fail(f"-o {output}: exists and is not a directory: the report is a directory "
+                  "(report.html, metrics.json, plots); choose another name")
+        if not os.access(output, os.W_OK | os.X_OK):
+            _fail(f"-o {output}: the directory is not writable")
+        return
+    parent = output.absolute().parent
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        _fail(f"-o {output}: cannot create the report directory: {parent} is a file")
+    if not os.access(parent, os.W_OK | os.X_OK):
+        _fail(f"-o {output}: cannot create the report directory: {parent} is not writable")
 
 
 @app.command()
@@ -118,6 +169,7 @@ def blocks(
 ) -> None:
     """List the block kinds, or describe one: parameters, inputs and outputs."""
     from rich.console import Console
+    from rich.markup import escape
     from rich.table import Table
 
     from loopworks.blocks import reference
@@ -129,14 +181,14 @@ def blocks(
         table.add_column("kind")
         table.add_column("what it is")
         for k in kinds():
-            table.add_row(k, block_class(k).describe())
+            table.add_row(k, escape(block_class(k).describe()))
         console.print(table)
         return
     cls = block_class(kind)
     if markdown:
         typer.echo(reference.markdown(cls), nl=False)
         return
-    console.print(f"[bold]{cls.kind}[/bold]: {cls.describe()}")
+    console.print(f"[bold]{cls.kind}[/bold]: {escape(cls.describe())}")
     sections: list[tuple[str, tuple[str, ...], list[Any]]] = [
         ("parameters", ("name", "unit", "default", "range", "meaning"),
          list(reference.parameter_rows(cls))),
@@ -148,7 +200,7 @@ def blocks(
         for col in header:
             table.add_column(col, overflow="fold")
         for row in rows:
-            table.add_row(*row)
+            table.add_row(*(escape(cell) for cell in row))
         console.print(table)
 
 
@@ -254,18 +306,20 @@ def tune(
 ) -> None:
     """Relay-test a loop of a scenario; print the identified model and the settings in the
     loop controller's own parameters. A scenario with an [autotune] table tests its loop (the
-    default --loop) with that table's settings; the options given here override them."""
+    default --loop) with that table's settings; the options given here override them. Without
+    --loop or [autotune], the scenario's only controller is tested. A test whose record
+    supports no identification is refused (one error line; with --json also an object whose
+    `refusal` says why)."""
     import json
 
-    from loopworks.errors import InputError
     from loopworks.sim.scenario import load_scenario
-    from loopworks.sim.tune import tune_loop
+    from loopworks.sim.tune import RelayTestRefused, default_loop, tune_loop
 
     sc = load_scenario(scenario)
     test = sc.autotune_test
-    if not loop and test is None:
-        raise InputError("--loop is required: the name of the controller block to tune")
     module = sc.module
+    if not loop and test is None:
+        loop = default_loop(module)
     relay: dict[str, Any] = {}
     if test is not None and loop.lower() in ("", test.loop):  # the scenario's own test
         loop, module, relay = test.loop, test.build(), dict(test.relay)
@@ -273,8 +327,13 @@ def tune(
              "bias_ratio": bias_ratio, "offset": offset}
     relay.update({k: v for k, v in given.items() if v is not None})
     options = {k: float(v) for k, v in _pairs(option, "--option").items()}
-    report = tune_loop(module, loop, sc.dt, rule=rule, controller=controller.upper(),
-                       options=options, biased=not symmetric, **relay)
+    try:
+        report = tune_loop(module, loop, sc.dt, rule=rule, controller=controller.upper(),
+                           options=options, biased=not symmetric, **relay)
+    except RelayTestRefused as exc:
+        if as_json:
+            typer.echo(json.dumps(_json_safe(exc.run.refusal_record()), indent=2))
+        raise
     data = report.as_dict()
     if as_json:
         typer.echo(json.dumps(_json_safe(data), indent=2))
@@ -286,13 +345,16 @@ def tune(
     ident = Table(title=f"relay test on {loop} ({data['kind']}): {data['outcome']}")
     ident.add_column("quantity")
     ident.add_column("value", justify="right")
+    ident.add_column("±", justify="right")
     for key in ("relay_amplitude", "relay_amplitude_down", "relay_shift", "hysteresis",
                 "amplitude", "period",
                 "ku", "ku_describing_function", "ku_hysteresis_corrected", "pu",
                 "process_type", "process_gain", "integrating_gain", "dead_time",
                 "time_constant"):
         if data[key] is not None:
-            ident.add_row(key, _fmt_value(data[key]))
+            spread = data["uncertainty"].get(key)
+            ident.add_row(key, _fmt_value(data[key]),
+                          "" if spread is None else f"{spread:.2g}")
     console.print(ident)
     settings = Table(title=f"{data['rule']} {data['controller']} in {data['kind']} parameters")
     settings.add_column("parameter")
@@ -301,8 +363,9 @@ def tune(
         settings.add_row(key, _fmt_value(value))
     console.print(settings)
     if data["note"]:
-        console.print(data["note"])
-
+        console.print(data["note"], markup=False)
+    for warning in data["warnings"]:
+        console.print(f"warning: {warning}", markup=False)
 
 @app.command()
 @_user_errors
@@ -346,6 +409,9 @@ def read_params_file(path: Path, kind: str) -> dict[str, Any]:
         raise FileFormatError(f"{path}: cannot read the parameters: {exc.strerror}") from None
     except tomllib.TOMLDecodeError as exc:
         raise FileFormatError(f"{path}: invalid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"{path}: not UTF-8 text (byte {exc.start}): a parameters file "
+                              "is a TOML file") from None
     given_kind = table.pop("kind", None)
     if given_kind is not None and str(given_kind).lower() != kind:
         raise FileFormatError(f"{path}: kind = {given_kind!r} does not match the block kind "

@@ -12,16 +12,24 @@ and with the interpreted kernel.
 
 from __future__ import annotations
 
+import csv
+import io
 import math
 import random
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
+from typer.testing import CliRunner
 
 import loopworks
 from loopworks.blocks.block import Block
+from loopworks.cli import app
 from loopworks.errors import InputError, ParameterError
+from tests.csvfiles import write_csv
+from tests.properties.test_controller_properties import raw_step
 
 NAN = math.nan
 INF = math.inf
@@ -781,6 +789,124 @@ def test_good_cascade_input_is_good(make: Make) -> None:
 
 
 # ----------------------------------------------------------------------------------------------
+# Non-finite and overflowing values (issue 11 point 1): Bad input, the kernel sound by itself
+# ----------------------------------------------------------------------------------------------
+def kernel_scan(block: Block, dt: float, **inputs: Any) -> tuple[float, int]:
+    """One scan of the pid kernel itself, without the numeric guard's fallback (a non-finite
+    value is shown as Bad, as the guard shows it); asserts the scan is sound by itself."""
+    raw_step(block, dt, inputs)
+    assert np.isfinite(block.x).all(), block.state()
+    assert np.isfinite(block.y).all()  # no output of the pid is ever non-finite
+    return float(block.y[0]), int(block.ys[0])
+
+
+def test_issue_pv_1e308_then_minus_1e308_holds_instead_of_nan(make: Make) -> None:
+    """Issue 11 point 1: a PV of 1e308 then -1e308 wrote out = nan with status 128. Both are
+    beyond ±1e12 (INPUT_LIMIT): Bad input, the output holds (0x47); the next good PV
+    continues bumplessly: held + ki·dt·e = 20.2 + 0.2·0.1·5."""
+    blk = make(k=2.0, ti=10.0, td=1.0)
+    assert out(blk, 0.1, sp=50.0, pv=40.0) == approx(20.2)
+    for pv in (1e308, -1e308):
+        assert tuple(blk.step(0.1, pv=pv)["out"]) == (approx(20.2), UNC_LUV_CONST)
+    assert tuple(blk.step(0.1, pv=45.0)["out"]) == (approx(20.3), GOOD)
+    raw = loopworks.create_block("pid", jit=False, k=2.0, ti=10.0, td=1.0)
+    assert kernel_scan(raw, 0.1, sp=50.0, pv=40.0) == (approx(20.2), GOOD)
+    for pv in (1e308, -1e308, NAN):
+        assert kernel_scan(raw, 0.1, pv=pv) == (approx(20.2), UNC_LUV_CONST)
+
+
+@pytest.mark.parametrize("algorithm", ["positional", "velocity"])
+@pytest.mark.parametrize("burst", [[NAN, 1e308], [1e308], [-1e308, INF, 3.5e38], [NAN, -INF]])
+def test_issue_after_a_bad_burst_pv_above_sp_brings_the_output_down(
+        make: Make, algorithm: str, burst: list[float]) -> None:
+    """Issue 11 point 1: one NaN PV then 1e308 left the integral at +inf (the re-initialised
+    I = u_prev - P - D - ff - bias absorbed P = -1e308) and the output at the high limit for
+    good. Now the burst holds the output at 50 and the first good PV = 60 re-initialises from
+    it: with K 1, Ti 10 (ki 0.1), e = -10: out = 50 - 1·k for k = 1, 2, ... down to out_lo."""
+    blk = make(k=1.0, ti=10.0, bias=50.0, algorithm=algorithm)
+    assert out(blk, 1.0, sp=50.0, pv=50.0) == approx(50.0)
+    for pv in burst:
+        assert tuple(blk.step(1.0, pv=pv)["out"]) == (approx(50.0), UNC_LUV_CONST)
+    got = [out(blk, 1.0, pv=60.0) for _ in range(120)]  # two minutes of PV above SP
+    assert got[:3] == [approx(49.0), approx(48.0), approx(47.0)]
+    assert got[49] == approx(0.0) and got[-1] == approx(0.0)
+    assert all(math.isfinite(v) for v in blk.x)
+
+
+@pytest.mark.parametrize("port", ["pv", "sp", "ff"])
+@pytest.mark.parametrize("value", [1e308, -1e308, 3.5e38, 1.0000001e12, -2e12])
+def test_values_beyond_the_input_limit_are_bad_input(make: Make, port: str,
+                                                     value: float) -> None:
+    """Beyond ±1e12 (INPUT_LIMIT) a pv, sp or ff is not a measurement: hold, 0x47."""
+    blk = make(k=2.0, ti=10.0)
+    assert out(blk, 0.1, sp=50.0, pv=40.0, ff=0.0) == approx(20.2)
+    assert tuple(blk.step(0.1, **{port: value})["out"]) == (approx(20.2), UNC_LUV_CONST)
+
+
+def test_a_value_at_the_input_limit_is_used(make: Make) -> None:
+    """1e12 itself is a measurement: P = 2·(0 - 1e12) puts the output at out_lo (129)."""
+    blk = make(k=2.0, ti=10.0)
+    assert tuple(blk.step(0.1, sp=0.0, pv=1e12)["out"]) == (approx(0.0), GOOD_LOW)
+
+
+def test_cas_sp_beyond_the_limit_is_bad_input(make: Make) -> None:
+    blk = make(k=2.0, ti=10.0)
+    assert out(blk, 0.1, mode="CAS", cas_sp=50.0, pv=40.0) == approx(20.2)
+    assert tuple(blk.step(0.1, cas_sp=-1e308)["out"]) == (approx(20.2), UNC_LUV_CONST)
+
+
+@pytest.mark.parametrize("algorithm", ["positional", "velocity"])
+def test_overflowing_arithmetic_is_bad_input_and_leaves_the_state(make: Make,
+                                                                   algorithm: str) -> None:
+    """K = 1e307: P = 1e307·(50 - -1000) overflows to inf. The scan is Bad input: the output
+    holds at its start (bias 0 -> 0), 0x47, and the state stays finite. A PV that keeps P
+    finite (e = 1e-10: P = 1e297) is computed again, re-initialised bumplessly from 0 (129);
+    then e = 2e-10 raises P by 1e297: out_hi (130)."""
+    blk = make(k=1e307, algorithm=algorithm)
+    assert tuple(blk.step(0.1, sp=50.0, pv=-1000.0)["out"]) == (0.0, UNC_LUV_CONST)
+    assert all(math.isfinite(v) for v in blk.x)
+    assert tuple(blk.step(0.1, pv=50.0 - 1e-10)["out"]) == (0.0, GOOD_LOW)
+    assert tuple(blk.step(0.1, pv=50.0 - 2e-10)["out"]) == (100.0, GOOD_HIGH)
+    raw = loopworks.create_block("pid", jit=False, k=1e307, algorithm=algorithm)
+    assert kernel_scan(raw, 0.1, sp=50.0, pv=-1000.0) == (0.0, UNC_LUV_CONST)
+
+
+@pytest.mark.parametrize("value", [NAN, INF, -INF])
+def test_non_finite_man_out_or_track_value_holds(make: Make, value: float) -> None:
+    """MAN: a non-finite man_out is no write (hold, 131); tracking: a non-finite
+    track_value holds (0x47). A huge finite man_out is limited (out_hi, 131)."""
+    blk = make(k=2.0, ti=10.0)
+    assert out(blk, 0.1, mode="MAN", man_out=30.0) == approx(30.0)
+    assert tuple(blk.step(0.1, man_out=value)["out"]) == (approx(30.0), GOOD_CONST)
+    assert tuple(blk.step(0.1, man_out=1e308)["out"]) == (approx(100.0), GOOD_CONST)
+    assert tuple(blk.step(0.1, track=1.0, track_value=value)["out"]) == (
+        approx(100.0), UNC_LUV_CONST)
+
+
+@pytest.mark.parametrize("track", [NAN, INF])
+def test_a_non_finite_track_switch_does_not_track(make: Make, track: float) -> None:
+    """A NaN or infinite track is not a switch: no tracking, the controller computes."""
+    blk = make(k=2.0, ti=10.0)
+    assert tuple(blk.step(0.1, sp=50.0, pv=40.0, track=track, track_value=70.0)["out"]) == (
+        approx(20.2), GOOD)
+
+
+def test_issue_pid_replay_of_1e308_writes_no_nan(tmp_path: Path) -> None:
+    """Issue 11 point 1 as reported: `loopworks replay pid` with PV 1e308 then -1e308 wrote
+    out = nan with status 128; now the output holds, Uncertain (71), never NaN."""
+    path = write_csv(tmp_path / "pv.csv", ["t", "sp", "pv"],
+                     [[0, 50, 40], [1, 50, 1e308], [2, 50, -1e308], [3, 50, 45]])
+    result = CliRunner().invoke(app, ["replay", "pid", str(path), "-p", "k=2", "-p", "ti=10"])
+    assert result.exit_code == 0, result.output
+    rows = list(csv.reader(io.StringIO(result.stdout)))
+    col, st_col = rows[0].index("out"), rows[0].index("out.ST")
+    # scan 0: P 20, I 2·1/10·10 = 2; then held; then 22 + 0.2·1·5 = 23
+    assert [float(r[col]) for r in rows[1:]] == [approx(22.0), approx(22.0), approx(22.0),
+                                                 approx(23.0)]
+    assert [int(r[st_col]) for r in rows[1:]] == [GOOD, UNC_LUV_CONST, UNC_LUV_CONST, GOOD]
+
+
+# ----------------------------------------------------------------------------------------------
 # Parameter and input validation
 # ----------------------------------------------------------------------------------------------
 @pytest.mark.parametrize(("params", "name", "value"), [
@@ -805,6 +931,11 @@ def test_good_cascade_input_is_good(make: Make) -> None:
     ({"bad_pv": "zero"}, "bad_pv", "'zero'"),
     ({"safe_out": 200.0}, "safe_out", "200"),
     ({"k": "fast"}, "k", "'fast'"),
+    # derived gains that are not finite numbers (k/ti, the series K'(1 + Td'/Ti'), k·td, 1/tt)
+    ({"ti": 5e-324}, "ti", "4.94066e-324"),
+    ({"form": "series", "k": 0.8, "ti": 5e-324, "td": 2.0}, "ti", "4.94066e-324"),
+    ({"k": 1e300, "td": 1e300}, "td", "1e+300"),
+    ({"ti": 1.0, "antiwindup": "back_calculation", "tt": 5e-324}, "tt", "4.94066e-324"),
 ])
 def test_bad_parameter_values(params: dict[str, Any], name: str, value: str) -> None:
     """Each raises ParameterError whose message names the parameter and the value."""

@@ -28,6 +28,7 @@ from loopworks.cli import app
 from loopworks.errors import ParameterError
 from loopworks.plant.sensor import STREAM_DISTURBANCE, rng_normal, rng_seed_state
 from tests.csvfiles import write_csv
+from tests.plant.numeric import EXTREMES, kernel_scan, unsound
 
 GOOD = 0x80
 OOS = 0x1C
@@ -55,8 +56,23 @@ def test_defaults_pass_u_and_its_status_through(make: Make) -> None:
     r = load.step(1.0, u=(42.0, OOS))
     assert r["y"] == (42.0, OOS)        # the status of u, unchanged
     assert r["d"] == (0.0, GOOD)
-    assert load.step(1.0, u=math.nan)["y"].status == GOOD
-    assert math.isnan(load.outputs()["y"].value)
+
+
+def test_non_finite_u_passes_on_as_bad(make: Make) -> None:
+    """Issue 11 point 1: the pass-through stays (seed 000 line 28), but a non-finite u is Bad
+    input first: NaN or inf with a Good status gives y with status Bad non-specific (it used
+    to keep Good); a Bad status that arrives is kept with its substatus. A sum that overflows
+    is Bad too. d stays Good."""
+    load = make(bias=1.0)
+    for value in (math.nan, math.inf, -math.inf):
+        r = load.step(1.0, u=value)
+        assert not math.isfinite(r["y"].value) and r["y"].status == 0x00
+        assert r["d"] == (1.0, GOOD)
+    assert load.step(1.0, u=(math.nan, OOS))["y"].status == OOS
+    big = make(bias=1e308)
+    r = big.step(1.0, u=1e308)
+    assert r["y"].value == math.inf and r["y"].status == 0x00 and r["d"] == (1e308, GOOD)
+    assert big.step(1.0, u=-1e308)["y"] == (0.0, GOOD)
 
 
 def test_unwired_u_makes_y_the_disturbance(make: Make) -> None:
@@ -246,7 +262,7 @@ def test_replay_cli_runs_the_docstring_example(tmp_path: Path) -> None:
                                       "-p", "sine_period=4"])
     assert result.exit_code == 0, result.output
     rows = list(csv.reader(io.StringIO(result.stdout)))
-    assert rows[0] == ["t", "y", "d", "y.ST"]
+    assert rows[0] == ["t", "y", "d", "y.ST", "d.ST"]
     # sin 0, sin 90°, 5 + sin 180°, 5 + sin 270°
     assert [float(r[1]) for r in rows[1:]] == pytest.approx([10.0, 11.0, 15.0, 14.0], abs=1e-12)
     assert [float(r[2]) for r in rows[1:]] == pytest.approx([0.0, 1.0, 5.0, 4.0], abs=1e-12)
@@ -257,3 +273,45 @@ def test_docstring_python_example() -> None:
     for _ in range(12):
         r = load.step(1.0, u=40.0)
     assert r["y"].value == pytest.approx(40.0 + 2.0 + 11.0 / 12.0, abs=1e-12)
+
+
+# -- issue 11: numeric contract and start value ----------------------------------------------------
+
+
+def test_d_beyond_the_float_range_is_nan_bad_and_recovers(make: Make) -> None:
+    """A clock near the float range makes ramp_rate·t overflow: d is NaN with status Bad (d
+    carries a status since issue 11, so a NaN d cannot pass as a value) and y is Bad with it;
+    with the time back in range both are Good again."""
+    load = make(ramp_rate=1e10)
+    r = load.step(1.0, u=5.0, clock=1e300)
+    assert math.isnan(r["d"].value) and r["d"].status == 0x00
+    assert math.isnan(r["y"].value) and r["y"].status == 0x00
+    r = load.step(1.0, u=5.0, clock=2.0)
+    assert r["d"] == (2e10, GOOD) and r["y"] == (5.0 + 2e10, GOOD)
+
+
+def test_bare_kernel_is_sound_on_extreme_inputs() -> None:
+    """The kernel by itself (no guard) never gives a non-finite output with a status that is
+    not Bad, nor a non-finite state, for NaN, ±inf, ±1e308 in u and the clock."""
+    load = create_block(KIND, jit=False, ramp_rate=3.0, sine_amplitude=2.0, walk_std=1.0,
+                        seed=3)
+    for u in EXTREMES:
+        for clock in (math.nan, 1e308, -1e308, 5.0):
+            kernel_scan(load, 0.5, u=u, clock=clock)
+            assert unsound(load) == []
+
+
+def test_start_value_is_u_plus_d_at_t_0() -> None:
+    """Issue 11 point 8: before its first scan the block publishes y = u + d(0) and d(0) for
+    the u latched now (the bias, a step at t = 0, the sine's phase; the walk is 0), so a
+    block that reads y earlier in a module's order sees the signal, not 0; publish_start()
+    (what a module that settles its wires calls) re-publishes it for a newly latched u."""
+    load = create_block(KIND, bias=2.0, step_size=1.0, sine_amplitude=4.0, sine_phase=30.0,
+                        walk_std=1.0)
+    d0 = 2.0 + 1.0 + 4.0 * 0.5
+    assert load.outputs()["d"] == (pytest.approx(d0), GOOD)
+    assert load.outputs()["y"] == (pytest.approx(d0), GOOD)
+    load.set_inputs({"u": (40.0, 0x40)})
+    load.publish_start()  # type: ignore[attr-defined]
+    assert load.outputs()["y"] == (pytest.approx(40.0 + d0), 0x40)
+    assert load.step(1.0)["y"].value == pytest.approx(40.0 + d0)  # scan 1 at t = 0

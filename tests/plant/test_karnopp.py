@@ -24,6 +24,7 @@ from loopworks.cli import app
 from loopworks.errors import ParameterError
 from loopworks.plant import karnopp
 from tests.csvfiles import write_csv
+from tests.plant.numeric import EXTREMES, kernel_scan, unsound
 
 NAN = math.nan
 Make = Callable[..., Block]
@@ -424,3 +425,51 @@ def test_options_are_listed_in_the_docstring() -> None:
     options = doc.split("Options for the spec's [I] points")[1]
     for name in ("sj_mapping", "dv", "substep", "max_substeps", "bad_op"):
         assert f"``{name}``" in options
+
+
+# -- issue 11: numeric contract and start value ---------------------------------------------------
+
+
+def test_start_value_is_the_equilibrium_with_the_latched_op() -> None:
+    """Issue 11 point 8: without y0 the position published before the first scan is where
+    the first op will set the stem (at rest, frictionless equilibrium, module docstring): op
+    0 % gives Sa·p_min - F_init < 0, the bottom stop; a latched op of 50 % re-published (what a
+    module that settles its wires calls) gives the force balance (Sa·P - F_init)/k, 38.9 %."""
+    v = loopworks.create_block("valve.karnopp")
+    assert v.outputs()["position"] == (0.0, 128)
+    assert all(math.isfinite(x) for x in v.x)
+    v.set_inputs({"op": 50.0})
+    v.publish_start()  # type: ignore[attr-defined]
+    assert v.outputs()["position"] == (pytest.approx(pos_eq(50.0), abs=1e-12), 128)
+    assert pos_eq(50.0) == pytest.approx(38.915, abs=1e-3)
+
+
+def test_position_at_a_travel_stop_stays_within_0_100(make: Make) -> None:
+    """Issue 11 (property: limited outputs stay within limits): a stem on its top stop is at
+    100 % exactly, not 100.00000000000003 (x_min + travel·y0/100 rounded back)."""
+    v = make(substep=0.01, m=1.0, sa=1.0, y0=100.0)
+    for op in (3.96, 71.3, 100.0, 0.0):
+        r = v.step(0.5, op=op)
+        assert 0.0 <= r["position"].value <= 100.0
+
+
+def test_area_too_small_for_the_y0_pressure_is_refused() -> None:
+    """Sa = 5e-324 m² is inside its range (> 0), but the pressure that holds the stem at y0,
+    (k·x + F_init)/Sa, is not finite: refused, naming sa (it used to start with P = inf)."""
+    with pytest.raises(ParameterError, match=r"parameter 'sa' = 4.94066e-324 m² is too small"):
+        loopworks.create_block("valve.karnopp", sa=5e-324, y0=50.0)
+
+
+def test_extreme_ops_leave_no_non_finite_value(make: Make) -> None:
+    """Issue 11 point 1: NaN, ±inf, ±1e308, ±3.5e38 into op: a finite op is clipped to
+    0..100 % and used, a non-finite one is Bad input (hold); positions stay in 0..100 %, every
+    state finite, also for the bare kernel without the guard."""
+    v = make(tau_ip=0.05)
+    bare = loopworks.create_block("valve.karnopp", jit=False, tau_ip=0.05)
+    for op in (50.0, *EXTREMES, 50.0):
+        r = v.step(0.1, op=op)
+        kernel_scan(bare, 0.1, op=op)
+        assert unsound(bare) == []
+        assert 0.0 <= r["position"].value <= 100.0
+        assert (r["position"].status == 0) == (not math.isfinite(op))
+        assert all(math.isfinite(x) for x in v.x)

@@ -31,6 +31,7 @@ from loopworks.cli import app
 from loopworks.errors import InputError, ParameterError
 from loopworks.sim.module import Module
 from tests.csvfiles import write_csv
+from tests.plant.numeric import kernel_scan, unsound
 
 NAN = math.nan
 INF = math.inf
@@ -808,3 +809,75 @@ def test_relay_limit_cycle_matches_spec_3_2(kind: str, params: dict[str, Any], e
     assert amp == pytest.approx(a, abs=1e-4)
     assert per == pytest.approx(period, abs=0.005)
     assert lag == pytest.approx(2.0, abs=0.002)
+
+
+# ---------------------------------------------------------------------------------------------
+# Issue 11 point 1: values the float arithmetic cannot carry
+
+
+@pytest.mark.parametrize("kind", ["process.fopdt", "process.sopdt", "process.ipdt",
+                                  "process.tf"])
+@pytest.mark.parametrize("huge", [1e308, -1e308, 3.5e38 * 1e120])
+def test_input_beyond_the_model_range_is_bad_and_leaves_no_trace(
+        make: Make, kind: str, huge: float) -> None:
+    """A Good-status u whose contribution K·(u - u0) exceeds MODEL_RANGE = 1e150 (module
+    docstring, Bad input) is Bad input: y Bad, the plant runs on the last good input, and
+    once the inputs are good again the output is exactly the undisturbed run's. Before, 1e308
+    entered the delay line and overflowed the plant θ later (ipdt then stayed Bad for good)."""
+    extra = {"sample_time": 0.1} if kind == "process.tf" else {}
+    a = make(kind, dead_time=0.3, **extra)
+    b = make(kind, dead_time=0.3, **extra)
+    for k in range(60):
+        u_b = 40.0 + k
+        u_a: Any = (huge, GOOD) if 10 <= k < 13 else u_b
+        if 10 <= k < 13:
+            u_b = 49.0  # the last good input, which the plant holds
+        ya, yb = a.step(0.1, u=u_a)["y"], b.step(0.1, u=u_b)["y"]
+        assert ya.value == yb.value
+        assert ya.status == (BAD_NS if 10 <= k < 13 else GOOD)
+        assert all(math.isfinite(v) for v in a.x)
+
+
+def test_input_at_the_model_range_is_used(make: Make) -> None:
+    """The boundary: |K·(u - u0)| = 1e150 is used (a pure gain passes it), beyond is Bad."""
+    p = make("process.fopdt", time_constant=0.0, dead_time=0.0, gain=2.0, u0=1.0)
+    assert p.step(0.1, u=1.0 + 0.5e150)["y"] == (pytest.approx(1e150, rel=1e-15), GOOD)
+    assert p.step(0.1, u=1.0 + 0.6e150)["y"].status == BAD_NS
+
+
+def test_first_order_refuses_an_input_beyond_the_model_range(make: Make) -> None:
+    """process.first_order: |K·u| > 1e150 is Bad input and freezes the state (module
+    docstring); 1e308 used to be taken as a Good input (y jumped to ~1e307, status Good)."""
+    p = make("process.first_order", gain=2.0, time_constant=5.0)
+    p.step(1.0, u=10.0)
+    before = p.outputs()["y"].value
+    assert p.step(1.0, u=1e308)["y"] == (before, BAD_NS)
+    assert p.step(1.0, u=(1e200, 0x40))["y"] == (before, BAD_NS)
+    assert p.step(1.0, u=10.0)["y"].status == GOOD
+
+
+def test_an_integrator_past_the_float_range_skips_the_scan() -> None:
+    """ipdt: K·(u - u0)·dt beyond ±1.8e308 (u = 1e150, dt = 1e160 s) would make y infinite:
+    the bare kernel (no guard) skips the scan, y holds with status Bad, the state stays
+    finite; a scan that fits runs again."""
+    p = loopworks.create_block("process.ipdt", jit=False, gain=1.0, dead_time=0.0)
+    kernel_scan(p, 1e160, u=1e150)
+    assert unsound(p) == [] and (p.y[0], p.ys[0]) == (0.0, BAD_NS)
+    kernel_scan(p, 1.0, u=1e150)
+    assert (p.y[0], p.ys[0]) == (1e150, GOOD)
+
+
+def test_an_unstable_transfer_function_that_runs_away_holds_bad() -> None:
+    """G(z) = 1/(z - 2) doubles every sample: after about 1024 samples it would overflow. The
+    bare kernel (no guard) skips such scans: y holds its last finite value, status Bad; no
+    state is ever non-finite."""
+    p = loopworks.create_block("process.tf", jit=False, num="1", den="1, -2", domain="z",
+                               sample_time=1.0)
+    statuses = []
+    for _ in range(1100):
+        kernel_scan(p, 1.0, u=1.0)
+        assert unsound(p) == []
+        statuses.append(int(p.ys[0]))
+    first_bad = statuses.index(BAD_NS)
+    assert 1000 < first_bad < 1030 and set(statuses[first_bad:]) == {BAD_NS}
+    assert math.isfinite(p.y[0]) and p.y[0] > 1e307

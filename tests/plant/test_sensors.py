@@ -31,6 +31,7 @@ from loopworks.errors import ParameterError
 from loopworks.plant import sensor
 from loopworks.plant.sensor import rng_normal, rng_seed_state, rng_uniform
 from tests.csvfiles import write_csv
+from tests.plant.numeric import kernel_scan, unsound
 
 NAN = math.nan
 GOOD = 0x80
@@ -280,12 +281,25 @@ def test_bad_holds_the_last_value_with_bad_sensor_failure(make: Make) -> None:
                    (5.0, GOOD), (6.0, GOOD)]   # recovers at t = 4 s to the current reading
 
 
-def test_nan_gives_nan_with_good_status_by_default(make: Make) -> None:
+def test_nan_gives_nan_with_bad_status_by_default(make: Make) -> None:
+    """Issue 11 point 1: no output is NaN unless its status is Bad, so the injected NaN comes
+    with Bad non-specific (0x00); it used to come with Good (128)."""
     tt = make(failure="nan", failure_start=1.0)
     got = run(tt, [1.0, 2.0, 3.0])
     assert got[0] == (1.0, GOOD)
-    assert math.isnan(got[1][0]) and got[1][1] == GOOD
-    assert math.isnan(got[2][0])
+    assert math.isnan(got[1][0]) and got[1][1] == 0x00
+    assert math.isnan(got[2][0]) and got[2][1] == 0x00
+    assert all(math.isfinite(v) for v in tt.x)
+
+
+def test_nan_failure_with_a_status_that_is_not_bad_is_refused() -> None:
+    """failure = nan with failure_status Good or Uncertain would be a NaN that looks usable
+    (issue 11 point 1): a ParameterError naming failure_status."""
+    for status in (128, 0x40):
+        with pytest.raises(ParameterError, match=rf"'failure_status' = {status} is out of range "
+                                                 "for failure = 'nan'"):
+            create_block(KIND, failure="nan", failure_status=status)
+    create_block(KIND, failure="stuck", failure_status=128)  # a finite value may look Good
 
 
 def test_failure_status_overrides_the_mode_default(make: Make) -> None:
@@ -384,3 +398,59 @@ def test_docstring_python_example() -> None:
     results = [tt.step(1.0, y=50.0)["pv"] for _ in range(12)]
     assert results[11] == (results[9].value, BAD_SENSOR)
     assert results[9].status == GOOD
+
+
+# -- issue 11: numeric contract and start value ----------------------------------------------------
+
+
+@pytest.mark.parametrize("huge", [1e308, -1e308, 1e200, math.inf, -math.inf, NAN])
+def test_extreme_input_holds_like_a_bad_one_and_leaves_no_trace(make: Make, huge: float) -> None:
+    """A y the transmitter cannot measure - NaN, ±inf, or a reading gain·y + offset beyond
+    ±1e150 (module docstring) - holds the PV and the lag with status Bad, exactly as a Bad
+    status does (reference: the same scans fed with an OOS input), and afterwards the PV is
+    the reference's bit for bit; noise keeps its stream. A 1e308 used to enter the lag."""
+    a = make(time_constant=5.0, noise_std=0.5, seed=2)
+    b = make(time_constant=5.0, noise_std=0.5, seed=2)
+    for k in range(30):
+        burst = 10 <= k < 13
+        ra = a.step(1.0, y=(huge, GOOD) if burst else 20.0 + k)["pv"]
+        rb = b.step(1.0, y=(0.0, OOS) if burst else 20.0 + k)["pv"]
+        assert ra.value == rb.value
+        assert ra.status == (0x00 if burst else GOOD)
+        assert all(math.isfinite(v) for v in a.x)
+
+
+def test_noise_that_overflows_is_held_bad_by_the_kernel_itself() -> None:
+    """noise_std = 1e308 (finite, so valid): lag + noise overflows on most scans. The bare
+    kernel (no guard) holds the PV with status Bad instead of giving inf with status Good;
+    the generator still advances one draw per scan."""
+    tt = create_block(KIND, jit=False, noise_std=1e308, seed=4)
+    for _ in range(20):
+        kernel_scan(tt, 1.0, y=1.0)
+        assert unsound(tt) == []
+    draws = np.array(rng_seed_state(4, sensor.STREAM_SENSOR))
+    for _ in range(20):
+        rng_normal(draws, 0)
+    assert list(tt.x[sensor.S_RNG:]) == list(draws)
+
+
+def test_start_value_is_the_settled_pv_of_the_latched_y() -> None:
+    """Issue 11 point 8: before its first scan the transmitter publishes the PV of its settled
+    start for the y latched now: gain·y + offset, quantised, limited, no noise. By default
+    y = 0 gives the offset; publish_start() (what a module that settles its wires calls)
+    re-publishes it for a newly latched y."""
+    tt = create_block(KIND, gain=2.0, offset=2.0, quantum=0.5, pv_hi=10.0, noise_std=1.0)
+    assert tt.outputs()["pv"] == (2.0, GOOD)
+    tt.set_inputs({"y": 3.3})
+    tt.publish_start()  # type: ignore[attr-defined]
+    assert tt.outputs()["pv"] == (8.5, GOOD)         # 2·3.3 + 2 = 8.6 -> 8.5
+    tt.set_inputs({"y": 7.0})
+    tt.publish_start()  # type: ignore[attr-defined]
+    assert tt.outputs()["pv"] == (10.0, UNCERTAIN_RANGE | 2)   # 16 limited at pv_hi
+
+
+def test_bad_first_input_holds_the_start_value(make: Make) -> None:
+    """Before the first usable scan a Bad y holds the start value published before the first
+    scan (the offset for y = 0), not an arbitrary 0."""
+    tt = make(offset=5.0)
+    assert run(tt, [(3.0, OOS), 8.0]) == [(5.0, OOS), (13.0, GOOD)]

@@ -26,6 +26,7 @@ from loopworks.cli import app
 from loopworks.errors import ParameterError
 from loopworks.plant import valve
 from tests.csvfiles import write_csv
+from tests.plant.numeric import EXTREMES, kernel_scan, unsound
 
 NAN = math.nan
 INF = math.inf
@@ -520,10 +521,14 @@ def test_bad_op_holds_and_marks_the_outputs_bad(make: Make, bad: tuple[float, in
     assert run(b, [5, 5, 6, 6.5]) == run(ref, [5, 5, 6, 6.5])
 
 
-def test_bad_first_op_without_y0_gives_nan_bad(make: Make) -> None:
+def test_bad_first_op_without_y0_holds_the_start_value_bad(make: Make) -> None:
+    """Issue 11 point 1: no NaN in the state or in a Good output. Before the first good op
+    (no y0) a Bad op holds the start value published before the first scan (0 %: op 0), Bad;
+    the first good op then initialises the valve as usual (module docstring)."""
     b = make("valve.he")
     r = b.step(1.0, op=NAN)
-    assert math.isnan(r["position"].value) and r["position"].status == 0
+    assert r["position"] == (0.0, 0) and r["flow"] == (0.0, 0)
+    assert all(math.isfinite(v) for v in b.x)
     assert b.step(1.0, op=30.0)["position"] == (30.0, 128)
 
 
@@ -543,11 +548,65 @@ def test_uncertain_op_is_used_and_uncertain(make: Make) -> None:
 
 
 def test_outputs_before_the_first_scan() -> None:
-    """Before any scan the outputs show y0 (Good), or NaN/Bad when the first op decides."""
+    """Issue 11 point 8: before any scan the outputs show y0 (Good), or without y0 the valve
+    at rest at the op latched now (0 % by default), Good, never a NaN placeholder."""
     b = loopworks.create_block("valve.kano", y0=40.0)
     assert b.outputs()["position"] == (40.0, 128)
     c = loopworks.create_block("valve.kano")
-    assert math.isnan(c.outputs()["position"].value) and c.outputs()["position"].status == 0
+    assert c.outputs()["position"] == (0.0, 128)
+    assert all(math.isfinite(v) for v in c.x)
+
+
+@pytest.mark.parametrize(("kind", "params", "start"), [
+    ("valve.choudhury", {}, 30.0),
+    ("valve.kano", {"s": 4.0, "j": 1.0, "start": "moving_up"}, 28.5),  # op - fd, fd = 1.5
+    ("valve.he", {"fs": 2.0, "fd": 1.0, "start": "moving_down"}, 31.0),  # op + fd
+    ("valve.backlash", {"b": 2.0, "start": "moving_up"}, 29.0),  # op - b/2
+    ("valve.resolution", {}, 30.0),
+    ("valve.quantiser", {"q": 4.0}, 32.0),  # 4·floor(30/4 + 1/2) = 4·8
+])
+def test_start_value_is_the_first_scan_for_the_latched_op(
+        kind: str, params: dict[str, Any], start: float) -> None:
+    """Issue 11 point 8: without y0 the start value published before the first scan is what
+    the first scan gives for the latched op (the valve initialised at rest there, spec 1.2
+    table; ``start`` moving: the kinetic offset, spec 1.2 note), with its flow; publish_start()
+    (what a module that settles its wires calls) re-publishes it for a newly latched op."""
+    b = loopworks.create_block(kind, characteristic="equal_percentage", **params)
+    b.set_inputs({"op": 30.0})
+    b.publish_start()  # type: ignore[attr-defined]
+    flow = 100.0 * 50.0 ** (start / 100.0 - 1.0)
+    assert b.outputs()["position"] == (pytest.approx(start), 128)
+    assert b.outputs()["flow"].value == pytest.approx(flow)
+    assert b.step(1.0, op=30.0)["position"] == (pytest.approx(start), 128)
+
+
+@pytest.mark.parametrize("kind", [*STICTION, "valve.backlash", "valve.resolution",
+                                  "valve.quantiser"])
+def test_extreme_ops_leave_no_non_finite_value(make: Make, kind: str) -> None:
+    """Issue 11 point 1: NaN, ±inf, ±1e308 and ±3.5e38 into op. A finite op is clipped to
+    0..100 % (spec 1.2 step 1) and used; a non-finite one is Bad input (bad_op = hold): the
+    position holds, Bad. Every output stays in 0..100 %, every state finite, and the bare
+    kernel (no guard) is sound by itself."""
+    b = make(kind, y0=50.0)
+    bare = loopworks.create_block(kind, jit=False, y0=50.0)
+    for op in (*EXTREMES, 50.0):
+        r = b.step(1.0, op=op)
+        kernel_scan(bare, 1.0, op=op)
+        assert unsound(bare) == []
+        for name in ("position", "flow"):
+            assert 0.0 <= r[name].value <= 100.0
+        assert (r["position"].status == 0) == (not math.isfinite(op))
+        assert all(math.isfinite(v) for v in b.x)
+    # a huge finite op is the full-open op (clipped), Good
+    assert make(kind, y0=50.0).step(1.0, op=1e308)["position"] == \
+        make(kind, y0=50.0).step(1.0, op=100.0)["position"]
+
+
+def test_quantiser_step_below_the_float_resolution(make: Make) -> None:
+    """q = 5e-324 (a valid q > 0): op/q overflows, and the quantised value is op itself (the
+    step is far below its resolution; module docstring); it used to raise OverflowError."""
+    b = make("valve.quantiser", q=5e-324)
+    assert run(b, [37.25, 60.5]) == [37.25, 60.5]
 
 
 @pytest.mark.parametrize("kind", ["valve.choudhury", "valve.kano"])

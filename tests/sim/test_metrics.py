@@ -26,7 +26,8 @@ def test_first_order_step_figures() -> None:
     t = np.arange(0.0, 200.0, dt)
     y = 1.0 - np.exp(-t / tau)
     m = metrics.step_metrics(t, y, 1.0)
-    assert m.overshoot_pct == 0.0
+    # y∞ is the mean of the last 10 s, e^(-19.5) below the last sample: "overshoot" ~1e-7 %
+    assert m.overshoot_pct == pytest.approx(0.0, abs=1e-6)
     assert m.rise_time_s == pytest.approx(tau * math.log(9.0), abs=2 * dt)
     assert m.settling_time_s == pytest.approx(tau * math.log(50.0), abs=2 * dt)
 
@@ -85,3 +86,120 @@ def test_loop_metrics_window_and_valve() -> None:
     assert m["output reversals"] == 3.0
     with pytest.raises(ValueError, match="window"):
         metrics.loop_metrics(t, sp, pv, out, window=(20.0, 30.0))
+
+
+# -- a figure the data cannot support is NaN (n/a), never a number (issue 11 point 4) ----------
+
+
+def test_stalled_response_has_no_settling_time() -> None:
+    """The issue's case: the PV stops at 63 % of the step (a stuck valve), so the error is 37 %
+    of the step at the end. It is flat, but not settled on the setpoint: no settling time, no
+    overshoot (there is no final value to measure it from), no rise time (never at 90 %)."""
+    t = np.arange(0.0, 100.0, 0.1)
+    y = 0.63 * (1.0 - np.exp(-t / 2.0))
+    m = metrics.step_metrics(t, y, 1.0)
+    assert m.step_size == 1.0
+    assert math.isnan(m.settling_time_s)
+    assert math.isnan(m.overshoot_pct)
+    assert math.isnan(m.rise_time_s)
+
+
+def test_response_still_moving_at_the_end_has_no_settling_time() -> None:
+    """y = 1 - e^(-t/10) cut at 15 s: 22 % short of the setpoint, though the last 5 % of the
+    samples lie within 2 % of each other. Rise time (10 → 90 %) is not reached either."""
+    t = np.arange(0.0, 15.0, 0.1)
+    m = metrics.step_metrics(t, 1.0 - np.exp(-t / 10.0), 1.0)
+    assert math.isnan(m.settling_time_s) and math.isnan(m.overshoot_pct)
+    assert math.isnan(m.rise_time_s)
+
+
+def test_oscillating_response_has_no_overshoot_or_settling_time() -> None:
+    """Rings ±30 % of the step around the setpoint to the end: no final value y∞, so neither
+    overshoot nor settling time; the rise time (first crossing of 10 % and 90 %) is real."""
+    t = np.arange(0.0, 200.0, 0.01)
+    y = 1.0 - np.cos(t) * np.where(t < np.pi, 1.0, 0.3)
+    m = metrics.step_metrics(t, y, 1.0)
+    assert math.isnan(m.overshoot_pct) and math.isnan(m.settling_time_s)
+    # 1 - cos t = 0.1 at t = acos(0.9), 0.9 at t = acos(0.1)
+    assert m.rise_time_s == pytest.approx(math.acos(0.1) - math.acos(0.9), abs=0.02)
+
+
+def test_settled_noisy_response_keeps_its_figures() -> None:
+    """Noise of ±0.5 % of the step (within the 2 % band) does not hide a settled first-order
+    response: settling time T·ln 50 within the noise's reach (a 2 %-band crossing moves by
+    at most T·ln(2/1.5) where the noise shifts the crossing)."""
+    tau, dt = 10.0, 0.01
+    t = np.arange(0.0, 200.0, dt)
+    y = 1.0 - np.exp(-t / tau) + 0.005 * np.sign(np.sin(7.0 * t))
+    m = metrics.step_metrics(t, y, 1.0)
+    assert tau * math.log(50.0 / 1.5) - dt <= m.settling_time_s <= tau * math.log(50.0 / 0.5)
+    assert m.overshoot_pct == pytest.approx(0.5, abs=0.05)  # the noise's peak above y∞
+
+
+def test_non_finite_samples_make_their_figures_na() -> None:
+    """A NaN PV sample (a Bad value) makes the PV figures n/a; the reversal count used to
+    skip it and report a count. A travel that overflows (1e308 moves) is n/a, not inf."""
+    t = np.arange(10.0)
+    sp = np.full(10, 1.0)
+    pv = np.array([0.0, 1, 2, np.nan, 1, 0, 1, 2, 1, 0])
+    out = np.array([0.0, 1e308, -1e308, 1e308, 0, 1, 0, 1, 0, 1])
+    m = metrics.loop_metrics(t, sp, pv, out, position=pv, window=(0.0, 9.0))
+    for name in ("IAE", "mean |e|", "PV std", "PV peak to peak", "valve travel",
+                 "valve reversals", "output travel"):
+        assert math.isnan(m[name]), name
+    assert m["output reversals"] == 8.0
+
+
+def test_one_sample_window_has_no_spread_or_travel() -> None:
+    """A window holding one scan: the integrals use the run's scan period (0.5 s), but a
+    standard deviation, peak to peak, travel or reversal count of one sample is n/a (it used
+    to read 0, a perfect loop)."""
+    t = np.arange(0.0, 5.0, 0.5)
+    sp = np.full(10, 2.0)
+    pv = np.linspace(0.0, 1.0, 10)
+    m = metrics.loop_metrics(t, sp, pv, pv, position=pv, command=pv, window=(2.0, 2.2))
+    assert m["IAE"] == pytest.approx((2.0 - pv[4]) * 0.5)
+    for name in ("PV std", "PV peak to peak", "output travel", "output reversals",
+                 "valve travel", "valve reversals", "valve-command travel",
+                 "valve-command reversals"):
+        assert math.isnan(m[name]), name
+
+
+def test_valve_command_travel_and_reversals() -> None:
+    """The valve command (what the compensator sends the positioner, spec 4.1 "report
+    both"): a ±0.5 dither on a constant 50 % travels 1 per scan and reverses every scan;
+    the stem does not move and the controller output moves once."""
+    t = np.arange(11.0)
+    sp = np.full(11, 50.0)
+    pv = np.full(11, 50.0)
+    out = np.array([50.0] * 5 + [51.0] * 6)
+    command = out + 0.5 * (-1.0) ** np.arange(11)
+    position = np.full(11, 50.0)
+    m = metrics.loop_metrics(t, sp, pv, out, position=position, command=command,
+                             window=(0.0, 10.0))
+    # command 50.5, 49.5, 50.5, 49.5, 50.5, 50.5, 51.5, 50.5, 51.5, 50.5, 51.5
+    moves = [-1.0, 1.0, -1.0, 1.0, 0.0, 1.0, -1.0, 1.0, -1.0, 1.0]
+    assert m["valve-command travel"] == pytest.approx(sum(abs(v) for v in moves))
+    assert m["valve-command reversals"] == 7.0  # sign changes of the nonzero moves
+    assert m["valve travel"] == 0.0 and m["valve reversals"] == 0.0
+    assert m["output travel"] == 1.0 and m["output reversals"] == 0.0
+
+
+def test_every_metric_has_a_unit_a_definition_and_an_na_rule() -> None:
+    """Each figure loop_metrics returns has a row in METRICS (same names, same order)."""
+    t = np.arange(20.0)
+    sp = np.where(t < 5, 0.0, 1.0)
+    m = metrics.loop_metrics(t, sp, sp, sp, position=sp, command=sp)
+    assert list(m) == [info.name for info in metrics.METRICS]
+    for info in metrics.METRICS:
+        assert info.unit and info.definition and info.not_available
+
+
+def test_docs_page_is_current() -> None:
+    """docs/metrics.md is the generated page (the report links a copy of it)."""
+    from pathlib import Path
+
+    page = Path(__file__).resolve().parents[2] / "docs" / "metrics.md"
+    assert page.read_text(encoding="utf-8") == metrics.markdown(), \
+        "stale page: python -c 'from loopworks.sim.metrics import markdown; " \
+        "print(markdown(), end=\"\")' > docs/metrics.md"

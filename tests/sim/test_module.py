@@ -195,3 +195,132 @@ def test_metrics_follow_the_wires_to_each_loops_valve() -> None:
     for n in ("a", "b"):
         expected = float(np.sum(np.abs(np.diff(r[f"valve_{n}.position"]))))
         assert r.metrics(f"pid_{n}")["valve travel"] == pytest.approx(expected)
+
+
+# -- enumerated inputs take only enumerated wires (issue 11 point 3) --------------------------
+
+
+def test_an_analog_wire_into_a_mode_input_is_refused_naming_the_wire() -> None:
+    """pid.mode = process.y once ran the pid in 'mode 37'; now the module is refused."""
+    with pytest.raises(InputError) as err:
+        Module({"pid": create_block("pid"), "process": create_block("process.first_order")},
+               wires={"process.u": "pid.out", "pid.mode": "process.y"})
+    message = str(err.value)
+    assert "wire 'pid.mode' = 'process.y'" in message
+    assert "enumerated input (MAN 0, AUTO 1, CAS 2)" in message and "analog output" in message
+
+
+def test_a_mode_wire_needs_the_same_codes() -> None:
+    """deltav.pid's mode_actual (OOS 0 .. CAS 5) into another deltav.pid's mode is a mode
+    wire; into the generic pid's mode (MAN 0, AUTO 1, CAS 2) the codes mean other modes."""
+    m = Module({"a": create_block("deltav.pid"), "b": create_block("deltav.pid")},
+               wires={"b.mode": "a.mode_actual"})
+    assert m.wires == {"b.mode": "a.mode_actual"}
+    with pytest.raises(InputError, match=r"output with other codes \(OOS 0, IMAN 1"):
+        Module({"a": create_block("deltav.pid"), "b": create_block("pid")},
+               wires={"b.mode": "a.mode_actual"})
+
+
+def test_the_relay_hands_an_s5_loop_over_through_a_mode_wire() -> None:
+    """The relay test's handover of S5 (``auto`` = relay ``inactive``, loopworks.sim.tune)
+    is a mode wire: relay.inactive carries S5's codes MAN 0 / AUTO 1."""
+    m = Module({"s5": create_block("s5.pid"), "relay": create_block("relay")},
+               wires={"s5.auto": "relay.inactive"})
+    assert m.wires["s5.auto"] == "relay.inactive"
+    with pytest.raises(InputError, match="enumerated input"):
+        Module({"s5": create_block("s5.pid"), "relay": create_block("relay")},
+               wires={"s5.auto": "relay.active"})
+
+
+# -- events, constants: checked when the module is made, and named as what they are -----------
+
+
+@pytest.mark.parametrize(("event", "message"), [
+    (Event(5.0, "pid.mode", "HIGH"), r"event at t = 5 s, set = 'pid.mode': input 'mode' = 'HIGH'"),
+    (Event(5.0, "pid.k", math.inf), r"event at t = 5 s, set = 'pid.k': pid: parameter 'k' = inf"),
+    (Event(5.0, "pid.out_lo", 1e10), r"set = 'pid.out_lo': .*out_hi"),
+    (Event(5.0, "pidx.sp", 1.0), r"set = 'pidx.sp': unknown block 'pidx'"),
+    (Event(5.0, "pid.foo", 1.0), r"has no input or parameter 'foo'"),
+])
+def test_a_bad_event_is_refused_before_any_scan(event: Event, message: str) -> None:
+    with pytest.raises(InputError, match=message) as err:
+        closed_loop(events=[event])
+    assert "wire '" not in str(err.value)
+
+
+def test_parameter_events_are_checked_in_time_order() -> None:
+    """out_hi raised first, then out_lo above the old out_hi: valid in that order."""
+    m = closed_loop(events=[Event(2.0, "pid.out_hi", 2e9), Event(1.0, "pid.out_lo", -2e9),
+                            Event(3.0, "pid.out_lo", 1.5e9)])
+    r = m.run(duration=5.0, dt=DT)
+    assert r["pid.out"][-1] == 1.5e9  # clamped at the new low limit
+
+
+def test_errors_about_constants_do_not_call_them_wires() -> None:
+    with pytest.raises(InputError, match=r"^constant 'pid.foo': block 'pid' \(pid\) has no "
+                                         r"input 'foo'"):
+        closed_loop_with(inputs={"pid": {"foo": 1.0}})
+    with pytest.raises(InputError, match=r"the constant for 'pid.pv' conflicts with its wire "
+                                         r"from 'process.y'"):
+        closed_loop_with(inputs={"pid": {"pv": 1.0}})
+    with pytest.raises(InputError, match=r"the event for 'pid.pv' conflicts .* or an event, "):
+        closed_loop(events=[Event(1.0, "pid.pv", 1.0)])
+
+
+def closed_loop_with(inputs: dict[str, dict[str, float]]) -> Module:
+    return Module({"pid": create_block("pid"), "process": create_block("process.first_order")},
+                  wires={"process.u": "pid.out", "pid.pv": "process.y"}, inputs=inputs)
+
+
+def test_late_events_are_the_ones_no_scan_reaches() -> None:
+    """20 s in scans of 0.5 s: the last scan executes at 19.5 s."""
+    m = closed_loop(events=[Event(19.5, "pid.sp", 1.0), Event(19.6, "pid.sp", 2.0),
+                            Event(30.0, "pid.sp", 3.0)])
+    assert [e.t for e in m.late_events(20.0, DT)] == [19.6, 30.0]
+
+
+# -- runs that could not be recorded are refused before the first scan -------------------------
+
+
+def test_a_run_too_long_to_record_is_refused_with_the_memory_it_needs() -> None:
+    """1e12 s at 1 ms is 1e15 scans; the estimate is scans × recorded signals (every input
+    and output of every block) × 16 bytes (float64 value + int64 status): petabytes."""
+    m = closed_loop()
+    signals = sum(len(b.INPUTS) + len(b.OUTPUTS) for b in m.blocks.values())
+    need_gb = 1e15 * signals * 16 / 1e9
+    with pytest.raises(InputError) as err:
+        m.run(duration=1e12, dt=1e-3)
+    message = str(err.value)
+    assert "1e+15 scans" in message and f"{need_gb:.3g} GB" in message
+    assert "shorter duration or a longer dt" in message
+    assert m.k == 0  # nothing ran
+
+
+def test_the_memory_check_uses_what_is_available(monkeypatch: pytest.MonkeyPatch) -> None:
+    import loopworks.sim.module as module
+
+    m = closed_loop()
+    need = m.record_bytes(round(1000.0 / DT))
+    assert need == 2000 * sum(len(b.INPUTS) + len(b.OUTPUTS) for b in m.blocks.values()) * 16
+    monkeypatch.setattr(module, "available_memory", lambda: 1)
+    m.run(duration=1000.0, dt=DT)  # under 64 MB: runs without asking
+    monkeypatch.setattr(module, "RECORD_BYTES", 10**6)  # 1 MB a signal-scan: 2000 scans > 1 GB
+    monkeypatch.setattr(module, "available_memory", lambda: 5 * 10**8)
+    with pytest.raises(InputError, match=r"and 500 MB is available"):
+        m.run(duration=1000.0, dt=DT)
+    monkeypatch.setattr(module, "available_memory", lambda: None)
+    monkeypatch.setattr(module, "RECORD_CAP", 10**8)
+    with pytest.raises(InputError, match=r"the record cap of 100 MB"):
+        m.run(duration=1000.0, dt=DT)
+
+
+def test_a_scan_count_that_overflows_is_a_clear_error() -> None:
+    with pytest.raises(InputError, match="more scans than can be counted"):
+        closed_loop().run(duration=1e300, dt=1e-300)
+
+
+def test_available_memory_is_a_positive_byte_count() -> None:
+    from loopworks.sim.module import available_memory
+
+    avail = available_memory()
+    assert avail is None or avail > 0

@@ -374,3 +374,47 @@ def test_replay_memory_does_not_grow_with_the_file(tmp_path: Path) -> None:
     with open(out, encoding="utf-8") as fh:
         assert sum(1 for _ in fh) == 40_001
     assert peak_large < 1.5 * peak_small, (peak_small, peak_large)
+
+
+# -- files that used to end in a traceback (issue 11) -------------------------------------------
+
+
+def test_bytes_that_are_not_utf8_are_a_located_error(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.csv"
+    path.write_bytes(b"t,sp,pv\n0,50,40\n1,50,40\n2,50,4\xb0\n")
+    with pytest.raises(FileFormatError, match=r"latin1\.csv, line 4, column 'pv': .* is not a "
+                                              r"number .*the file is not UTF-8 text"):
+        run(pid(), path)
+
+
+def test_a_utf16_file_is_named_as_not_utf8(tmp_path: Path) -> None:
+    path = tmp_path / "u16.csv"
+    path.write_bytes("t,sp,pv\n0,50,40\n".encode("utf-16"))
+    with pytest.raises(FileFormatError, match=r"u16\.csv, line 1: unknown column .*not UTF-8"):
+        run(pid(), path)
+
+
+def test_an_oversized_field_is_a_located_error(tmp_path: Path) -> None:
+    path = tmp_path / "big.csv"
+    path.write_text("t,sp,pv\n0,50,40\n1,50,\"" + "4" * 200_000 + "\"\n", encoding="utf-8")
+    with pytest.raises(FileFormatError, match=r"big\.csv, line \d+: field larger than field "
+                                              r"limit"):
+        run(pid(), path)
+
+
+def test_an_output_that_is_a_directory_is_refused_before_writing(tmp_path: Path) -> None:
+    path = write_csv(tmp_path / "in.csv", ["t", "sp", "pv"], [[0, 50, 40], [1, 50, 40]])
+    target = tmp_path / "out"
+    target.mkdir()
+    with pytest.raises(FileFormatError, match=r"out: is a directory"):
+        replay(pid(), path, target)
+    assert sorted(tmp_path.iterdir()) == sorted([path, target])  # no partial file left
+    assert list(target.iterdir()) == []
+
+
+def test_an_accumulated_time_that_overflows_is_refused(tmp_path: Path) -> None:
+    """t_0 = 0, t_1 = 1e308, t_2 = 2e308 = inf: the output's t column would not be a time."""
+    path = write_csv(tmp_path / "in.csv", ["dt", "sp", "pv"],
+                     [[1e308, 50, 40], [1e308, 50, 40], [1e308, 50, 40]])
+    with pytest.raises(FileFormatError, match=r"in\.csv, line 4: the accumulated time overflows"):
+        run(pid(), path)

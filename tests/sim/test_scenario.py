@@ -151,3 +151,117 @@ def test_an_event_can_change_a_parameter() -> None:
     before = r.t < 15.0
     np.testing.assert_allclose(r["pid.p_term"][before], 1.0 * e[before], atol=1e-12)
     np.testing.assert_allclose(r["pid.p_term"][~before], 3.0 * e[~before], atol=1e-12)
+
+
+# -- issue 11: what loaded but was wrong is refused when the file loads ------------------------
+
+
+def test_an_analog_wire_into_a_mode_is_refused_naming_the_wire() -> None:
+    text = GOOD.replace('"pid.pv" = "process.y"',
+                        '"pid.pv" = "process.y"\n"pid.mode" = "process.y"')
+    with pytest.raises(FileFormatError, match=r"bad\.toml: wire 'pid\.mode' = 'process\.y': "
+                                              r"'pid\.mode' is an enumerated input"):
+        parse_scenario(text, "bad.toml")
+
+
+@pytest.mark.parametrize(("edit", "message"), [
+    (("SP = 4.0", "SP = nan"), r"\[blocks\.pid\]: sp = nan: a constant input must be a finite "
+                               r"number \(leave the key out for its default, 0\)"),
+    (("SP = 4.0", "SP = inf"), r"\[blocks\.pid\]: sp = inf: a constant input must be a finite"),
+    (("SP = 4.0", 'SP = "-inf"'), r"\[blocks\.pid\]: sp = '-inf': a constant input must be"),
+    (("SP = 4.0", "man_out = nan"), r"man_out = nan: .*to leave it 'not given' \(its default, "
+                                    r"nan\), leave the key out"),
+    (("value = 6.0", "value = nan"), r"\[\[events\]\] #1 \(t = 10 s, set = 'pid\.sp'\): "
+                                     r"value = nan: an input event must set a finite number"),
+    (("value = 6.0", "value = -inf"), r"#1 .*value = -inf: an input event"),
+    (("value = 6.0", 'value = "inf"'), r"#1 .*value = inf: an input event"),
+    (("SP = 4.0", "SP = [4.0]"), r"\[blocks\.pid\]: sp = \[4\.0\]: a constant input is a number"),
+    (("SP = 4.0", "mode = 7"), r"\[blocks\.pid\]: input 'mode' = 7: expected one of MAN"),
+])
+def test_non_finite_and_malformed_inputs_are_refused(edit: tuple[str, str], message: str) -> None:
+    text = GOOD.replace(*edit)
+    assert text != GOOD
+    with pytest.raises(FileFormatError, match=message):
+        parse_scenario(text, "bad.toml")
+
+
+def test_a_non_finite_constant_in_a_variant_is_refused() -> None:
+    with pytest.raises(FileFormatError, match=r"\(compare\.x\): \[blocks\.pid\]: sp = nan"):
+        parse_scenario(GOOD + '[compare.x]\n"pid.sp" = nan\n', "bad.toml")
+
+
+def test_an_infinite_parameter_event_where_the_range_allows_it_loads() -> None:
+    """ti = inf is the pid's 'no integral action' (range (0, inf]); an event may set it."""
+    sc = parse_scenario(GOOD + '\n[[events]]\nt = 12.0\nset = "pid.ti"\nvalue = inf\n')
+    r = sc.module.run(sc.duration, sc.dt)
+    late = r.t >= 12.0
+    assert np.all(np.diff(r["pid.i_term"][late]) == 0.0)
+    assert np.any(np.diff(r["pid.i_term"][~late]) != 0.0)
+
+
+@pytest.mark.parametrize(("window", "message"), [
+    ("[10.0, 5.0]", r"\[10, 5\]: the window is reversed or empty"),
+    ("[5.0, 5.0]", r"reversed or empty"),
+    ("[-1.0, 5.0]", r"is outside the run: expected 0 <= t0 < t1 <= duration = 20 s"),
+    ("[0.0, 25.0]", r"is outside the run"),
+    ("[nan, 5.0]", r"the bounds must be finite"),
+    ("[5.1, 5.4]", r"holds 0 scan\(s\) of the run \(scans at 0, 0\.5, \.\.\., 19\.5 s\)"),
+])
+def test_metrics_window_outside_the_run_or_reversed_is_refused(window: str, message: str) -> None:
+    text = GOOD.replace("duration = 20.0", f"duration = 20.0\nmetrics_window = {window}")
+    with pytest.raises(FileFormatError, match=r"bad\.toml: simulation\.metrics_window = .*"
+                                              + message):
+        parse_scenario(text, "bad.toml")
+
+
+def test_a_window_of_the_whole_run_loads() -> None:
+    sc = parse_scenario(GOOD.replace("duration = 20.0", "duration = 20.0\n"
+                                                         "metrics_window = [0.0, 20.0]"))
+    assert sc.metrics_window == (0.0, 20.0)
+
+
+def test_an_event_after_the_run_is_a_warning() -> None:
+    """20 s in scans of 0.5 s: the last scan is at 19.5 s, so t = 19.8 s never happens."""
+    assert parse_scenario(GOOD).warnings == []
+    sc = parse_scenario(GOOD + '\n[[events]]\nt = 19.8\nset = "pid.sp"\nvalue = 1.0\n', "x.toml")
+    assert sc.warnings == ["x.toml: event at t = 19.8 s (set = 'pid.sp') is after the last scan "
+                           "(t = 19.5 s) of the 20 s run: it never happens"]
+
+
+def test_a_run_that_cannot_be_recorded_is_refused_at_load() -> None:
+    text = GOOD.replace("duration = 20.0", "duration = 1e12").replace("dt = 0.5", "dt = 1e-3")
+    with pytest.raises(FileFormatError, match=r"bad\.toml: \[simulation\]: duration = 1e\+12 s "
+                                              r"in scans of dt = 0\.001 s is 1e\+15 scans; "
+                                              r"recording them needs about .* GB of memory"):
+        parse_scenario(text, "bad.toml")
+    with pytest.raises(FileFormatError, match=r"more scans than can be counted"):
+        parse_scenario(GOOD.replace("duration = 20.0", "duration = 1e300")
+                       .replace("dt = 0.5", "dt = 1e-300"), "bad.toml")
+
+
+@pytest.mark.parametrize("name", ['"a/b"', '"../up"', '".hidden"', '"a\\\\b"'])
+def test_a_variant_name_must_be_a_file_name(name: str) -> None:
+    with pytest.raises(FileFormatError, match=r"a variant's name names its report files"):
+        parse_scenario(GOOD + f'[compare.{name}]\n"pid.k" = 2.0\n', "bad.toml")
+
+
+def test_an_event_that_calls_nothing_wire_is_named_as_an_event() -> None:
+    text = GOOD.replace('set = "pid.sp"', 'set = "pidx.sp"')
+    with pytest.raises(FileFormatError) as err:
+        parse_scenario(text, "bad.toml")
+    assert "event at t = 10 s, set = 'pidx.sp': unknown block 'pidx'" in str(err.value)
+    assert "wire" not in str(err.value)
+
+
+def test_a_scenario_that_is_not_utf8_is_a_clear_error(tmp_path: Path) -> None:
+    path = tmp_path / "latin1.toml"
+    path.write_bytes(GOOD.replace('kind = "pid"', 'kind = "pid"\n# r\xe9glage').encode("latin-1"))
+    with pytest.raises(FileFormatError, match=r"latin1\.toml: not UTF-8 text \(byte \d+\)"):
+        load_scenario(path)
+
+
+def test_autotune_process_gain_names_a_parameter_before_the_test_runs() -> None:
+    text = GOOD + '[autotune]\nloop = "pid"\nprocess_gain = ["pid.gainn"]\n'
+    with pytest.raises(FileFormatError, match=r"\[autotune\]: process_gain entry 'pid\.gainn': "
+                                              r"pid has no parameter 'gainn'"):
+        parse_scenario(text, "bad.toml")

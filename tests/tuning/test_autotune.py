@@ -115,8 +115,19 @@ def test_tune_without_loop_or_with_a_wrong_loop_is_one_error_line(tmp_path: Path
     done = _cli("tune", str(path), "--loop", "process")
     assert done.returncode == 2
     assert done.stderr.startswith("error:") and "not a controller" in done.stderr
+    # issue 11: one controller needs no --loop; several: the error lists them
+    done = _cli("tune", str(path), "--json", "--hysteresis", "0.05", "--start", "150")
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["loop"] == "pid"
+    two = LOOP.replace("[blocks.compensator]", """[blocks.pid2]
+kind = "pid"
+sp = 50.0
+
+[blocks.compensator]""").replace('"compensator"]', '"compensator", "pid2"]')
+    path.write_text(two)
     done = _cli("tune", str(path))
-    assert done.returncode == 2 and "--loop is required" in done.stderr
+    assert done.returncode == 2 and done.stderr.count("\n") == 1
+    assert "--loop is required" in done.stderr and "pid, pid2" in done.stderr
 
 
 def test_convert_json_and_text() -> None:

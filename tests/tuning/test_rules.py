@@ -286,6 +286,24 @@ def test_bad_data(rule: str, data: ProcessData, message: str) -> None:
         tune(rule, data)
 
 
+def test_data_outside_a_rules_validity_is_refused() -> None:
+    # issue 11: AMIGO frequency needs κ = 1/(K·Ku) < 1 (a low-pass plant has 1/Ku = |G(jωu)|
+    # < K; the PID's Td has a pole at κ = 1/0.95). Before: PI Kc = 0.16·Ku, Ti = Pu/(1 + 9)
+    # returned for K·Ku = 0.5.
+    with pytest.raises(ParameterError, match=r"process_gain·ku = 0\.5 .*\(1, inf\)"):
+        tune("amigo_frequency", ProcessData(ku=0.5, pu=PU, process_gain=1.0))
+    with pytest.raises(ParameterError, match="process_gain·ku = 1 "):
+        tune("amigo_frequency", ProcessData(ku=1.0, pu=PU, process_gain=1.0), "PID")
+    # AMIGO-f at φ = 2.7 rad with κ = 20: (2.50 - 0.92φ)/(1 + (10.75 - 4.01φ)κ) < 0, a
+    # negative gain (before: returned as Kc = -0.03 Kφ)
+    phi = 2.7
+    kappa = 20.0
+    assert (2.50 - 0.92 * phi) / (1.0 + (10.75 - 4.01 * phi) * kappa) < 0.0
+    with pytest.raises(ParameterError, match=r"'amigo_f' gives kc = -.*outside \(0, inf\)"):
+        tune("amigo_f", ProcessData(relay_gain=1.0, relay_period=10.0, relay_phase_lag=phi,
+                                    process_gain=1.0 / kappa))
+
+
 def test_unknown_rule_lists_rules() -> None:
     with pytest.raises(ParameterError, match=r"'ziegler'.*zn, zn_step"):
         tune("ziegler", ULTIMATE)

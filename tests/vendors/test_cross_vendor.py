@@ -159,3 +159,15 @@ def test_ge_integer_integral_stalls_for_tiny_increments() -> None:
     assert native.outputs()["cv"].value == 0.0
     assert floating.state()["integral"] == pytest.approx(0.1, abs=1e-9)
     assert g["i_term"].value == pytest.approx(0.1, abs=1e-9)
+
+
+def test_s5_and_ge_start_at_their_output_for_a_steady_start() -> None:
+    """issue 11 point 8: before their first scan the vendor blocks publish a real output, not
+    0, so a block earlier in the module order reads no start-up kick. At a steady start (PV =
+    SP) the first scan keeps it: the S5 positioning output is its DW 48 preset y0 = B (XW = 0,
+    PW = 0: dY = 0, spec 2.7); the GE output is the Bias B (P = 0, empty integral, spec 1.6)."""
+    s5 = loopworks.create_block("s5.pid", k=1000 * K, r=1000, ti=1000 * DT / TI, y0=B)
+    ge = loopworks.create_block("ge.pid_ind", kp=K, ki=K / TI, bias=B, sample_period=DT)
+    assert (s5.outputs()["y"].value, ge.outputs()["cv"].value) == (B, B)
+    assert s5.step(DT, w=SP, x=SP)["y"].value == B
+    assert ge.step(DT, sp=SP, pv=SP)["cv"].value == B

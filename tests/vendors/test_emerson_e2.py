@@ -26,6 +26,7 @@ from loopworks.cli import app
 from loopworks.errors import InputError, ParameterError
 from loopworks.vendors.emerson_e2 import pwm_times
 from tests.csvfiles import write_csv
+from tests.properties.test_controller_properties import raw_step
 
 NAN = math.nan
 INF = math.inf
@@ -375,6 +376,98 @@ def test_extreme_inputs_never_crash_and_stay_in_range(make: Make) -> None:
             assert 10.0 <= r["pid_out"][0] <= 90.0
 
 
+@pytest.mark.parametrize("bad", [{"pv": 1e308}, {"pv": -1e308}, {"sp": 3.5e38},
+                                 {"pv": 1.0000001e12}, {"sp": -2e12}])
+def test_values_beyond_1e12_eu_are_bad_input(make: Make, bad: dict[str, Any]) -> None:
+    # issue 11 point 1: beyond ±1e12 EU is not a measurement (it used to saturate there, so
+    # pv = 1e308 drove the output to 100 % with a Good status): the PID holds, 0x47
+    b = make(**P_ONLY)
+    assert run(b, 1.0, sp=29.0, pv=29.0)["out"] == (50.0, GOOD)
+    r = run(b, 1.0, **{"sp": 29.0, "pv": 30.0, **bad})
+    assert r["out"] == (50.0, UNC_LUV_CONST) and r["pid_out"][0] == 50.0
+    assert run(b, 1.0, sp=29.0, pv=30.0)["out"] == (60.0, GOOD)  # recovers at once
+
+
+def test_an_input_at_1e12_eu_is_used(make: Make) -> None:
+    b = make(**P_ONLY)
+    assert run(b, 1.0, sp=0.0, pv=1e12)["out"] == (100.0, GOOD_HIGH)
+
+
+def test_overflowing_adjustment_is_skipped_like_bad_input(make: Make) -> None:
+    # kp·Δe·100/TR = 1e300·1·100/1e-10 overflows: the update is skipped (hold, 0x47), no
+    # adjustment or state becomes inf; an error change small enough is computed again
+    b = make(**{**P_ONLY, "kp": 1e300, "throttling_range": 1e-10})
+    assert run(b, 1.0, sp=29.0, pv=29.0)["out"] == (50.0, GOOD)
+    r = run(b, 1.0, sp=29.0, pv=30.0)
+    assert r["out"] == (50.0, UNC_LUV_CONST)
+    assert (r["p_adj"][0], r["pid_out"][0]) == (0.0, 50.0)
+    assert all(math.isfinite(v) for v in b.x)
+    # Δe = 1e-300 (from the stored e = 0): Padj = 1e300·1e-300·100/1e-10 = 1e12 -> 100 %
+    assert run(b, 1.0, sp=0.0, pv=1e-300)["out"] == (100.0, GOOD_HIGH)
+    raw = loopworks.create_block("e2.pid", jit=False, **{**P_ONLY, "kp": 1e300,
+                                                         "throttling_range": 1e-10})
+    raw_step(raw, 1.0, {"sp": 29.0, "pv": 29.0})
+    raw_step(raw, 1.0, {"pv": 30.0})  # the kernel by itself, without the guard's fallback
+    assert (raw.y[0], raw.ys[0]) == (50.0, UNC_LUV_CONST)
+    assert np.isfinite(raw.x).all() and np.isfinite(raw.y).all()
+
+
+@pytest.mark.parametrize("value", [NAN, INF, -INF])
+def test_non_finite_override_is_no_override(make: Make, value: float) -> None:
+    # spec 3.7: NaN = no override (the input's default); ±inf is Bad input: no override either;
+    # a huge finite override is limited to 0..100 % (override_limits = percent)
+    b = make(**P_ONLY)
+    assert run(b, 1.0, sp=29.0, pv=30.0, override=value)["out"] == (60.0, GOOD)
+    assert run(b, 1.0, sp=29.0, pv=30.0, override=1e308)["out"] == (100.0, GOOD_CONST)
+    assert run(b, 1.0, sp=29.0, pv=30.0, override=value)["out"] == (60.0, GOOD)
+
+
+def test_issue_nan_then_1e308_pv_then_good_pv_controls_again(make: Make) -> None:
+    # issue 11 point 1 for e2.pid: after a burst of NaN and 1e308 the next good input
+    # continues from the stored error (29 -> e = 0): input 31 gives 50 + 10·2 = 70
+    b = make(**P_ONLY)
+    assert run(b, 1.0, sp=29.0, pv=29.0)["out"] == (50.0, GOOD)
+    for pv in (NAN, 1e308, -INF):
+        assert run(b, 1.0, sp=29.0, pv=pv)["out"] == (50.0, UNC_LUV_CONST)
+    assert run(b, 1.0, sp=29.0, pv=31.0)["out"] == (70.0, GOOD)
+
+
+def test_as_printed_d_with_a_tiny_interval_gives_no_nan(make: Make) -> None:
+    # d_form = as_printed divides by t/60; written 60·e/t, a zero error is 0 for any t > 0
+    # (t/60 = 5e-324/60 underflows to 0, and 0/0 was NaN: the update was lost)
+    b = make(kd=1.0, d_form="as_printed", update_interval=5e-324)
+    assert run(b, 1.0, sp=29.0, pv=29.0)["out"] == (50.0, GOOD)
+
+
+# ----------------------------------------------------------------------------------------------
+# Start-up output before the first scan (issue 11 point 8; spec 3.9 [?])
+# ----------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("params", "start"), [({}, 50.0), ({"initial_output": 30.0}, 30.0),
+                                               ({"output_min": 60.0}, 60.0)])
+def test_publishes_its_start_up_output_before_the_first_scan(make: Make, params: dict[str, Any],
+                                                             start: float) -> None:
+    # spec 3.9: the PID and the filter start at initial_output (default Output at Setpoint,
+    # clamped to the output limits): that is what a block reading it first sees, not 0
+    b = make(**params)
+    before = b.outputs()
+    assert before["out"] == (start, GOOD) and before["pid_out"] == (start, GOOD)
+    assert (before["p_adj"].value, before["i_adj"].value, before["d_adj"].value) == (0, 0, 0)
+    b.reset()
+    assert b.outputs()["out"].value == start
+
+
+def test_a_block_that_reads_it_first_sees_the_start_up_output() -> None:
+    # issue 11 point 8: in module order the process runs first and reads e2.out at t = 0:
+    # it sees Output at Setpoint 50 %, so a gain-1, y0 = 50 process stays at 50
+    from loopworks.sim.module import Module
+    ctl = loopworks.create_block("e2.pid")
+    proc = loopworks.create_block("process.first_order", gain=1.0, time_constant=5.0, y0=50.0)
+    mod = Module({"proc": proc, "ctl": ctl}, wires={"proc.u": "ctl.out", "ctl.pv": "proc.y"},
+                 inputs={"ctl": {"sp": 50.0}})
+    mod.scan(0.5)
+    assert proc.y[0] == 50.0 and ctl.y[0] == 50.0
+
+
 # ----------------------------------------------------------------------------------------------
 # Parameters
 # ----------------------------------------------------------------------------------------------
@@ -391,6 +484,7 @@ def test_extreme_inputs_never_crash_and_stay_in_range(make: Make) -> None:
     ({"initial_output": 10.0, "output_min": 20.0}, "initial_output"),
     ({"i_tr_normalise": "maybe"}, "i_tr_normalise"),
     ({"throttling_range": NAN}, "throttling_range"),
+    ({"throttling_range": 5e-324}, "throttling_range"),  # 100 %/TR overflows
     ({"bogus": 1.0}, "bogus"),
 ])
 def test_bad_parameters_name_the_parameter(params: dict[str, Any], needle: str) -> None:

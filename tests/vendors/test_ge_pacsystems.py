@@ -52,6 +52,11 @@ def solve(block: Block, clock: float, **inputs: float) -> tuple[float, float, fl
     return r["cv"].value, r["output"].value, r["ok"].value
 
 
+def held(block: Block) -> dict[str, float]:
+    """The state a skipped solution must leave unchanged: all but the clock reading."""
+    return {k: v for k, v in block.state().items() if k != "clock"}
+
+
 def words_of(block: Block) -> dict[int, int]:
     """The reference-array words 3-13 a GE block runs with."""
     assert isinstance(block, ge_pacsystems.GEPIDBlock)
@@ -398,12 +403,118 @@ def test_rounding_direction_of_p(make: Make, rounding: str, expected: float) -> 
     assert solve(pid, 0.1, sp=0, pv=3)[1] == expected
 
 
-def test_inputs_saturate_to_16_bits_and_round_to_counts(make: Make) -> None:
-    """spec 1.5: SP/PV are INT operands: 10^6 saturates to 32767; 2.5 rounds to 3."""
-    pid = make(kp=0.01, sample_period=0.1, **BIPOLAR)
-    assert solve(pid, 0.1, sp=1e6, pv=0)[1] == 327.0  # 1*32767/100 toward zero
+def test_inputs_round_to_counts(make: Make) -> None:
+    """spec 1.5: SP/PV are INT operands: 2.5 rounds to 3 (halves away from zero), and the
+    word range ends are words: 32767.4 -> 32767, -32768.4 -> -32768."""
     pid = make(kp=1.0, sample_period=0.1, **BIPOLAR)
     assert solve(pid, 0.1, sp=10, pv=2.5)[1] == 7.0
+    pid = make(kp=0.01, sample_period=0.1, **BIPOLAR)
+    assert solve(pid, 0.1, sp=32767.4, pv=0)[1] == 327.0  # 1*32767/100 toward zero
+    pid = make(kp=0.01, sample_period=0.1, **BIPOLAR)
+    assert solve(pid, 0.1, sp=0, pv=-32768.4)[1] == 327.0
+
+
+@pytest.mark.parametrize("value", [1e6, -1e6, 1e308, -1e308, 32767.5, -32768.5, math.inf,
+                                   -math.inf, NAN])
+@pytest.mark.parametrize("name", ["sp", "pv"])
+def test_an_sp_or_pv_beyond_a_word_is_bad_input(make: Make, name: str, value: float) -> None:
+    """issue 11 point 1: an SP/PV that no INT operand can hold (beyond -32768..32767 once
+    rounded, or not finite) is Bad input, not a plausible full-scale 32767: the solution is
+    skipped, CV holds with ok = 0 and no state changes; the next good solution integrates over
+    the gap (ΔI = 1000*10*2000/10^7 = 2). Before, 10^6 was saturated to 32767 and solved."""
+    for kind, gains in (("ge.pid_ind", {"kp": 0.0, "ki": 1.0}), ("ge.pid_isa", {"kc": 1.0})):
+        pid = make(kind, sample_period=0.1, **gains, **BIPOLAR)
+        if kind == "ge.pid_isa":  # kc = 1, no integral: P = e
+            assert solve(pid, 0.1, sp=10, pv=0) == (10.0, 10.0, 1.0)
+            before = held(pid)
+            assert solve(pid, 0.2, **{name: value}) == (10.0, 10.0, 0.0)
+            assert held(pid) == before
+            continue
+        assert solve(pid, 0.1, sp=10, pv=0) == (1.0, 1.0, 1.0)
+        before = held(pid)
+        assert solve(pid, 0.2, **{name: value}) == (1.0, 1.0, 0.0)
+        assert held(pid) == before
+        assert solve(pid, 0.3, sp=10, pv=0) == (3.0, 3.0, 1.0)
+    pid = make(kp=1.0, sample_period=0.1, bad_input="ignore_status", **BIPOLAR)
+    assert solve(pid, 0.1, sp=10, pv=0)[2] == 1.0
+    assert solve(pid, 0.2, **{name: value})[2] == 0.0  # no word whatever the status
+
+
+@pytest.mark.parametrize("value", [1e308, -1e308, 40000.0, math.inf, NAN])
+def test_a_write_that_is_no_word_leaves_the_word(make: Make, value: float) -> None:
+    """issue 11 point 1: a write into word 14 (or 15, 16, 18) that no 16-bit word can hold
+    is no write, as NaN is: Manual stays at 500 (before, 1e308 became 32767, CV 32000)."""
+    pid = make(kp=0.0, sample_period=0.1)
+    assert solve(pid, 0.1, man=1, manual_command=500)[0] == 500.0
+    assert solve(pid, 0.2, man=1, manual_command=value)[0] == 500.0
+    assert pid.state()["manual_command"] == 500.0
+    pid = make(kp=1.0, sample_period=0.1, **BIPOLAR)
+    solve(pid, 0.1, control_word=1, internal_sp=40, internal_pv=10, sp=0, pv=0)
+    state = pid.state()
+    cw = 70000.0 if value == 40000.0 else value  # 40000 is a word 15 value (0..65535)
+    solve(pid, 0.2, control_word=cw, internal_sp=value, internal_pv=value)
+    assert [pid.state()[n] for n in ("control_word", "internal_sp", "internal_pv")] == [
+        state[n] for n in ("control_word", "internal_sp", "internal_pv")]
+
+
+@pytest.mark.parametrize("name", ["man", "up", "dn"])
+def test_a_non_finite_discrete_input_is_bad_input(make: Make, name: str) -> None:
+    """issue 11 point 1: MAN/UP/DN that is no BOOL (NaN, inf) skips the solution like a bad
+    PV (ok = 0, CV holds); before, NaN MAN read as Auto. A NaN enable is no power flow."""
+    pid = make(kp=1.0, sample_period=0.1, **BIPOLAR)
+    assert solve(pid, 0.1, sp=10, pv=0) == (10.0, 10.0, 1.0)
+    before = held(pid)
+    assert solve(pid, 0.2, sp=20, **{name: NAN}) == (10.0, 10.0, 0.0)
+    assert held(pid) == before
+    assert solve(pid, 0.3, **{name: 0.0}) == (20.0, 20.0, 1.0)
+    assert solve(pid, 0.4, enable=NAN) == (20.0, 20.0, 0.0)
+
+
+# ----------------------------------------------------------------------------------------------
+# Start-up (issue 11 points 7 and 8)
+# ----------------------------------------------------------------------------------------------
+@pytest.mark.parametrize(("params", "cv", "output"), [
+    ({}, 0.0, 0.0),  # Bias 0 inside 0..32000
+    ({"bias": 5000}, 5000.0, 5000.0),
+    ({"upper_clamp": 20000, "lower_clamp": 4000}, 4000.0, 4000.0),  # the vendor array
+    ({"bias": 5000, "upper_clamp": 3000, "lower_clamp": -3000, "invert_output": True},
+     -3000.0, 3000.0),
+])
+def test_start_value_before_the_first_solution(make: Make, params: dict[str, Any], cv: float,
+                                               output: float) -> None:
+    """issue 11 point 8: before its first solution the block shows word 19 =
+    clamp(Bias, Lower, Upper), the output of a first solution at zero error with the empty
+    integral (CV after polarity), not 0 outside the clamps; sweeps before the first sample
+    period has elapsed hold it, and word 14 starts there (a Manual start does not jump)."""
+    pid = make(sample_period=1.0, **params)
+    out = pid.outputs()
+    assert (out["cv"].value, out["output"].value, out["ok"].value) == (cv, output, 0.0)
+    assert solve(pid, 0.0) == (cv, output, 1.0)  # a module's first scan at t = 0: no solution
+    assert solve(pid, 0.5, man=1) == (cv, output, 1.0)
+    assert solve(pid, 1.0, man=1)[:2] == (cv, output)  # Manual from word 14: no jump
+
+
+def test_first_solution_derivative_kick_and_prime_derivative(make: Make) -> None:
+    """issue 11 point 7, spec 1.7: word 20 of a fresh array is 0, so the first solution with
+    derivative on PV (bit 2) sees ΔPV = 1000 - 0: D = -100*1000*100/1000 = -10000 (Kd 1.00 s,
+    dt 0.1 s), clamped to 0 with the integral back-calculated to 10000 (bit 4 = 0): with
+    Ki = 0 that is a lasting offset, CV 10000 at zero error. prime_derivative loads word 20
+    from the first PV: D = 0, CV stays 0."""
+    p = {"kp": 1.0, "kd": 1.0, "derivative_on_pv": True, "sample_period": 0.1}
+    pid = make(**p)
+    assert [solve(pid, 0.1 * k, sp=1000, pv=1000)[0] for k in (1, 2, 3)] == [
+        0.0, 10000.0, 10000.0]
+    pid = make(**p, prime_derivative=True)
+    assert [solve(pid, 0.1 * k, sp=1000, pv=1000)[0] for k in (1, 2, 3)] == [0.0, 0.0, 0.0]
+    # derivative on the error: word 20 primed with the first error, e = 1000: P only
+    pid = make(kp=1.0, kd=1.0, sample_period=0.1, prime_derivative=True)
+    assert solve(pid, 0.1, sp=1000, pv=0)[0] == 1000.0
+    pid = make(kp=1.0, kd=1.0, sample_period=0.1)  # literal: D = 100*1000*100/1000 = 10000
+    assert solve(pid, 0.1, sp=1000, pv=0)[0] == 11000.0
+    # only the first solution is primed: PV 1000 -> 1020 then gives D = -100*20*100/1000
+    pid = make(**p, prime_derivative=True, **BIPOLAR)
+    solve(pid, 0.1, sp=1000, pv=1000)
+    assert solve(pid, 0.2, sp=1000, pv=1020)[1] == -20.0 - 200.0
 
 
 def test_float_arithmetic_runs_the_same_equations(make: Make) -> None:
@@ -640,5 +751,5 @@ def test_docstring_lists_every_option() -> None:
                  "slew_remainder", "derivative_filter", "derivative_filter_time", "arw_hold",
                  "override_sp_pv", "manual_tracking", "initial_last_solution",
                  "load_clock_at_start", "on_parameter_error", "bad_input",
-                 "deadband_subtract"):
+                 "deadband_subtract", "prime_derivative"):
         assert f"``{name}``" in section, name

@@ -379,19 +379,83 @@ def test_2_8_negative_k_suppresses_at_the_low_limit(make: Make) -> None:
     assert y == [-120, -140, -140, -140]
 
 
-@pytest.mark.parametrize(("option", "expected"), [
-    ("recompute", [0, -10]),  # 62 > 30 -> 0; 50 > 30 -> -10 + 0
-    ("flag", [30, -10]),  # clamp 62 to 30, flag; then dI suppressed: -10
-    ("none", [30, 30]),
-])
-def test_2_8_velocity_limits_bound_the_increment(make: Make, option: str,
-                                                 expected: list[int]) -> None:
-    # spec 2.8: in velocity mode BGOG/BGUG bound dY; first_call inputs: no P kick at k = 1
+@pytest.mark.parametrize("option", ["recompute", "flag", "none"])
+def test_2_8_velocity_limits_bound_the_increment(make: Make, option: str) -> None:
+    """spec 2.8 [V]: in velocity mode DW 48 is "the limited correcting increment": BGOG/BGUG
+    clamp dY, whatever i_suppression says (issue 11 point 6: recomputing without dI gave
+    0, -10 here). first_call inputs: no P kick at k = 1. By hand: dY = 62 -> 30; -10 + 60
+    = 50 -> 30; -100 + 40 = -60 -> -30."""
     block = make(**{**LIM, "bgog": 30, "bgug": -30}, velocity=True, first_call="inputs",
                  i_suppression=option)
-    y, dy = run(block, [{"w": 310.0}, {"w": 300.0}])
-    assert y == expected
-    assert dy == expected
+    y, dy = run(block, [{"w": 310.0}, {"w": 300.0}, {"w": 200.0}])
+    assert y == [30, 30, -30]
+    assert dy == [30, 30, -30]
+
+
+def test_2_8_velocity_steady_large_error_keeps_the_limited_increment(make: Make) -> None:
+    """spec 2.8 [V], issue 11 point 6: a steady large error in velocity mode gives BGOG every
+    sample, not BGOG, 0, 0, 0. k = 1000, r = 1000, ti = 100 (÷1024), XW = 1000 held: by hand
+    dY = round(1000·(977 + 98)/1024) = 1050, then round(1000·98/1024) = 96, both above 10."""
+    block = make(k=1000, r=1000, ti=100, bgog=10, bgug=-10, velocity=True)
+    y, dy = run(block, steps(5, w=1000.0, x=0.0))
+    assert y == [10, 10, 10, 10, 10]
+    assert dy == y
+    y, _ = run(make(k=1000, r=1000, ti=100, bgog=10, bgug=-10, velocity=True),
+               steps(3, w=-1000.0, x=0.0))
+    assert y == [-10, -10, -10]
+
+
+def test_2_8_velocity_loop_through_a_motor_valve_does_not_stall(make: Make) -> None:
+    """issue 11 point 6: velocity mode driving an integrating actuator (a motor valve:
+    position += dY each sample, travel 0..2000 counts) on a first-order process (a lag of 5
+    samples, X += (position - X)/5) reaches W = 1000. Before the fix the loop stopped at
+    X = 5: the first P kick moved the valve by BGOG, then every increment was recomputed
+    without its I part and came out 0. The loop settles inside the native I dead zone
+    (|XW| <= 512/TI = 5.12 counts for TI = 100, see the block's docs)."""
+    block = make(k=1000, r=1000, ti=100, bgog=10, bgug=-10, velocity=True)
+    position, x = 0.0, 0.0
+    trace = []
+    for _ in range(800):
+        dy = block.step(1.0, w=1000.0, x=x)["y"].value
+        assert -10 <= dy <= 10  # spec 2.8: the increment is limited
+        position = min(max(position + dy, 0.0), 2000.0)
+        x += (position - x) / 5.0
+        trace.append(x)
+    assert trace[99] > 500.0  # moving at up to 10 counts a sample, not stalled at 5
+    assert abs(1000.0 - round(trace[-1])) <= 5
+    assert abs(trace[-1] - trace[-50]) < 1.0  # settled
+
+
+def test_2_8_recompute_fires_at_the_default_limits(make: Make) -> None:
+    """issue 11 point 6 / spec 2.8: the unclamped Y_k = Y_{k-1} + dY_k is compared with the
+    limits before anything limits it. At the default BGOG = 32767 a 16-bit saturated sum
+    could never exceed it, so the I suppression never fired there. Nominal K = R = TI = 1,
+    first_call inputs (PW = 0), XW = 100: dY = dI = 100; 32700 + 100 > 32767 with dI > 0 ->
+    recomputed without dI: Y stays 32700 (the spec 2.8 quirk of stopping short)."""
+    p = {"k": 1000, "r": 1000, "ti": 1000, "scale": "nominal", "first_call": "inputs"}
+    assert run(make(**p, y0=32700), steps(2, w=100.0))[0] == [32700, 32700]
+    assert run(make(**p, y0=-32700), steps(2, w=-100.0))[0] == [-32700, -32700]
+    assert run(make(**p, y0=32700, i_suppression="none"), steps(2, w=100.0))[0] == [
+        32767, 32767]
+    # flag: no flag before the first scan, so it reaches the limit, then dI = 0 holds it
+    assert run(make(**p, y0=32700, i_suppression="flag"), steps(2, w=100.0))[0] == [
+        32767, 32767]
+
+
+def test_2_8_one_count_of_bgog_moves_the_output_by_at_most_one_count(make: Make) -> None:
+    """issue 11 point 6: with the comparison after a saturating sum, BGOG = 32767 and 32766
+    gave outputs 32769 counts apart on this sequence (the suppression fired at 32766 only).
+    The limit is now a continuous parameter."""
+    scans = steps(5, w=30000.0, x=0.0) + steps(3, w=30000.0, x=20000.0)
+    p = {"k": 2000, "r": 1000, "ti": 3000}
+    top, _ = run(make(**p, bgog=32767), scans)
+    below, _ = run(make(**p, bgog=32766), scans)
+    assert all(abs(a - b) <= 1 for a, b in zip(top, below, strict=True)), (top, below)
+    # by hand at k = 6 (Y = 32767 or 32766): XW 30000 -> 10000, dP = round(-20000·1000/1024)
+    # = -19531, dI = round(3000·10000/1024) = 29297, dY = round(2000·9766/1024) = 19074 > 0:
+    # beyond BGOG with dI > 0 -> without dI dY = round(2000·-19531/1024) = -38146, a word:
+    # -32768, so Y = 32767 - 32768 = -1 (and -2 from 32766)
+    assert (top[5], below[5]) == (-1, -2)
 
 
 # -- manual mode (spec 2.9) ----------------------------------------------------------------------
@@ -432,6 +496,19 @@ def test_2_9_hold_velocity_gives_zero_increment(make: Make) -> None:
 def test_2_9_limits_stay_active_in_manual(make: Make) -> None:
     y, _ = run(make(bgog=200, manual_steps=0), [{"auto": "MAN", "yh": 500.0}])
     assert y == [200]
+
+
+@pytest.mark.parametrize(("y0", "expected"), [(80, 60), (-5, 0)])
+def test_2_9_a_y0_preset_outside_the_limits_is_clamped(make: Make, y0: int,
+                                                       expected: int) -> None:
+    """spec 2.9 [V] "limits stay active in Manual", issue 11 point 6: a DW 48 preset outside
+    BGUG..BGOG = 0..60 is limited, before the first call and when Manual holds it."""
+    block = make(y0=y0, bgog=60, bgug=0, hold=True)
+    assert block.outputs()["y"].value == expected
+    assert block.state()["dw48"] == expected
+    y, dy = run(block, steps(2, auto="MAN"))
+    assert y == [expected, expected]
+    assert dy == [0, 0]
 
 
 def test_2_9_manual_keeps_histories_so_auto_is_bumpless(make: Make) -> None:
@@ -524,6 +601,100 @@ def test_bad_input_only_counts_where_the_scan_uses_it(make: Make) -> None:
     assert run(make(**p), [{"w": 100.0}, {"z": NAN}])[0] == [110, 110]
     assert run(make(**p, xz_on=True), [{"w": 100.0}, {"xz": NAN}])[0] == [110, 110]
     assert run(make(**p), [{"w": 100.0}, {"auto": "MAN", "yh": NAN}])[0] == [110, 110]
+
+
+@pytest.mark.parametrize("value", [NAN, INF, -INF])
+@pytest.mark.parametrize(("name", "params", "inputs"), [
+    ("w", {}, {}), ("x", {}, {}), ("z", {}, {}), ("xz", {"xz_on": True}, {}),
+    ("yh", {}, {"auto": "MAN"})])
+def test_non_finite_input_is_held_and_the_block_recovers(
+        make: Make, name: str, params: dict[str, Any], inputs: dict[str, Any],
+        value: float) -> None:
+    """issue 11 point 1: a non-finite value in an input the scan uses is Bad input: the scan
+    is skipped (bad_input = hold), the outputs stay finite, and with good inputs again the
+    block continues as if the bad scan never happened."""
+    p = {**PI, "scale": "nominal", **params}
+    block = make(**p)
+    ref = make(**p)
+    good = {"w": 100.0, "x": 0.0, "z": 0.0, "xz": 0.0, "yh": 0.0, **inputs}
+    run(block, [good, good])
+    run(ref, [good, good])
+    before = block.state()
+    y, dy = run(block, [{**good, name: value}])
+    assert (y, dy) == ([block.state()["dw48"]], [0])
+    assert block.state() == before
+    assert run(block, steps(3, **good)) == run(ref, steps(3, **good))
+
+
+@pytest.mark.parametrize(("value", "saturated", "wrapped"), [
+    (1e308, 32767, 0),  # 1e308 is a multiple of 65536: its low 16 bits are 0
+    (-1e308, -32768, 0),
+    (70000.0, 32767, 70000 - 65536),
+    (-40000.0, -32768, -40000 + 65536),
+    (32767.5, 32767, -32768),  # rounds to 32768 first
+])
+def test_native_input_beyond_a_word_saturates_or_wraps(make: Make, value: float,
+                                                       saturated: int, wrapped: int) -> None:
+    """issue 11 point 1: a finite input beyond the 16-bit word is what a DB word can hold:
+    saturated (overflow = saturate, the default) or its low 16 bits (overflow = wrap),
+    exactly as the block's 16-bit intermediates (spec 2.14 [A]). K = R = 1 (nominal),
+    first call: Y = dP = XW = W."""
+    p = {"k": 1000, "r": 1000, "scale": "nominal"}
+    assert run(make(**p), [{"w": value}])[0] == [saturated]
+    assert run(make(**p, overflow="wrap"), [{"w": value}])[0] == [wrapped]
+    assert run(make(**p, arithmetic="float"), [{"w": value}])[0] == [
+        pytest.approx(max(-32768.0, min(32767.0, value)))]
+
+
+@pytest.mark.parametrize("bit", ["auto", "off"])
+def test_a_non_finite_control_bit_holds_the_scan(make: Make, bit: str) -> None:
+    """issue 11 point 1: D 11.0 / D 11.2 that is no bit (NaN, inf) is Bad input: the scan is
+    held (before, NaN auto read as Manual and Y moved towards YH = 0)."""
+    block = make(**PI, scale="nominal")
+    run(block, steps(2, w=100.0))
+    before = block.state()
+    block.set_inputs({bit: (NAN, 128)})
+    out = block.step(1.0)
+    assert (out["y"].value, out["dy"].value) == (120, 0)
+    assert block.state() == before
+    block.set_inputs({bit: (INF, 128)})
+    assert block.step(1.0)["y"].value == 120
+    block.set_inputs({"auto": 1.0, "off": 0.0})
+    assert run(block, [{}])[0] == [130]
+
+
+def test_status_is_not_read(make: Make) -> None:
+    """The S5 has no status (spec 7): a finite word with a Bad status byte is used."""
+    block = make(**PI, scale="nominal")
+    assert block.step(1.0, w=(100.0, 0), x=(0.0, 0x18))["y"].value == 110
+
+
+@pytest.mark.parametrize(("params", "expected"), [
+    ({"y0": 500}, 500), ({"y0": 500, "bgog": 300}, 300), ({}, 0),
+    ({"y0": 500, "velocity": True}, 0)])
+def test_initial_output_before_the_first_call(params: dict[str, Any], expected: int) -> None:
+    """issue 11 point 8: before its first call the block publishes DW 48 as it stands: the
+    y0 preset (limited, spec 2.9) in positioning mode, no increment in velocity mode."""
+    block = loopworks.create_block("s5.pid", **params)
+    out = block.outputs()
+    assert (out["y"].value, out["dy"].value) == (expected, 0)
+
+
+def test_native_integral_dead_zone_is_documented_and_real(make: Make) -> None:
+    """The native I element rounds TI·XW/1024 to a whole count, so it is 0 for |XW| <=
+    512/TI, and K·dI/1024 rounds to 0 for |K| < 512: a loop settles up to that far off the
+    setpoint. Pure I (r = 0): TI = 100: XW = 5 (100·5/1024 = 0.49 -> 0) never moves Y, XW = 6
+    (0.59 -> 1) moves it a count per sample with K = 1024; K = 500 needs dI = 2 (500/1024 =
+    0.49 -> 0): XW = 15 (1.46 -> 1) stays, XW = 16 (1.56 -> 2, 0.98 -> 1) moves."""
+    doc = inspect.getdoc(siemens_s5) or ""
+    assert "512/TI" in doc and "512/|K|" in doc
+    assert run(make(k=1024, r=0, ti=100), steps(4, w=5.0))[0] == [0, 0, 0, 0]
+    assert run(make(k=1024, r=0, ti=100), steps(4, w=6.0))[0] == [1, 2, 3, 4]
+    assert run(make(k=1024, r=0, ti=100), steps(2, w=-5.0))[0] == [0, 0]
+    assert run(make(k=500, r=0, ti=100), steps(3, w=15.0))[0] == [0, 0, 0]
+    assert run(make(k=500, r=0, ti=100), steps(3, w=16.0))[0] == [1, 2, 3]
+    assert run(make(k=1024, r=0, ti=100, arithmetic="float"), steps(2, w=5.0))[0] == [
+        pytest.approx(100 * 5 / 1024), pytest.approx(2 * 100 * 5 / 1024)]
 
 
 # -- the block has no clock (spec 2.5, 2.11) ------------------------------------------------------

@@ -26,7 +26,8 @@ from loopworks.blocks.kernel import (
     FloatArray,
     IntArray,
     Kernel,
-    entry_point,
+    guarded_entry,
+    guarded_scan,
     jit_enabled,
     packed_entry,
 )
@@ -121,10 +122,13 @@ class Block:
         self.us: IntArray = self._S[:n_u]
         self.ys: IntArray = self._S[n_u:]
         kernel = type(self).kernel
-        self._run: Kernel = entry_point(kernel) if self.jit else kernel
+        # every scan runs under the numeric contract (kernel.guarded_scan)
+        self._run: Kernel
         if self.jit and self.FIXED_LAYOUT:
             self._packed: Any = packed_entry(kernel, n_p, n_x, n_u, n_y)
+            self._run = self._run_packed
         else:  # interpreted, or a layout that varies per instance: through the 7-array entry
+            self._run = guarded_entry(kernel) if self.jit else guarded_scan(kernel, False)
             self._packed = self._packed_interpreted
         # memoryviews on the same buffers: item access from Python is several times cheaper
         self._um: Any = memoryview(cast(Any, self.u))
@@ -152,6 +156,12 @@ class Block:
     # -- the block API ------------------------------------------------------------------------
     def _packed_interpreted(self, dt: float, F: FloatArray, S: IntArray) -> None:
         self._run(dt, self.p, self.x, self.u, self.us, self.y, self.ys)
+
+    def _run_packed(self, dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                    y: FloatArray, ys: IntArray) -> None:
+        """The 7-array scan of a compiled fixed-layout block, through its packed entry (the
+        arrays are views of its own buffers)."""
+        self._packed(dt, self._F, self._S)
 
     def reset(self) -> None:
         """Return to the state right after construction (inputs to their defaults)."""

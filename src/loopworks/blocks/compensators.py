@@ -15,10 +15,22 @@ Port convention (the same for the three kinds)
 * output ``correction`` (%): u_c = op_out - op_in, for the travel and reversal metrics of
   spec 4.1;
 * input ``enable``: > 0.5 compensates (default 1), otherwise ``op_out = op_in`` (a bypass, e.g.
-  in manual). While bypassed each block keeps watching the controller output, so it resumes
-  with up-to-date memories;
+  in manual; a NaN or infinite ``enable`` is not a switch: bypass). While bypassed each block
+  keeps watching the controller output, so it resumes with up-to-date memories;
 * inputs ``sp`` and ``pv`` where the algorithm needs the control error e = SP - PV (the
   knocker's optional error band, the two-move's cycle measurement and release).
+
+Non-finite values (issue 11 point 1). The status pass-through stays, and a NaN or infinite
+``op_in`` counts as Bad (its status is shown as Bad, 0, unless it arrives Bad already): the
+block computes nothing on it, its memories skip the scan (the knocker's pulse timing runs on),
+and ``op_out`` holds its last value (before the first scan: the pass-through of ``op_in``) with
+that Bad status, except that the two-move in move 1 or hold goes on putting out x_1 or x_f;
+``correction`` holds. A result that overflows (``op_in`` near the float range plus a correction)
+is held the same way, Bad. A finite ``op_in`` is used whatever its status, which is passed on.
+An error e = SP - PV that is not finite (a NaN or infinite ``sp`` or ``pv``, or 1e308 -
+(-1e308)) is not measured: the knocker's band does not stop the pulses, the two-move counts no
+crossing and does not test its release band on that scan. So no output is ever non-finite unless
+its status is Bad, no state is, and each block is back at work at the first finite ``op_in``.
 
 The controller does not see the correction (spec 2.1, as in DeltaV). No action factors are
 needed, unlike DeltaV's CNTRL_ACTION·VALVE_ACTION (spec 2.3): every correction here is
@@ -96,23 +108,25 @@ With ``approach = "auto"`` both moves go towards the target (d = sign(y* - x_0),
 x_1 = x_f - d·(J + m)) when that first move is itself at least S + J + m, i.e. when the target
 is far enough; otherwise as ``reverse``. If x_1 falls outside [op_lo, op_hi], the other final
 direction is tried; if that falls outside too, x_1 and x_f are clamped to the range (the moves
-are then not guaranteed). x_0 is the valve input of the previous scan: the last ``op_out``,
-clamped to [op_lo, op_hi] as the valve clips it (keep op_lo/op_hi at the valve's range).
+are then not guaranteed). x_0 is the valve input of the previous scan: the last finite ``op_out``
+(before any: this scan's ``op_in``), clamped to [op_lo, op_hi] as the valve clips it (keep
+op_lo/op_hi at the valve's range).
 
 Target y*. ``target = "cycle_mean"`` (default): the mean controller output over the last
 ``cycles`` full cycles of the limit cycle (spec 2.5: "from the mean OP over the limit cycle").
 Over whole periods of a limit cycle under integral action the mean error is zero, so this mean
-is the OP that holds the PV at SP on average. A cycle is measured between crossings of the
-error e = SP - PV: e changes sign when it passes from above ``cycle_band`` to below
--``cycle_band`` or back; the mean is Σ u·dt / Σ dt over the scans from one crossing up to the
-crossing 2·``cycles`` half cycles later. ``target = "model"``: y* = (SP - model_bias)/model_gain
-from a static process model PV = model_gain·y + model_bias (spec 2.5: "(SP - d)/K with a process
-model"); the block still waits for ``cycles`` measured cycles, i.e. for evidence that the loop
-is cycling, before it moves. The cycle mean includes whatever transient follows the last
-disturbance: in the loop of spec 2.8 (true y* = 51 % after the +1 % set-point step) 1, 2, 4 and
-10 cycles give y* = 50.68, 50.74, 50.82 and 50.91 %, and the PV settles that far below SP; the
-model target lands the valve exactly when the model is right. Either way the result is only as
-good as the S, J and y* estimates (spec 2.5: "sensitive to errors in the stiction estimate").
+is the OP that holds the PV at SP on average. A cycle is measured between crossings of the error
+e = SP - PV: e changes sign when it passes from above ``cycle_band`` to below -``cycle_band`` or
+back; the mean is Σ u·dt / Σ dt over the scans from one crossing up to the crossing 2·``cycles``
+half cycles later, with u as the valve sees it, clamped to [op_lo, op_hi] (a scan with a
+non-finite u is left out). ``target = "model"``: y* = (SP - model_bias)/model_gain from a static
+process model PV = model_gain·y + model_bias (spec 2.5: "(SP - d)/K with a process model"); the
+block still waits for ``cycles`` measured cycles, i.e. for evidence that the loop is cycling,
+before it moves. The cycle mean includes whatever transient follows the last disturbance: in the
+loop of spec 2.8 (true y* = 51 % after the +1 % set-point step) 1, 2, 4 and 10 cycles give y* =
+50.68, 50.74, 50.82 and 50.91 %, and the PV settles that far below SP; the model target lands
+the valve exactly when the model is right. Either way the result is only as good as the S, J and
+y* estimates (spec 2.5: "sensitive to errors in the stiction estimate").
 
 Sequence (output ``phase``):
 
@@ -122,8 +136,13 @@ Sequence (output ``phase``):
 * 1, move 1: ``op_out = x_1`` for ``move_time`` seconds (at least one scan);
 * 2, hold: ``op_out = x_f``, until released;
 * release, back to 0 and a fresh measurement: ``enable`` ≤ 0.5, a change of ``sp`` (any change
-  from its value when the moves began: a set-point change wants new moves), or
-  abs(SP - PV) > ``release_band`` (a load disturbance; default inf = off).
+  from its value when the moves began: a set-point change wants new moves; a NaN or infinite
+  ``sp`` is not the same setpoint either, so it releases too, and no moves start while ``sp`` is
+  not finite), or abs(SP - PV) > ``release_band`` (a load disturbance; default inf = off).
+
+Output ``target`` carries a status: Good while y* is known, NaN with status Bad (0) while it is
+not (before the first cycles are measured; with ``target = "model"``, while (SP - model_bias)/
+model_gain is not a finite number).
 
 While the block holds the valve input the controller's integral keeps running; the release
 then puts its output back on the valve with a bump. To make the release bumpless, let the
@@ -187,7 +206,7 @@ from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite, sign
 from loopworks.blocks.registry import register
-from loopworks.blocks.status import GOOD_NC
+from loopworks.blocks.status import BAD, GOOD_NC
 from loopworks.errors import ParameterError
 
 _TOL = 1e-9  # s, the tolerance of module events
@@ -202,40 +221,76 @@ _OP_OUT = Port("op_out", 0.0, _PCT, "to the valve: op_in + correction, status of
                status=True)
 _CORRECTION = Port("correction", 0.0, _PCT, "u_c = op_out - op_in (spec 2.1)")
 
+OP_OUT, CORRECTION = range(2)
+
+
+@primitive
+def switched_on(value: float) -> bool:
+    """An on/off input (``enable``): on when > 0.5; NaN or infinite is not a switch: off."""
+    return finite(value) and value > 0.5
+
+
+@primitive
+def put_out(y: FloatArray, ys: IntArray, out: float, correction: float, status: int) -> None:
+    """Write ``op_out`` with the status of ``op_in`` (spec 2.1) and ``correction``. A value that
+    is not finite is not written: that output holds its last value, and ``op_out`` is then Bad
+    (``status`` if it is Bad already, its substatus kept; else Bad non-specific, 0)."""
+    if finite(out):
+        y[OP_OUT] = out
+        ys[OP_OUT] = status
+    elif (status & 0xC0) == BAD:
+        ys[OP_OUT] = status
+    else:
+        ys[OP_OUT] = BAD
+    if finite(correction):
+        y[CORRECTION] = correction
+    ys[CORRECTION] = GOOD_NC
+
+
+def pass_through(block: Block) -> float:
+    """``op_out`` before the first scan (issue 11 point 8): ``op_in`` passed through, no
+    correction yet (0 if ``op_in`` is not finite)."""
+    op = float(block.u[0])
+    return op if math.isfinite(op) else 0.0
+
+
 # -- compensator.knocker -----------------------------------------------------------------------
 
 K_AMP, K_WIDTH, K_INTERVAL, K_BAND, K_FROM_PREVIOUS = range(5)
 K_OP_IN, K_ENABLE, K_SP, K_PV = range(4)
-OP_OUT, CORRECTION = range(2)
-KS_SINCE, KS_REF_PREV, KS_REF_CUR, KS_PULSES = range(4)
+KS_SINCE, KS_REF_PREV, KS_REF_CUR, KS_PULSES, KS_PREV_OK, KS_CUR_OK = range(6)
 
 
 def knocker_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                    y: FloatArray, ys: IntArray) -> None:
     """One scan of the knocker (spec 2.4, module docstring). Array elements are read into
-    Python floats (plain IEEE arithmetic when interpreted, free when compiled)."""
+    Python floats (plain IEEE arithmetic when interpreted, free when compiled). The references
+    u(t_p), u(t_p') are the finite u at the pulse starts; each has a flag that says it is
+    known."""
     op = float(u[K_OP_IN])
+    usable = finite(op)
     if x[KS_PULSES] == 0.0 or x[KS_SINCE] >= p[K_INTERVAL] - _TOL:  # a new pulse starts
         x[KS_REF_PREV] = x[KS_REF_CUR]
-        if finite(op) or x[KS_PULSES] == 0.0:
+        x[KS_PREV_OK] = x[KS_CUR_OK]
+        if usable:  # a non-finite u keeps the last known reference
             x[KS_REF_CUR] = op
+            x[KS_CUR_OK] = 1.0
         x[KS_SINCE] = 0.0
         x[KS_PULSES] = min(x[KS_PULSES] + 1.0, 2.0)
     ref = float(x[KS_REF_CUR])
+    known = x[KS_CUR_OK] != 0.0
     if p[K_FROM_PREVIOUS] != 0.0 and x[KS_PULSES] >= 2.0:
         ref = float(x[KS_REF_PREV])
+        known = x[KS_PREV_OK] != 0.0
     kick = 0.0
-    if x[KS_SINCE] < p[K_WIDTH] - _TOL or x[KS_SINCE] == 0.0:  # inside the pulse
-        kick = float(p[K_AMP]) * sign(op - ref)
-    if not u[K_ENABLE] > 0.5:
+    if usable and known and (x[KS_SINCE] < p[K_WIDTH] - _TOL or x[KS_SINCE] == 0.0):
+        kick = float(p[K_AMP]) * sign(op - ref)  # inside the pulse
+    if not switched_on(u[K_ENABLE]):
         kick = 0.0
     if p[K_BAND] > 0.0 and abs(float(u[K_SP]) - float(u[K_PV])) <= p[K_BAND]:
         kick = 0.0
     x[KS_SINCE] = x[KS_SINCE] + dt
-    y[OP_OUT] = op + kick
-    ys[OP_OUT] = us[K_OP_IN]
-    y[CORRECTION] = kick
-    ys[CORRECTION] = GOOD_NC
+    put_out(y, ys, op + kick, kick if usable else math.nan, us[K_OP_IN])
 
 
 @register
@@ -263,7 +318,10 @@ class Knocker(Block):
     INPUTS: ClassVar[tuple[Port, ...]] = (_OP_IN, _ENABLE, _SP, _PV)
     OUTPUTS: ClassVar[tuple[Port, ...]] = (_OP_OUT, _CORRECTION)
     STATES: ClassVar[tuple[str, ...]] = ("since_pulse", "u_previous_pulse", "u_pulse",
-                                         "pulses")
+                                         "pulses", "u_previous_pulse_known", "u_pulse_known")
+
+    def initial_outputs(self) -> list[float]:
+        return [pass_through(self), 0.0]
 
     def coefficients(self) -> list[float]:
         prm: dict[str, Any] = self.params
@@ -294,11 +352,8 @@ def reinforcement_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray,
                 x[CS_SIGN] = s
         x[CS_U_PREV] = op
         x[CS_STARTED] = 1.0
-    bias = float(p[C_ALPHA]) * float(x[CS_SIGN]) if u[C_ENABLE] > 0.5 else 0.0
-    y[OP_OUT] = op + bias
-    ys[OP_OUT] = us[C_OP_IN]
-    y[CORRECTION] = bias
-    ys[CORRECTION] = GOOD_NC
+    bias = float(p[C_ALPHA]) * float(x[CS_SIGN]) if switched_on(u[C_ENABLE]) else 0.0
+    put_out(y, ys, op + bias, bias if finite(op) else math.nan, us[C_OP_IN])
 
 
 @register
@@ -318,6 +373,9 @@ class ConstantReinforcement(Block):
     OUTPUTS: ClassVar[tuple[Port, ...]] = (_OP_OUT, _CORRECTION)
     STATES: ClassVar[tuple[str, ...]] = ("u_previous", "direction", "started")
 
+    def initial_outputs(self) -> list[float]:
+        return [pass_through(self), 0.0]
+
     def coefficients(self) -> list[float]:
         return [float(self.params["alpha"])]
 
@@ -329,7 +387,7 @@ class ConstantReinforcement(Block):
 T_OP_IN, T_ENABLE, T_SP, T_PV = range(4)
 T_PHASE, T_TARGET = range(2, 4)
 (TS_PHASE, TS_E_SIGN, TS_MEASURING, TS_HALVES, TS_SUM_U, TS_SUM_T, TS_READY, TS_MEAN,
- TS_TARGET, TS_X1, TS_XF, TS_TIMER, TS_SP, TS_LAST_OUT) = range(14)
+ TS_TARGET, TS_X1, TS_XF, TS_TIMER, TS_SP, TS_LAST_OUT, TS_MEAN_OK, TS_LAST_OK) = range(16)
 PASS, MOVE1, HOLD = 0.0, 1.0, 2.0
 
 
@@ -341,17 +399,28 @@ def first_move(x0: float, xf: float, d: float, s: float, j: float, m: float) -> 
     return max(x0 + (s + j + m), xf + (s + m))
 
 
+@primitive
+def model_target(sp: float, bias: float, gain: float) -> float:
+    """y* = (SP - model_bias)/model_gain from the static process model (spec 2.5)."""
+    return (sp - bias) / gain
+
+
 def two_move_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                     y: FloatArray, ys: IntArray) -> None:
     """One scan of the two-move compensator (spec 2.5, module docstring). Array elements are
-    read into Python floats (plain IEEE arithmetic when interpreted, free when compiled)."""
+    read into Python floats (plain IEEE arithmetic when interpreted, free when compiled).
+    The cycle mean and the last op_out each have a flag that says they are known."""
     op = float(u[T_OP_IN])
     sp = float(u[T_SP])
     e = sp - float(u[T_PV])
-    enabled = u[T_ENABLE] > 0.5
+    measured = finite(e)  # sp and pv finite, and their difference too
+    enabled = switched_on(u[T_ENABLE])
+    lo = float(p[T_LO])
+    hi = float(p[T_HI])
     phase = x[TS_PHASE]
-    # release? (a NaN sp compares unequal: it releases too)
-    if phase != PASS and (not enabled or sp != x[TS_SP] or abs(e) > p[T_RELEASE]):
+    # release? (a non-finite sp is not the setpoint of the moves: it releases too)
+    if phase != PASS and (not enabled or not finite(sp) or sp != x[TS_SP]
+                          or (measured and abs(e) > p[T_RELEASE])):
         phase = PASS
         x[TS_E_SIGN] = 0.0
         x[TS_MEASURING] = 0.0
@@ -359,9 +428,9 @@ def two_move_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: 
     if phase == PASS:
         # measure the error cycles: a crossing is a sign change outside ±cycle_band
         s = 0.0
-        if e > p[T_CYCLE_BAND]:
+        if measured and e > p[T_CYCLE_BAND]:
             s = 1.0
-        elif e < -p[T_CYCLE_BAND]:
+        elif measured and e < -p[T_CYCLE_BAND]:
             s = -1.0
         crossing = s != 0.0 and x[TS_E_SIGN] != 0.0 and s != x[TS_E_SIGN]
         if s != 0.0:
@@ -371,6 +440,7 @@ def two_move_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: 
                 x[TS_HALVES] += 1.0
                 if x[TS_HALVES] >= 2.0 * p[T_CYCLES] and x[TS_SUM_T] > 0.0:
                     x[TS_MEAN] = float(x[TS_SUM_U]) / float(x[TS_SUM_T])
+                    x[TS_MEAN_OK] = 1.0
                     x[TS_READY] = 1.0
                     x[TS_HALVES] = 0.0
                     x[TS_SUM_U] = 0.0
@@ -380,45 +450,43 @@ def two_move_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: 
                 x[TS_HALVES] = 0.0
                 x[TS_SUM_U] = 0.0
                 x[TS_SUM_T] = 0.0
-        if x[TS_MEASURING] != 0.0 and finite(op):
-            x[TS_SUM_U] = float(x[TS_SUM_U]) + op * dt
+        if x[TS_MEASURING] != 0.0 and finite(op):  # u as the valve sees it
+            x[TS_SUM_U] = float(x[TS_SUM_U]) + clamp(op, lo, hi) * dt
             x[TS_SUM_T] = float(x[TS_SUM_T]) + dt
         target = float(x[TS_MEAN])
+        known = x[TS_MEAN_OK] != 0.0
         if p[T_MODEL] != 0.0:
-            target = (sp - float(p[T_BIAS])) / float(p[T_GAIN])
-        if enabled and x[TS_READY] != 0.0 and finite(target):  # the moves start
-            x0 = float(x[TS_LAST_OUT])
-            if not finite(x0):
-                x0 = op
-            if finite(x0):
-                lo = float(p[T_LO])
-                hi = float(p[T_HI])
-                x0 = clamp(x0, lo, hi)  # what the valve saw (it clips its input)
-                s_ = float(p[T_S])
-                j = float(p[T_J])
-                m = float(p[T_MARGIN])
-                fd = 0.5 * (s_ - j)
-                d = sign(target - x0)
+            target = model_target(sp, float(p[T_BIAS]), float(p[T_GAIN]))
+            known = finite(target)
+        x0 = float(x[TS_LAST_OUT]) if x[TS_LAST_OK] != 0.0 else op
+        if enabled and x[TS_READY] != 0.0 and known and finite(sp) and finite(x0):
+            # the moves start
+            x0 = clamp(x0, lo, hi)  # what the valve saw (it clips its input)
+            s_ = float(p[T_S])
+            j = float(p[T_J])
+            m = float(p[T_MARGIN])
+            fd = 0.5 * (s_ - j)
+            d = sign(target - x0)
+            xf = target + d * fd
+            x1 = xf - d * (j + m)
+            if not (p[T_AUTO] != 0.0 and d != 0.0 and d * (x1 - x0) >= s_ + j + m
+                    and lo <= x1 <= hi and lo <= xf <= hi):
+                d = -1.0 if d >= 0.0 else 1.0  # reverse: move 1 heads past the target
                 xf = target + d * fd
-                x1 = xf - d * (j + m)
-                if not (p[T_AUTO] != 0.0 and d != 0.0 and d * (x1 - x0) >= s_ + j + m
-                        and lo <= x1 <= hi and lo <= xf <= hi):
-                    d = -1.0 if d >= 0.0 else 1.0  # reverse: move 1 heads past the target
-                    xf = target + d * fd
-                    x1 = first_move(x0, xf, d, s_, j, m)
-                    if not (lo <= x1 <= hi):
-                        d2 = -d
-                        xf2 = target + d2 * fd
-                        x12 = first_move(x0, xf2, d2, s_, j, m)
-                        if lo <= x12 <= hi:
-                            xf = xf2
-                            x1 = x12
-                x[TS_X1] = clamp(x1, lo, hi)
-                x[TS_XF] = clamp(xf, lo, hi)
-                x[TS_TARGET] = target
-                x[TS_SP] = sp
-                x[TS_TIMER] = 0.0
-                phase = MOVE1
+                x1 = first_move(x0, xf, d, s_, j, m)
+                if not (lo <= x1 <= hi):
+                    d2 = -d
+                    xf2 = target + d2 * fd
+                    x12 = first_move(x0, xf2, d2, s_, j, m)
+                    if lo <= x12 <= hi:
+                        xf = xf2
+                        x1 = x12
+            x[TS_X1] = clamp(x1, lo, hi)
+            x[TS_XF] = clamp(xf, lo, hi)
+            x[TS_TARGET] = target
+            x[TS_SP] = sp
+            x[TS_TIMER] = 0.0
+            phase = MOVE1
     elif phase == MOVE1:
         x[TS_TIMER] += dt
         if x[TS_TIMER] >= p[T_MOVE_TIME] - _TOL:
@@ -426,19 +494,27 @@ def two_move_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: 
     x[TS_PHASE] = phase
     if phase == PASS:
         out = op
-        y[T_TARGET] = (float(x[TS_MEAN]) if p[T_MODEL] == 0.0
-                       else (sp - float(p[T_BIAS])) / float(p[T_GAIN]))
+        target = float(x[TS_MEAN])
+        known = x[TS_MEAN_OK] != 0.0
+        if p[T_MODEL] != 0.0:
+            target = model_target(sp, float(p[T_BIAS]), float(p[T_GAIN]))
+            known = finite(target)
     else:
         out = float(x[TS_X1]) if phase == MOVE1 else float(x[TS_XF])
-        y[T_TARGET] = x[TS_TARGET]
-    x[TS_LAST_OUT] = out
-    y[OP_OUT] = out
-    ys[OP_OUT] = us[T_OP_IN]
-    y[CORRECTION] = out - op
-    ys[CORRECTION] = GOOD_NC
+        target = float(x[TS_TARGET])
+        known = True
+    if finite(out):
+        x[TS_LAST_OUT] = out
+        x[TS_LAST_OK] = 1.0
+    put_out(y, ys, out, out - op, us[T_OP_IN])
     y[T_PHASE] = phase
     ys[T_PHASE] = GOOD_NC
-    ys[T_TARGET] = GOOD_NC
+    if known:
+        y[T_TARGET] = target
+        ys[T_TARGET] = GOOD_NC
+    else:  # not available
+        y[T_TARGET] = math.nan
+        ys[T_TARGET] = BAD
 
 
 @register
@@ -484,11 +560,12 @@ class TwoMove(Block):
         Port("phase", 0.0, "", "0 pass, 1 move 1, 2 hold (wire to pid.track for a bumpless "
              "release)"),
         Port("target", 0.0, _PCT, "y*: the target of the moves (in pass: the current "
-             "estimate, NaN before the first cycles are measured)"),
+             "estimate; NaN, status Bad, while it is not known)", status=True),
     )
     STATES: ClassVar[tuple[str, ...]] = (
         "phase", "error_sign", "measuring", "half_cycles", "sum_u_dt", "sum_dt", "ready",
-        "cycle_mean", "target", "x1", "x_final", "timer", "sp_at_moves", "last_out")
+        "cycle_mean", "target", "x1", "x_final", "timer", "sp_at_moves", "last_out",
+        "cycle_mean_known", "last_out_known")
 
     def coefficients(self) -> list[float]:
         prm: dict[str, Any] = self.params
@@ -506,9 +583,15 @@ class TwoMove(Block):
                 float(prm["move_time"]), float(prm["release_band"]), float(prm["op_lo"]),
                 float(prm["op_hi"]), 1.0 if prm["approach"] == "auto" else 0.0]
 
-    def initial_state(self) -> list[float]:
-        state = [0.0] * len(self.STATES)
-        state[TS_MEAN] = math.nan
-        state[TS_TARGET] = math.nan
-        state[TS_LAST_OUT] = math.nan
-        return state
+    def initial_outputs(self) -> list[float]:
+        """Before the first scan: op_in passed through, phase 0 (pass), and y* if it is known
+        (target = model: from the initial sp), else NaN (marked Bad by :meth:`reset`)."""
+        target = math.nan
+        if self.p[T_MODEL] != 0.0:
+            target = model_target(float(self.u[T_SP]), self.p[T_BIAS], self.p[T_GAIN])
+        return [pass_through(self), 0.0, PASS, target if math.isfinite(target) else math.nan]
+
+    def reset(self) -> None:
+        super().reset()
+        if not math.isfinite(self.y[T_TARGET]):
+            self.ys[T_TARGET] = BAD

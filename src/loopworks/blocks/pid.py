@@ -46,17 +46,25 @@ its last value (no P, I or D action; status Good with the Constant limit bits, 1
 Modes (input ``mode``): MAN (0) puts ``man_out`` on the output (limited to out_lo..out_hi; NaN
 = no operator write, the output holds); AUTO (1) controls to ``sp``; CAS (2) controls to
 ``cas_sp``. ``track`` > 0.5 puts ``track_value`` on the output in any mode (a Bad or
-non-finite ``track_value`` holds the output, status 0x47). Rate limiting acts
+non-finite ``track_value`` holds the output, status 0x47; a non-finite ``track`` is not a
+switch: no tracking). Rate limiting acts
 in AUTO and CAS only. Any scan that does not compute the output (MAN, tracking, bad input, the
 error gap) re-initialises the controller at the next computing scan: the integral (or the
 velocity accumulator) is set so that the output continues from where it was and d_{k-1} = d_k,
 so every return to control is bumpless. With no integral action (ti = inf, ki = 0) the
 re-initialised integral is a frozen manual reset.
 
-Bad input: a non-finite or Bad-status ``pv`` (and likewise the working setpoint or ``ff``) in
-AUTO/CAS makes the block hold its last output (``bad_pv = "hold"``, status Uncertain: last
-usable value, 0x47) or go to ``safe_out`` (``bad_pv = "safe"``, status Uncertain: substitute,
-0x4B); the limit bits say Constant. Uncertain inputs are used, and ``out`` becomes Uncertain.
+Bad input (issue 11 point 1): in AUTO/CAS, a ``pv`` that is not a usable measurement (NaN,
+±inf, Bad status, or beyond ±1e12 in its units, ``INPUT_LIMIT``: no real measurement is that
+large; e2.pid uses the same limit), and likewise the working
+setpoint or ``ff``, makes the block hold its last output (``bad_pv = "hold"``, status
+Uncertain: last usable value, 0x47) or go to ``safe_out`` (``bad_pv = "safe"``, status
+Uncertain: substitute, 0x4B); the limit bits say Constant. A scan whose arithmetic overflows
+(a P, I or D term, or their sum, not finite: extreme gains) is Bad input in the same way. Such
+a scan leaves the controller's memories as they were (the state is written only when every
+term is finite), and the next usable scan re-initialises bumplessly from the output it gave, so
+the controller is back in control at the first good PV, whatever came before: no state and no
+output is ever non-finite. Uncertain inputs are used, and ``out`` becomes Uncertain.
 The ``out`` status is otherwise Good non-cascade (128), with the high/low limited bits
 (130/129) when the output sits at ``out_hi``/``out_lo`` and Constant (131) in MAN or tracking
 (Fieldbus convention, spec vendor-blocks 4.6).
@@ -65,11 +73,12 @@ The ``out`` status is otherwise Good non-cascade (128), with the high/low limite
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.forms import series_to_ideal
-from loopworks.blocks.kernel import FloatArray, IntArray
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
@@ -100,9 +109,22 @@ OUT, P_TERM, I_TERM, D_TERM = range(4)
 (S_I, S_D, S_DPREV, S_U, S_V, S_ACC, S_PPREV, S_DOUTPREV, S_FFPREV, S_FIRST, S_INIT) = range(11)
 
 
+# Inputs beyond this magnitude are not measurements (issue 11 point 1); shared with e2.pid
+INPUT_LIMIT = 1e12
+
+
+@primitive
+def measured(value: float, status: int) -> bool:
+    """True when an analog input is usable: finite, within ±INPUT_LIMIT (in its own units) and
+    its status is not Bad. Anything else is Bad input (issue 11 point 1)."""
+    return finite(value) and abs(value) <= INPUT_LIMIT and (status & 0xC0) != BAD
+
+
 def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                y: FloatArray, ys: IntArray) -> None:
-    """One scan of the generic PID (equations in the module docstring)."""
+    """One scan of the generic PID (equations in the module docstring). A computing scan
+    works on locals and writes the state only once every term is finite, so a scan whose
+    arithmetic overflows is Bad input and leaves the state as it was."""
     lo = p[LO]
     hi = p[HI]
     u_prev = x[S_U]
@@ -110,7 +132,8 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
     out = u_prev
     status = GOOD_NC | CONSTANT
     computed = False
-    if u[TRACK] > 0.5:  # output tracking, any mode
+    track = u[TRACK]
+    if finite(track) and track > 0.5:  # output tracking, any mode
         if finite(u[TRACK_VALUE]) and (us[TRACK_VALUE] & 0xC0) != BAD:
             out = clamp(u[TRACK_VALUE], lo, hi)
         else:
@@ -126,56 +149,46 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
         q_sp = us[isp] & 0xC0
         q_pv = us[PV] & 0xC0
         q_ff = us[FF] & 0xC0
-        bad = (not (mode == AUTO or mode == CAS) or not finite(sp) or not finite(pv)
-               or not finite(ff) or q_sp == BAD or q_pv == BAD or q_ff == BAD)
-        if bad:
-            if p[BADPV] == BAD_SAFE:
-                out = p[SAFE]
-                status = UNCERTAIN_SUBSTITUTE | CONSTANT
-            else:
-                status = UNCERTAIN_LAST_USABLE_VALUE | CONSTANT
-        else:
-            computed = True
+        usable = ((mode == AUTO or mode == CAS) and measured(sp, us[isp])
+                  and measured(pv, us[PV]) and measured(ff, us[FF]))
+        if usable:
             s = p[SIGN]
+            bias = p[BIAS]
             e = s * (sp - pv)
             pterm = s * p[KP] * (p[B] * sp - pv)
             d = s * (p[C] * sp - pv)
             init = x[S_INIT] != 0.0
-            if init or x[S_FIRST] != 0.0:
-                x[S_DPREV] = d
-                x[S_D] = 0.0
-            dterm = (p[TF] * x[S_D] + p[KD] * (d - x[S_DPREV])) / (p[TF] + dt)
-            x[S_D] = dterm
-            x[S_DPREV] = d
+            first = x[S_FIRST] != 0.0
+            d_prev = x[S_DPREV]
+            d_filt = x[S_D]
+            if init or first:
+                d_prev = d
+                d_filt = 0.0
+            dterm = (p[TF] * d_filt + p[KD] * (d - d_prev)) / (p[TF] + dt)
+            i_prev = x[S_I]
+            acc = x[S_ACC]
+            v_prev = x[S_V]
+            p_prev = x[S_PPREV]
+            dout_prev = x[S_DOUTPREV]
+            ff_prev = x[S_FFPREV]
             if init:  # bumpless return: continue from the last output
-                x[S_I] = u_prev - pterm - dterm - ff - p[BIAS]
-                x[S_ACC] = u_prev
-                x[S_V] = u_prev
-                x[S_PPREV] = pterm
-                x[S_DOUTPREV] = dterm
-                x[S_FFPREV] = ff
+                i_prev = u_prev - pterm - dterm - ff - bias
+                acc = u_prev
+                v_prev = u_prev
+                p_prev = pterm
+                dout_prev = dterm
+                ff_prev = ff
             velocity = p[VELOCITY] != 0.0
-            if abs(e) < p[EDB]:  # error gap: hold the output, re-initialise on leaving
-                out = u_prev
-                x[S_INIT] = 1.0
-                x[S_FIRST] = 0.0
-                y[OUT] = out
-                ys[OUT] = GOOD_NC | CONSTANT
-                y[P_TERM] = pterm
-                y[I_TERM] = out - pterm - dterm - ff - p[BIAS]
-                y[D_TERM] = dterm
-                return
+            gap = abs(e) < p[EDB]  # error gap: hold the output, re-initialise on leaving
             di = 0.0
-            if abs(e) >= p[IDB]:  # inside the integral dead band the integral is frozen
+            if not gap and abs(e) >= p[IDB]:  # inside the integral dead band I is frozen
                 di = p[KI] * dt * e
                 if p[AW] == AW_BACK_CALCULATION:
-                    di += dt * p[TT_INV] * (u_prev - x[S_V])
+                    di += dt * p[TT_INV] * (u_prev - v_prev)
             if velocity:
-                base = (x[S_ACC] + (pterm - x[S_PPREV]) + (dterm - x[S_DOUTPREV])
-                        + (ff - x[S_FFPREV]))
+                base = acc + (pterm - p_prev) + (dterm - dout_prev) + (ff - ff_prev)
             else:
-                base = pterm + x[S_I] + dterm + ff + p[BIAS]
-            first = x[S_FIRST] != 0.0
+                base = pterm + i_prev + dterm + ff + bias
             upper = hi
             lower = lo
             if not first:
@@ -188,29 +201,54 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
                 elif di < 0.0 and base + di < lower:
                     di = min(0.0, lower - base)
             v = base + di
-            out = clamp(v, lower, upper)
-            if velocity:
-                x[S_ACC] = out if p[AW] == AW_CLAMPING else v
-                iterm = x[S_ACC] - pterm - dterm - ff - p[BIAS]
+            i_new = i_prev
+            if gap:
+                out = u_prev
+                iterm = out - pterm - dterm - ff - bias
             else:
-                x[S_I] = x[S_I] + di
-                iterm = x[S_I]
-            x[S_V] = v
-            x[S_PPREV] = pterm
-            x[S_DOUTPREV] = dterm
-            x[S_FFPREV] = ff
-            x[S_FIRST] = 0.0
-            x[S_INIT] = 0.0
-            status = GOOD_NC
-            if q_sp == UNCERTAIN or q_pv == UNCERTAIN or q_ff == UNCERTAIN:
-                status = UNCERTAIN_NON_SPECIFIC
-            if out >= hi:
-                status |= HIGH_LIMITED
-            elif out <= lo:
-                status |= LOW_LIMITED
-            y[P_TERM] = pterm
-            y[I_TERM] = iterm
-            y[D_TERM] = dterm
+                out = clamp(v, lower, upper)
+                if velocity:
+                    acc = out if p[AW] == AW_CLAMPING else v
+                    iterm = acc - pterm - dterm - ff - bias
+                else:
+                    i_new = i_prev + di
+                    iterm = i_new
+            # overflow is Bad input: a sum of finite numbers is finite unless one of them is
+            # not, or the sum overflows (then the terms are beyond any usable scale anyway)
+            usable = finite(pterm + dterm + i_new + base + v + acc + iterm)
+            if usable:
+                computed = True
+                x[S_D] = dterm
+                x[S_DPREV] = d
+                x[S_FIRST] = 0.0
+                if gap:
+                    x[S_INIT] = 1.0
+                    status = GOOD_NC | CONSTANT
+                else:
+                    x[S_I] = i_new
+                    x[S_ACC] = acc
+                    x[S_V] = v
+                    x[S_PPREV] = pterm
+                    x[S_DOUTPREV] = dterm
+                    x[S_FFPREV] = ff
+                    x[S_INIT] = 0.0
+                    status = GOOD_NC
+                    if q_sp == UNCERTAIN or q_pv == UNCERTAIN or q_ff == UNCERTAIN:
+                        status = UNCERTAIN_NON_SPECIFIC
+                    if out >= hi:
+                        status |= HIGH_LIMITED
+                    elif out <= lo:
+                        status |= LOW_LIMITED
+                y[P_TERM] = pterm
+                y[I_TERM] = iterm
+                y[D_TERM] = dterm
+        if not usable:
+            if p[BADPV] == BAD_SAFE:
+                out = p[SAFE]
+                status = UNCERTAIN_SUBSTITUTE | CONSTANT
+            else:
+                out = u_prev
+                status = UNCERTAIN_LAST_USABLE_VALUE | CONSTANT
     if not computed:
         x[S_INIT] = 1.0
         x[S_FIRST] = 0.0
@@ -345,6 +383,7 @@ class PID(Block):
         if not lo < hi:
             raise ParameterError(
                 f"pid: parameter 'out_hi' = {hi:g} must be greater than out_lo = {lo:g}")
+        _check_finite(prm, given, kp, ki, kd, tf)
         velocity = prm["algorithm"] == "velocity"
         aw = {"none": AW_NONE, "clamping": AW_CLAMPING,
               "back_calculation": AW_BACK_CALCULATION}[prm["antiwindup"]]
@@ -365,6 +404,13 @@ class PID(Block):
                         "pid: antiwindup = 'back_calculation' with kp = 0 has no default "
                         "tracking time (Ti = kp/ki = 0): give 'tt' (s)")
             tt_inv = 1.0 / tt
+            if not math.isfinite(tt_inv):
+                name = ("tt" if prm["tt"] is not None
+                        else "kp" if form == "parallel" else "ti")  # tt from Ti (= kp/ki)
+                raise ParameterError(
+                    f"pid: parameter '{name}' = {float(prm[name]):g} is out of range: it "
+                    f"gives the tracking time tt = {tt:g} s, and 1/tt must be a finite number: "
+                    f"allowed tt > {1.0 / sys.float_info.max:.3g} s")
         safe = lo if prm["safe_out"] is None else float(prm["safe_out"])
         if not lo <= safe <= hi:
             raise ParameterError(
@@ -397,6 +443,24 @@ class PID(Block):
         x[S_ACC] = bias
         x[S_FIRST] = 1.0
         return x
+
+
+def _check_finite(prm: dict[str, Any], given: set[str], kp: float, ki: float, kd: float,
+                  tf: float) -> None:
+    """ParameterError unless the derived gains and the filter time are finite numbers (a
+    tiny ti makes k/ti, or the series conversion's K'(1 + Td'/Ti'), overflow)."""
+    if prm["form"] == "parallel":
+        sources = {"kp": "kp", "ki": "ki", "kd": "kd", "tf": "tf" if "tf" in given else "kd"}
+    else:
+        sources = {"kp": "ti" if prm["form"] == "series" else "k", "ki": "ti", "kd": "td",
+                   "tf": "tf" if "tf" in given else "td"}
+    for gain, value in (("kp", kp), ("ki", ki), ("kd", kd), ("tf", tf)):
+        if not math.isfinite(value):
+            name = sources[gain]
+            raise ParameterError(
+                f"pid: parameter '{name}' = {float(prm[name]):g} is out of range: with the "
+                f"other settings it gives {gain} = {value:g}; allowed: values that keep the "
+                "gains kp, ki, kd and the filter time tf finite numbers")
 
 
 def _or(value: Any, default: float) -> float:

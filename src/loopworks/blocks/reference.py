@@ -51,6 +51,15 @@ def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
     return "\n".join(lines)
 
 
+NUMERIC_CONTRACT = """\
+An input value that is NaN or infinite is Bad input, whatever status it arrives with: the block
+sees it as Bad and does what is written above for Bad input. If a scan's arithmetic overflows
+(a state, or an output whose status is not Bad, would become NaN or infinite), the scan is
+undone and run again as if every input were Bad; a kind with no rule for Bad input then holds
+its state and outputs, with the outputs' status Bad. So no output is NaN or infinite unless its
+status is Bad, and the block recovers as soon as its inputs are good again."""
+
+
 def markdown(cls: type[Block]) -> str:
     """The reference page of a block kind, in Markdown."""
     module_doc = inspect.getdoc(inspect.getmodule(cls)) or ""
@@ -74,6 +83,10 @@ def markdown(cls: type[Block]) -> str:
         "## Behaviour",
         "",
         module_doc,
+        "",
+        "## Non-finite values (every kind)",
+        "",
+        NUMERIC_CONTRACT,
         "",
     ]
     return "\n".join(parts)

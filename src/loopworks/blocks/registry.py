@@ -68,5 +68,8 @@ def block_class(kind: str) -> type[Block]:
 
 
 def create_block(kind: str, **params: Any) -> Block:
-    """Make a block of ``kind`` with validated ``params`` (names in any letter case)."""
+    """Make a block of ``kind`` with validated ``params`` (names in any letter case).
+
+    The kinds are listed in the docstring of :func:`loopworks.create_block` (kept equal to
+    :func:`kinds` by a test) and by ``loopworks blocks``."""
     return block_class(kind)(**params)

@@ -1,8 +1,9 @@
 r"""The relay experiment: kind ``relay`` (Åström & Hägglund 1984; plant-and-tuning 3.1, 3.3, 3.4).
 
 The block sits between a loop's controller and what the controller drives. While ``enable`` is
-off it passes the controller's output ``u_in`` through unchanged. When ``enable`` rises it takes
-over the loop for a relay test around the operating point and afterwards hands the loop back.
+off it passes the controller's output ``u_in`` through (within ``out_lo``..``out_hi``). When
+``enable`` rises it takes over the loop for a relay test around the operating point and
+afterwards hands the loop back.
 
 Relay law (3.1), with u0 the output when the test starts (``u_in`` then, or the ``u0``
 parameter when given), e the error and ε the ``hysteresis`` (half-width; total band 2ε)::
@@ -31,31 +32,60 @@ on a low-pass plant, |Δ/K| ≤ (4/π)·|offset|·d: offset ≤ 0.5 keeps both r
 side of the new equilibrium.
 
 Cycles and convergence (3.4). A cycle runs from one switch to r = +1 to the next. For every
-cycle the block measures its period and its PV amplitude (half the peak-to-peak). The first
-``discard_cycles`` cycles of a stage are ignored; the stage has converged when the last
-``stable_cycles`` cycles agree: (max - min)/mean ≤ ``tolerance`` for the periods and for the
-amplitudes (the "2-3 stable cycles with ≤ 5 % spread" default of 3.4).
+cycle the block measures its period P, its PV amplitude a (half the peak-to-peak) and its
+means of the PV and of the output (over the scans of the cycle, each held for its dt). The
+first ``discard_cycles`` cycles of a stage are ignored; the stage has converged when the last
+``stable_cycles`` cycles agree and are stationary (the "2-3 stable cycles with ≤ 5 % spread"
+default of 3.4, tol = ``tolerance``; P̄, ā: their mean period and amplitude; d_up + d_down: the
+output's peak-to-peak)::
+
+    max P - min P                   ≤ tol·P̄ + dt
+    max a - min a                   ≤ tol·ā
+    max mean(PV) - min mean(PV)     ≤ (tol + 2·dt/P̄)·ā
+    max mean(out) - min mean(out)   ≤ tol·d_up + (d_up + d_down)·dt/P̄
+
+The dt terms are the scan's own share: the relay switches on the scan grid, so a cycle is a
+whole number of scans and moving one of its ends by a scan changes its period by dt and its
+means by up to (peak-to-peak)·dt/P. The means test keeps a drifting loop (one not at rest
+when the test began, a load moving it) from "converging": the static gain rests on those
+means.
+
+A stage whose stable cycles are shorter than ``MIN_CYCLE_SCANS`` scans (reason at the
+constant) ends the test with ``phase`` 8, too fast, instead of converging.
 
 End of the test. The test ends when it has converged (``phase`` 2) or is aborted (3.4 item 7):
 ``timeout`` seconds since the start (3), |SP - PV| > ``max_deviation`` (4, runaway),
 ``max_cycles`` cycles in a stage without convergence (5), no relay switch for
-``max_half_period`` seconds (6: no oscillation, e.g. a valve that never reverses), or a Bad or
-non-finite PV or SP (7). On the scan that ends it the output returns to u0 (item 7: restore u0)
-with ``active`` still 1, so a controller that tracks ``out`` while ``active`` is on holds u0;
-from the next scan on the block passes ``u_in`` through again and ``active`` is 0. A controller
-that re-initialises when tracking stops (every loopworks controller does) then continues from
-u0: the handback is bumpless. ``enable`` must fall and rise again for a new test.
+``max_half_period`` seconds (6: no oscillation, e.g. a valve that never reverses), a Bad or
+non-finite PV or SP, or one whose arithmetic overflows (SP - PV, a cycle's amplitude or
+integral not finite) (7), or a cycle shorter than ``MIN_CYCLE_SCANS`` scans (8). On the scan
+that ends it the output returns to u0 (item 7: restore u0) with ``active`` still 1, so a
+controller that tracks ``out`` while ``active`` is on holds u0; from the next scan on the block
+passes ``u_in`` through again and ``active`` is 0. A controller that re-initialises when
+tracking stops (every loopworks controller does) then continues from u0: the handback is
+bumpless. ``enable`` must fall and rise again for a new test.
 
 Hand-over wiring (``loopworks.sim.tune`` does it): the controller's output goes to ``u_in``,
 the consumers of the controller's output read ``out``, and the controller tracks ``out`` while
 ``active`` (generic ``pid``: ``track``/``track_value``; ``deltav.pid``: ``trk_in_d``/
 ``trk_val`` with ``track_enable``, the LO mode DeltaV uses for its tuner, vendor-blocks 5.1;
 GE: ``man``/``manual_command``; S5: ``auto`` = ``inactive``, ``yh``; E2: ``override`` =
-the ``override`` output, NaN when inactive).
+the ``override`` output, NaN with status Bad when inactive).
 
 Outputs ``cycles``, ``period`` and ``amplitude`` report the latest full cycle of the running
 stage; the full analysis (Ku, Pu, gains, dead time) is done on the recorded signals by
 ``loopworks.tuning.identify``.
+
+Status. ``override``, ``period`` and ``amplitude`` carry a status: NaN (no test running, no full
+cycle yet) with status Bad (non-specific), a value with Good; the E2 override cell ignores a Bad
+override (vendor-blocks 3.7). ``out`` is Good, constant, while the relay drives it; otherwise it
+passes ``u_in`` through with its status, clamped to ``out_lo``..``out_hi`` (with the status's
+high or low limit bit where it is clamped); a ``u_in`` that is not finite leaves ``out`` at its
+last value with status Bad (u_in's own, or non-specific). The other outputs are always finite.
+Bad input: an enable rising while the PV or SP is Bad or non-finite starts no cycle (the test
+ends at once with ``phase`` 7, returning u0 = ``u_in``, or the last finite output when ``u_in``
+is Bad too); no state is ever left non-finite, so a new test after the inputs recover starts
+clean.
 
 Time. t is the ``clock`` input when finite, else the block's own time (the sum of dt).
 """
@@ -70,14 +100,29 @@ from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
-from loopworks.blocks.status import CONSTANT, GOOD_NC, UNCERTAIN
+from loopworks.blocks.status import (
+    BAD_NON_SPECIFIC,
+    CONSTANT,
+    GOOD_NC,
+    HIGH_LIMITED,
+    LOW_LIMITED,
+    UNCERTAIN,
+)
 from loopworks.errors import ParameterError
 
 # Phase codes (output ``phase``)
-IDLE, RUNNING, CONVERGED, TIMEOUT, RUNAWAY, NOT_CONVERGED, NO_OSCILLATION, BAD_INPUT = range(8)
+(IDLE, RUNNING, CONVERGED, TIMEOUT, RUNAWAY, NOT_CONVERGED, NO_OSCILLATION, BAD_INPUT,
+ TOO_FAST) = range(9)
 PHASE_NAMES = ("idle", "running", "converged", "timeout", "runaway", "not_converged",
-               "no_oscillation", "bad_input")
+               "no_oscillation", "bad_input", "too_fast")
 N_SLOTS = 5  # cycles remembered for the convergence test (stable_cycles ≤ N_SLOTS)
+#: The shortest limit cycle the test accepts, in scans. The relay acts on the scan grid, so
+#: every switch time, the period and the switch-to-extremum dead time are known to one scan
+#: only: below 10 scans per period that is more than 10 % of the period (twice the 5 %
+#: convergence tolerance of 3.4) and a half period has fewer than 5 samples to find the PV
+#: extremum in. Such a cycle is the sampling's, not the plant's: a loop with no dead time
+#: cycles every 2 scans, the relay chasing its own one-scan delay (issue 11).
+MIN_CYCLE_SCANS = 10
 
 # Coefficient layout (p)
 (D_UP, D_DOWN, HYST, SIGN, LO, HI, U0, TIMEOUT_S, MAX_DEV, MAX_CYC, MAX_HALF, DISCARD, STABLE,
@@ -92,29 +137,58 @@ OUT, ACTIVE, INACTIVE, OVERRIDE, RELAY, PHASE, STAGE, SHIFT, CYCLES, PERIOD, AMP
 S_PERIODS = 15                  # N_SLOTS latest periods
 S_AMPS = S_PERIODS + N_SLOTS    # N_SLOTS latest amplitudes
 S_SHIFT = S_AMPS + N_SLOTS      # Δ: the second stage's switching point minus SP
-N_STATES = S_SHIFT + 1
+S_PV_INT = S_SHIFT + 1          # ∫PV dt over the running cycle
+S_OUT_INT = S_PV_INT + 1        # ∫out dt over the running cycle
+S_CYC_TIME = S_OUT_INT + 1      # Σdt over the running cycle
+S_PV_MEANS = S_CYC_TIME + 1     # N_SLOTS latest cycle means of PV
+S_OUT_MEANS = S_PV_MEANS + N_SLOTS  # N_SLOTS latest cycle means of out
+S_HAS_T_UP = S_OUT_MEANS + N_SLOTS  # 1 once t_up holds a switch up of this test
+S_HAS_CYCLE = S_HAS_T_UP + 1        # 1 once period and amplitude hold a full cycle
+N_STATES = S_HAS_CYCLE + 1
 
 
 @primitive
-def _spread_ok(x: FloatArray, first: int, n: int, tol: float) -> bool:
-    """(max - min)/mean ≤ tol over x[first:first + n] (all positive)."""
+def _spread(x: FloatArray, first: int, n: int) -> float:
+    """max - min over x[first:first + n]."""
     lo = math.inf
     hi = -math.inf
-    total = 0.0
     for i in range(first, first + n):
         v = float(x[i])
         lo = min(lo, v)
         hi = max(hi, v)
-        total += v
-    mean = total / n
-    return mean > 0.0 and (hi - lo) <= tol * mean
+    return hi - lo
+
+
+@primitive
+def _average(x: FloatArray, first: int, n: int) -> float:
+    """Mean of x[first:first + n] (each term divided first: no overflow for finite x)."""
+    total = 0.0
+    for i in range(first, first + n):
+        total += float(x[i]) / n
+    return total
+
+
+@primitive
+def _stationary(x: FloatArray, stable: int, tol: float, d: float, span: float,
+                dt: float) -> bool:
+    """The last ``stable`` cycles agree (3.4, module docstring): (max - min) of their periods
+    ≤ tol·P̄ + dt, of their amplitudes ≤ tol·ā, of their PV means ≤ (tol + 2dt/P̄)·ā and of
+    their output means ≤ tol·d + span·dt/P̄ (span: the output's peak-to-peak)."""
+    first = N_SLOTS - stable
+    per = _average(x, S_PERIODS + first, stable)
+    amp = _average(x, S_AMPS + first, stable)
+    return (per > 0.0 and amp > 0.0
+            and _spread(x, S_PERIODS + first, stable) <= tol * per + dt
+            and _spread(x, S_AMPS + first, stable) <= tol * amp
+            and _spread(x, S_PV_MEANS + first, stable) <= (tol + 2.0 * dt / per) * amp
+            and _spread(x, S_OUT_MEANS + first, stable) <= tol * d + span * dt / per)
 
 
 def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                  y: FloatArray, ys: IntArray) -> None:
     """One scan of the relay experiment (equations in the module docstring)."""
     clock = float(u[CLOCK])
-    t = clock if finite(clock) else float(x[S_TIME])
+    t = clock if finite(clock) and us[CLOCK] >= UNCERTAIN else float(x[S_TIME])
     if finite(t + dt):
         x[S_TIME] = t + dt
     enable = float(u[ENABLE]) > 0.5
@@ -123,25 +197,30 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
     sign = float(p[SIGN])
     sp = float(u[SP])
     pv = float(u[PV])
-    inputs_ok = finite(sp) and finite(pv) and us[SP] >= UNCERTAIN and us[PV] >= UNCERTAIN
+    inputs_ok = (finite(sp) and finite(pv) and finite(sp - pv) and finite(sp + x[S_SHIFT] - pv)
+                 and us[SP] >= UNCERTAIN and us[PV] >= UNCERTAIN)
+    u_in = float(u[U_IN])
+    u_in_ok = finite(u_in) and us[U_IN] >= UNCERTAIN
     phase = int(x[S_PHASE])
     if rising and phase != RUNNING:  # a new test
-        u0 = float(p[U0]) if finite(float(p[U0])) else float(u[U_IN])
+        u0 = float(p[U0])
         if not finite(u0):
-            u0 = float(x[S_OUT])
+            u0 = u_in if u_in_ok else float(x[S_OUT])
         x[S_U0] = u0
         x[S_T0] = t
         x[S_T_SWITCH] = t
-        x[S_T_UP] = math.nan
+        x[S_HAS_T_UP] = 0.0
         x[S_N_UP] = 0.0
         x[S_STAGE] = 1.0
-        x[S_PERIOD] = math.nan
-        x[S_AMP] = math.nan
+        x[S_HAS_CYCLE] = 0.0
         x[S_SHIFT] = 0.0
+        x[S_PV_INT] = 0.0
+        x[S_OUT_INT] = 0.0
+        x[S_CYC_TIME] = 0.0
         e0 = sign * (sp - pv) if inputs_ok else 0.0
         x[S_R] = 1.0 if e0 >= 0.0 else -1.0
-        x[S_PV_MAX] = pv
-        x[S_PV_MIN] = pv
+        x[S_PV_MAX] = pv if inputs_ok else 0.0
+        x[S_PV_MIN] = pv if inputs_ok else 0.0
         phase = RUNNING
     elif not enable and phase != RUNNING:
         phase = IDLE
@@ -175,32 +254,53 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
         if new_r != r:
             x[S_T_SWITCH] = t
             if new_r > 0.0:  # a switch up closes a cycle
-                if finite(float(x[S_T_UP])):
+                period = t - float(x[S_T_UP])
+                amp = 0.5 * float(x[S_PV_MAX]) - 0.5 * float(x[S_PV_MIN])
+                cyc = float(x[S_CYC_TIME])
+                pv_mean = float(x[S_PV_INT]) / cyc if cyc > 0.0 else math.nan
+                out_mean = float(x[S_OUT_INT]) / cyc if cyc > 0.0 else math.nan
+                if float(x[S_HAS_T_UP]) < 0.5:
+                    pass  # the first switch up: no full cycle yet
+                elif not (finite(period) and finite(amp) and finite(pv_mean)
+                          and finite(out_mean)):
+                    phase = BAD_INPUT  # the PV left the range of the arithmetic
+                    ending = True
+                else:
                     # shift the cycle memories and store this cycle
                     for i in range(N_SLOTS - 1):
                         x[S_PERIODS + i] = x[S_PERIODS + i + 1]
                         x[S_AMPS + i] = x[S_AMPS + i + 1]
-                    period = t - float(x[S_T_UP])
-                    amp = 0.5 * (float(x[S_PV_MAX]) - float(x[S_PV_MIN]))
+                        x[S_PV_MEANS + i] = x[S_PV_MEANS + i + 1]
+                        x[S_OUT_MEANS + i] = x[S_OUT_MEANS + i + 1]
                     x[S_PERIODS + N_SLOTS - 1] = period
                     x[S_AMPS + N_SLOTS - 1] = amp
+                    x[S_PV_MEANS + N_SLOTS - 1] = pv_mean
+                    x[S_OUT_MEANS + N_SLOTS - 1] = out_mean
                     x[S_PERIOD] = period
                     x[S_AMP] = amp
+                    x[S_HAS_CYCLE] = 1.0
                     x[S_N_UP] = float(x[S_N_UP]) + 1.0
                     n = int(x[S_N_UP])
                     stable = int(p[STABLE])
-                    tol = float(p[TOL])
+                    d_down = float(p[D_DOWN]) if float(x[S_STAGE]) > 1.5 \
+                        or float(p[BIASED]) < 0.5 else float(p[D_UP])
                     if (n >= int(p[DISCARD]) + stable
-                            and _spread_ok(x, S_PERIODS + N_SLOTS - stable, stable, tol)
-                            and _spread_ok(x, S_AMPS + N_SLOTS - stable, stable, tol)):
-                        if float(p[BIASED]) > 0.5 and float(x[S_STAGE]) < 1.5:
-                            x[S_STAGE] = 2.0  # the second stage starts with this cycle
-                            x[S_N_UP] = 0.0
-                            # Δ = offset · (mean amplitude of the stable cycles)
-                            total = 0.0
-                            for i in range(N_SLOTS - stable, N_SLOTS):
-                                total += float(x[S_AMPS + i])
-                            x[S_SHIFT] = float(p[OFFSET]) * total / stable
+                            and _stationary(x, stable, float(p[TOL]), float(p[D_UP]),
+                                            float(p[D_UP]) + d_down, dt)):
+                        first = S_PERIODS + N_SLOTS - stable
+                        shift = float(p[OFFSET]) * _average(x, S_AMPS + N_SLOTS - stable,
+                                                            stable)
+                        if _average(x, first, stable) < (MIN_CYCLE_SCANS - 0.5) * dt:
+                            phase = TOO_FAST
+                            ending = True
+                        elif float(p[BIASED]) > 0.5 and float(x[S_STAGE]) < 1.5:
+                            if finite(shift):
+                                x[S_STAGE] = 2.0  # the second stage starts with this cycle
+                                x[S_N_UP] = 0.0
+                                x[S_SHIFT] = shift  # Δ = offset · (mean stable amplitude)
+                            else:
+                                phase = BAD_INPUT
+                                ending = True
                         else:
                             phase = CONVERGED
                             ending = True
@@ -208,13 +308,17 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
                         phase = NOT_CONVERGED
                         ending = True
                 x[S_T_UP] = t
+                x[S_HAS_T_UP] = 1.0
                 x[S_PV_MAX] = pv
                 x[S_PV_MIN] = pv
+                x[S_PV_INT] = 0.0
+                x[S_OUT_INT] = 0.0
+                x[S_CYC_TIME] = 0.0
             r = new_r
             x[S_R] = r
-    if phase == RUNNING or ending:
-        x[S_PV_MAX] = max(float(x[S_PV_MAX]), pv) if finite(pv) else x[S_PV_MAX]
-        x[S_PV_MIN] = min(float(x[S_PV_MIN]), pv) if finite(pv) else x[S_PV_MIN]
+    if (phase == RUNNING or ending) and finite(pv):
+        x[S_PV_MAX] = max(float(x[S_PV_MAX]), pv)
+        x[S_PV_MIN] = min(float(x[S_PV_MIN]), pv)
     lo = float(p[LO])
     hi = float(p[HI])
     if ending:
@@ -226,25 +330,51 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
             else float(p[D_UP])
         out = clamp(u0 + float(p[D_UP]) if r > 0.0 else u0 - d_down, lo, hi)
         active = True
-    else:
-        out = float(u[U_IN])
+        # the cycle's integrals (zero-order hold: this scan's PV and output last dt)
+        pv_int = float(x[S_PV_INT]) + pv * dt
+        out_int = float(x[S_OUT_INT]) + out * dt
+        if finite(pv_int) and finite(out_int):
+            x[S_PV_INT] = pv_int
+            x[S_OUT_INT] = out_int
+            x[S_CYC_TIME] = float(x[S_CYC_TIME]) + dt
+        else:  # the PV left the range of the arithmetic
+            phase = BAD_INPUT
+            out = clamp(u0, lo, hi)
+            x[S_R] = 0.0
+    else:  # passing u_in through, within the output limits; a non-finite u_in: the last out
+        out = clamp(u_in, lo, hi) if finite(u_in) else float(x[S_OUT])
         active = False
     x[S_PHASE] = float(phase)
-    x[S_OUT] = out
+    if finite(out):
+        x[S_OUT] = out
+    running = active  # RUNNING, or the scan that ends the test
     y[OUT] = out
-    ys[OUT] = (GOOD_NC | CONSTANT) if active else us[U_IN]
+    if active:
+        ys[OUT] = GOOD_NC | CONSTANT
+    elif not finite(u_in):
+        ys[OUT] = us[U_IN] if us[U_IN] < UNCERTAIN else BAD_NON_SPECIFIC
+    elif u_in > hi:  # passed through with its status, limit bits where clamped
+        ys[OUT] = (us[U_IN] & 0xFC) | HIGH_LIMITED
+    elif u_in < lo:
+        ys[OUT] = (us[U_IN] & 0xFC) | LOW_LIMITED
+    else:
+        ys[OUT] = us[U_IN]
     y[ACTIVE] = 1.0 if active else 0.0
     y[INACTIVE] = 0.0 if active else 1.0
     y[OVERRIDE] = out if active else math.nan
-    y[RELAY] = r if phase == RUNNING or ending else 0.0
+    y[RELAY] = r if running else 0.0
     y[PHASE] = float(phase)
-    y[STAGE] = float(x[S_STAGE]) if phase == RUNNING or ending else 0.0
-    y[SHIFT] = float(x[S_SHIFT]) if phase == RUNNING or ending else 0.0
+    y[STAGE] = float(x[S_STAGE]) if running else 0.0
+    y[SHIFT] = float(x[S_SHIFT]) if running else 0.0
     y[CYCLES] = float(x[S_N_UP])
-    y[PERIOD] = float(x[S_PERIOD])
-    y[AMPLITUDE] = float(x[S_AMP])
+    have = float(x[S_HAS_CYCLE]) > 0.5
+    y[PERIOD] = float(x[S_PERIOD]) if have else math.nan
+    y[AMPLITUDE] = float(x[S_AMP]) if have else math.nan
     for i in range(ACTIVE, AMPLITUDE + 1):
         ys[i] = GOOD_NC
+    for i in (OVERRIDE, PERIOD, AMPLITUDE):  # NaN = not available: Bad
+        if not finite(float(y[i])):
+            ys[i] = BAD_NON_SPECIFIC
 
 
 @register
@@ -301,28 +431,34 @@ class Relay(Block):
         Port("clock", math.nan, "s", "time (module time); NaN = the block's own time"),
     )
     OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("out", 0.0, "out", "relay output during the test, else u_in", status=True),
+        Port("out", 0.0, "out", "relay output during the test, else u_in (clamped to "
+             "out_lo..out_hi)", status=True),
         Port("active", 0.0, "", "1 while the relay drives the loop (controller tracks out)"),
-        Port("inactive", 1.0, "", "1 - active (for S5 auto)"),
-        Port("override", math.nan, "out", "out while active, else NaN (for E2 override)"),
+        Port("inactive", 1.0, "", "1 - active (for S5 auto)", choices=("MAN", "AUTO")),
+        Port("override", math.nan, "out", "out while active, else NaN with status Bad (for E2 "
+             "override)", status=True),
         Port("relay", 0.0, "", "relay state +1 / -1 while running (on the scan that ends "
              "the test: the state it switched to), else 0"),
         Port("phase", 0.0, "", "0 idle, 1 running, 2 converged, 3 timeout, 4 runaway, 5 not "
-             "converged, 6 no oscillation, 7 bad input"),
+             "converged, 6 no oscillation, 7 bad input, 8 too fast (cycles under "
+             f"{MIN_CYCLE_SCANS} scans)"),
         Port("stage", 0.0, "", "1 symmetric, 2 second (biased and/or offset), 0 not running "
              "(the ending scan keeps its stage)"),
         Port("shift", 0.0, "pv", "Δ: the relay's switching point minus SP (0 in the first "
              "stage)"),
         Port("cycles", 0.0, "", "cycles completed in the running stage"),
-        Port("period", math.nan, "s", "period of the latest cycle"),
+        Port("period", math.nan, "s", "period of the latest cycle (NaN, status Bad, before the "
+             "first)", status=True),
         Port("amplitude", math.nan, "pv", "PV amplitude (half peak-to-peak) of the latest "
-             "cycle"),
+             "cycle (NaN, status Bad, before the first)", status=True),
     )
     STATES: ClassVar[tuple[str, ...]] = (
         "time", "phase", "r", "u0", "t0", "t_switch", "t_up", "n_up", "pv_max", "pv_min",
         "stage", "enable_prev", "out", "period", "amplitude",
         *(f"period_{i}" for i in range(N_SLOTS)), *(f"amplitude_{i}" for i in range(N_SLOTS)),
-        "shift")
+        "shift", "pv_integral", "out_integral", "cycle_time",
+        *(f"pv_mean_{i}" for i in range(N_SLOTS)), *(f"out_mean_{i}" for i in range(N_SLOTS)),
+        "has_t_up", "has_cycle")
 
     def coefficients(self) -> list[float]:
         prm: dict[str, Any] = self.params
@@ -346,9 +482,12 @@ class Relay(Block):
                 1.0 if prm["biased_stage"] else 0.0, float(prm["offset"])]
 
     def initial_state(self) -> list[float]:
-        x = [0.0] * N_STATES
-        x[S_U0] = x[S_T_UP] = x[S_PERIOD] = x[S_AMP] = math.nan
-        return x
+        return [0.0] * N_STATES  # every state finite (kernel.guarded_scan)
+
+    def reset(self) -> None:
+        super().reset()
+        for i in (OVERRIDE, PERIOD, AMPLITUDE):  # NaN before the first scan: Bad
+            self.ys[i] = BAD_NON_SPECIFIC
 
     def initial_outputs(self) -> list[float]:
         return [0.0, 0.0, 1.0, math.nan, 0.0, 0.0, 0.0, 0.0, 0.0, math.nan, math.nan]

@@ -40,7 +40,16 @@ switching instants use the 1e-9 s tolerance of module events, so a step at 20 s 
 scan at 20 s even when 0.1 s scans sum to 19.999999999999996.
 
 Status. ``y`` carries the status of ``u`` unchanged (the disturbance neither degrades nor
-improves it, as a summing junction); a NaN ``u`` gives a NaN ``y``. ``d`` is Good.
+improves it, as a summing junction, seed 000 line 28's pass-through); a non-finite ``u`` is
+Bad input whatever its status says (issue 11 point 1), so a NaN ``u`` gives a NaN ``y`` with
+status Bad (non-specific, 0, unless ``u`` arrived Bad: then its byte). A sum that overflows
+(1e308 + 1e308) is Bad too. ``d`` is Good; in the one case its arithmetic leaves the float
+range (a clock or parameters near it: ramp_rate·t, a sine angle) ``d`` is NaN with status Bad
+and ``y`` is Bad with it; the random walk only advances to finite values.
+
+Before its first scan the block publishes its outputs for t = 0 and the ``u`` input latched
+now (issue 11 point 8): y = u + d(0), d(0) (the walk is 0 then), so a block that reads ``y``
+earlier in a module's order sees the real signal, not 0.
 
 Options for the spec's [A]/[?] points
 -------------------------------------
@@ -79,11 +88,11 @@ import math
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
-from loopworks.blocks.kernel import FloatArray, IntArray
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import finite
 from loopworks.blocks.registry import register
-from loopworks.blocks.status import GOOD_NC
+from loopworks.blocks.status import BAD, BAD_NON_SPECIFIC, GOOD_NC
 from loopworks.errors import ParameterError
 from loopworks.plant.sensor import (
     STREAM_DISTURBANCE,
@@ -104,28 +113,17 @@ Y, D = range(2)
 S_TIME, S_WALK, S_RNG = range(3)
 
 
-def load_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
-                y: FloatArray, ys: IntArray) -> None:
-    """One scan: d(t) from the components, y = u + d (equations in the module docstring).
-    Array elements are read into Python floats (plain IEEE arithmetic when interpreted)."""
-    t = scan_time(float(u[CLOCK]), x, S_TIME, dt)
+@primitive
+def disturbance(p: FloatArray, t: float, walk: float) -> float:
+    """d(t) with the walk's value ``walk`` (module docstring); NaN where the arithmetic leaves
+    the float range."""
     d = float(p[BIAS])
     if at_or_after(t, p[STEP_TIME]):
         d += float(p[STEP_SIZE])
     rate = float(p[RAMP_RATE])
     if rate != 0.0 and at_or_after(t, p[RAMP_START]):
         d += rate * max(min(t, float(p[RAMP_END])) - float(p[RAMP_START]), 0.0)
-    walk = float(x[S_WALK])
     d += walk  # w(t): the walk at the start of this scan
-    sigma = float(p[WALK_STD])
-    if sigma > 0.0 and at_or_after(t, p[WALK_START]):
-        n = rng_normal(x, S_RNG)
-        tau = float(p[WALK_TAU])
-        if finite(tau):  # Ornstein-Uhlenbeck, exact step
-            a = math.exp(-dt / tau)
-            x[S_WALK] = a * walk + sigma * math.sqrt(0.5 * tau * (1.0 - a * a)) * n
-        else:  # Wiener process, exact step
-            x[S_WALK] = walk + sigma * math.sqrt(dt) * n
     amplitude = float(p[SINE_AMP])
     if amplitude != 0.0 and at_or_after(t, p[SINE_START]):
         angle = (TWO_PI * (t - float(p[SINE_START])) / float(p[SINE_PERIOD])
@@ -134,10 +132,42 @@ def load_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntA
             d += amplitude * math.sin(angle)
         else:  # sin(±inf) is NaN compiled but an error in Python: NaN in both
             d = math.nan
-    y[Y] = float(u[U]) + d
-    ys[Y] = us[U]
+    return d if finite(d) else math.nan
+
+
+@primitive
+def publish(u: FloatArray, us: IntArray, y: FloatArray, ys: IntArray, d: float) -> None:
+    """y = u + d with the status of u (Bad non-specific when the sum is not finite), and d
+    (Good, or Bad when NaN)."""
+    total = float(u[U]) + d
+    status = us[U]
+    if not finite(total) and (status & 0xC0) != BAD:
+        status = BAD_NON_SPECIFIC
+    y[Y] = total
+    ys[Y] = status
     y[D] = d
-    ys[D] = GOOD_NC
+    ys[D] = GOOD_NC if finite(d) else BAD_NON_SPECIFIC
+
+
+def load_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                y: FloatArray, ys: IntArray) -> None:
+    """One scan: d(t) from the components, y = u + d (equations in the module docstring).
+    Array elements are read into Python floats (plain IEEE arithmetic when interpreted)."""
+    t = scan_time(float(u[CLOCK]), x, S_TIME, dt)
+    walk = float(x[S_WALK])
+    d = disturbance(p, t, walk)
+    sigma = float(p[WALK_STD])
+    if sigma > 0.0 and at_or_after(t, p[WALK_START]):
+        n = rng_normal(x, S_RNG)  # drawn on every such scan: the stream never shifts
+        tau = float(p[WALK_TAU])
+        if finite(tau):  # Ornstein-Uhlenbeck, exact step
+            a = math.exp(-dt / tau)
+            step = a * walk + sigma * math.sqrt(0.5 * tau * (1.0 - a * a)) * n
+        else:  # Wiener process, exact step
+            step = walk + sigma * math.sqrt(dt) * n
+        if finite(step):
+            x[S_WALK] = step
+    publish(u, us, y, ys, d)
 
 
 @register
@@ -177,7 +207,8 @@ class Load(Block):
     )
     OUTPUTS: ClassVar[tuple[Port, ...]] = (
         Port("y", 0.0, "u", "u + d, with the status of u", status=True),
-        Port("d", 0.0, "u", "the disturbance alone"),
+        Port("d", 0.0, "u", "the disturbance alone (Good; Bad only when its arithmetic "
+             "leaves the float range)", status=True),
     )
     STATES: ClassVar[tuple[str, ...]] = (
         "time", "walk", "rng_s10", "rng_s11", "rng_s12", "rng_s20", "rng_s21", "rng_s22")
@@ -197,3 +228,15 @@ class Load(Block):
 
     def initial_state(self) -> list[float]:
         return [0.0, 0.0, *rng_seed_state(int(self.params["seed"]), STREAM_DISTURBANCE)]
+
+    def reset(self) -> None:
+        super().reset()
+        self.publish_start()
+
+    def publish_start(self) -> None:
+        """Publish the outputs before the first scan: t = 0 (or the latched clock) and the
+        ``u`` latched now (module docstring). A module that settles its wires calls it
+        again."""
+        clock = float(self.u[CLOCK])
+        t = clock if finite(clock) else float(self.x[S_TIME])
+        publish(self.u, self.us, self.y, self.ys, disturbance(self.p, t, float(self.x[S_WALK])))

@@ -94,9 +94,16 @@ travel (k = 0: x at op % of travel); the first scan only initialises. With ``y0`
 travel) the stem starts at rest there with the pressure that holds it without friction,
 P = (k·x + F_init)/Sa.
 
+Before its first scan the valve publishes its start (issue 11 point 8): ``y0``, or without
+``y0`` the position its first scan gives for the op latched now (at rest in equilibrium with
+it), as the data-driven valves do.
+
 Status: as for the data-driven valves: an Uncertain op gives Uncertain outputs; a Bad or
 non-finite op either freezes the whole state (``bad_op = hold``, outputs Bad) or drives the
-actuator with ``fail_op`` (``fail``: loss of signal; outputs Uncertain: substitute).
+actuator with ``fail_op`` (``fail``: loss of signal; outputs Uncertain: substitute). A scan
+whose integration does not stay finite (only parameters at the edge of the float range can
+do that, e.g. a diaphragm area of 1e-300 m²) is skipped: the state holds and the outputs keep
+their values with status Bad: configuration error (0x04).
 
 Options for the spec's [I] points
 ---------------------------------
@@ -132,8 +139,9 @@ import numpy as np
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
-from loopworks.blocks.primitives import clamp, sign
+from loopworks.blocks.primitives import clamp, finite, sign
 from loopworks.blocks.registry import register
+from loopworks.blocks.status import BAD_CONFIGURATION_ERROR
 from loopworks.errors import ParameterError
 from loopworks.plant.valve import (
     C_Y0,
@@ -149,7 +157,7 @@ from loopworks.plant.valve import (
     hold,
     op_in,
     op_status,
-    publish_rest_position,
+    publish_start,
     sj_from_resolution_deadband,
 )
 
@@ -295,11 +303,18 @@ def karnopp_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: I
         hold(p, x, y, ys)
         return
     p_op = p[P_PMIN] + p[P_DP] * op / 100.0
+    saved = (x[S_X], x[S_V], x[S_P], x[S_STUCK], x[S_FRICTION], x[S_INIT])
     if x[S_INIT] == 0.0:
         karnopp_init(p, x, p_op, op)
     else:
         karnopp_advance(dt, p, x, p_op)
-    pos = 100.0 * ((x[S_X] - p[P_XMIN]) / (p[P_XMAX] - p[P_XMIN]))
+    if not (finite(x[S_X]) and finite(x[S_V]) and finite(x[S_P]) and finite(x[S_FRICTION])):
+        x[S_X], x[S_V], x[S_P], x[S_STUCK], x[S_FRICTION], x[S_INIT] = saved
+        ys[POS] = BAD_CONFIGURATION_ERROR
+        ys[FLOW] = BAD_CONFIGURATION_ERROR
+        return
+    # x is within [x_min, x_max]: the clamp only removes rounding (100.00000000000003)
+    pos = clamp(100.0 * ((x[S_X] - p[P_XMIN]) / (p[P_XMAX] - p[P_XMIN])), 0.0, 100.0)
     x[S_POS] = pos
     y[POS] = pos
     y[FLOW] = flow_of(p, pos)
@@ -429,7 +444,18 @@ class Karnopp(Block):
                 f"valve.karnopp: parameter 'p_max' = {p_max:g} must be greater than p_min = "
                 f"{p_min:g} Pa")
         f_s, f_c = self.friction_forces()
+        if not math.isfinite(x_max - x_min) or not math.isfinite(p_max - p_min):
+            raise ParameterError(
+                f"valve.karnopp: the travel x_max - x_min = {x_max:g} - {x_min:g} m and the "
+                f"pressure span p_max - p_min = {p_max:g} - {p_min:g} Pa must be finite")
         y0 = math.nan if prm["y0"] is None else float(prm["y0"])
+        if y0 == y0:
+            x_y0 = x_min + (x_max - x_min) * y0 / 100.0
+            p_y0 = (float(prm["k"]) * x_y0 + float(prm["f_init"])) / float(prm["sa"])
+            if not math.isfinite(p_y0):
+                raise ParameterError(
+                    f"valve.karnopp: parameter 'sa' = {float(prm['sa']):g} m² is too small: "
+                    f"the pressure that holds the stem at y0 = {y0:g} % is not finite")
         common = [math.inf,
                   CHAR_EQUAL if prm["characteristic"] == "equal_percentage" else CHAR_LINEAR,
                   math.log(float(prm["rangeability"])),
@@ -440,10 +466,9 @@ class Karnopp(Block):
                 float(prm["substep"]), float(prm["max_substeps"])]
 
     def initial_state(self) -> list[float]:
-        x = np.zeros(len(self.STATES))
+        x = np.zeros(len(self.STATES))  # no y0: init = 0 until the first op, every state finite
         y0 = self.p[C_Y0]
         if math.isnan(y0):
-            x[S_POS] = math.nan
             return [float(v) for v in x]
         p = self.p
         xs = p[P_XMIN] + (p[P_XMAX] - p[P_XMIN]) * y0 / 100.0
@@ -456,4 +481,9 @@ class Karnopp(Block):
 
     def reset(self) -> None:
         super().reset()
-        publish_rest_position(self, self.x[S_POS])
+        self.publish_start()
+
+    def publish_start(self) -> None:
+        """Publish the outputs before the first scan for the op latched now (as
+        :func:`loopworks.plant.valve.publish_start`)."""
+        publish_start(self)

@@ -17,8 +17,8 @@ SOPDT and integrating plants [I].
     T·dy/dt = K·u - y      →   y_k = y_{k-1} + (1 - e^(-dt/T))·(K·u_k - y_{k-1})
 
 (exact for an input held over the scan; Åström & Wittenmark, *Computer-Controlled Systems*,
-ch. 2). A non-finite input freezes the state and marks ``y`` Bad (no input, no trustworthy
-output).
+ch. 2). An unusable input (see Bad input below) freezes the state and marks ``y`` Bad (no
+input, no trustworthy output).
 
 ### Plants with dead time
 
@@ -134,13 +134,23 @@ and need no such parameter.
 ### Bad input
 
 A NaN, ±inf or Bad-status ``u`` marks ``y`` Bad (non-specific, 0) for that scan; Uncertain
-inputs are used (``y`` Good). What the plant does meanwhile is the option ``bad_input``:
+inputs are used (``y`` Good). So is an input the model's float arithmetic cannot carry
+(issue 11 point 1): one whose contribution to the model, K·(u - u0) (first_order: K·u; tf:
+(u - u0) times its largest input coefficient), exceeds ``MODEL_RANGE`` = 1e150 in magnitude.
+Such a value (1e308, say) is a fault, not a signal: kept in the delay line or the state it
+would overflow a later scan (1e308 + 1e308), so it is refused where it enters. What the plant
+does meanwhile is the option ``bad_input``:
 
 - ``hold_input`` (default; issue 5: "hold the last input and mark y Bad"): the plant keeps
   running on the last good input (u0 before any), which also enters the delay line, so the
   output keeps moving as the real process would with the actuator held;
 - ``freeze``: the scan is skipped (state and line unchanged, ``y`` holds), as
   ``process.first_order`` does.
+
+A scan whose result would still leave the float range (an integrator driven past ±1.8e308, an
+unstable transfer function that has run away, or parameters near the float range) is skipped
+the same way: state and line unchanged, ``y`` holds with status Bad (non-specific). No output
+or state is ever NaN or infinite.
 
 ### State (``state_dict()``, ``load_state()``)
 
@@ -208,11 +218,23 @@ from loopworks.errors import InputError, ParameterError
 
 GAIN, TAU, Y0 = range(3)
 
+#: the largest magnitude of an input's contribution to a model (module docstring, Bad input)
+MODEL_RANGE = 1e150
+
+
+@primitive
+def input_good(value: float, status: int, offset: float, scale: float) -> bool:
+    """A usable input: finite, its status not Bad (Uncertain is used), and its contribution
+    scale·(value - offset) within ±MODEL_RANGE (module docstring, Bad input)."""
+    return (finite(value) and (status & 0xC0) != BAD
+            and abs(scale * (value - offset)) <= MODEL_RANGE)
+
 
 def first_order_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                        y: FloatArray, ys: IntArray) -> None:
-    """One scan of T·dy/dt = K·u - y (module docstring)."""
-    if math.isnan(u[0]) or math.isinf(u[0]) or (us[0] & 0xC0) == BAD:
+    """One scan of T·dy/dt = K·u - y (module docstring). The state stays a weighted mean of
+    y0 and targets K·u within MODEL_RANGE, so it cannot overflow."""
+    if not input_good(u[0], us[0], 0.0, p[GAIN]):
         ys[0] = BAD_NON_SPECIFIC
     else:
         x[0] = lag_step(x[0], p[GAIN] * u[0], dt, p[TAU])
@@ -256,12 +278,6 @@ DELAY_TOL = 1e-9
 #: process.tf accepts a scan time within DT_RTOL·sample_time of its sample_time
 DT_RTOL = 1e-6
 HOLD_INPUT, FREEZE = 0.0, 1.0
-
-
-@primitive
-def input_good(value: float, status: int) -> bool:
-    """A usable input: finite, and its status is not Bad (Uncertain is used)."""
-    return finite(value) and (status & 0xC0) != BAD
 
 
 # The delay line lives in the state array from index ``base``: [head, count, run_dt, run_len,
@@ -372,14 +388,14 @@ def dead_time_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us:
                      y: FloatArray, ys: IntArray) -> None:
     """One scan of fopdt/sopdt/ipdt: the delayed input's pieces in (t_{k-1} - θ, t_k - θ],
     oldest first, each an exact step (module docstring)."""
-    good = input_good(u[0], us[0])
-    if good:
-        x[S_HELD] = u[0]
-    elif p[BAD_MODE] == FREEZE:
+    good = input_good(u[0], us[0], p[U0], p[KGAIN])
+    if not good and p[BAD_MODE] == FREEZE:
         y[0] = x[S_Y]
         ys[0] = BAD_NON_SPECIFIC
         return
-    v = x[S_HELD]
+    v = u[0] if good else x[S_HELD]
+    y_old = x[S_Y]
+    x1_old = x[S_X1]
     cap = int(p[CAP])
     theta = p[THETA]
     u0 = p[U0]
@@ -405,9 +421,7 @@ def dead_time_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us:
                               dt - f * dt)
             else:
                 plant_advance(p, x, v if n == 0 else line_value(x, S_LINE, cap, n, u0), dt)
-            line_push(x, S_LINE, cap, v, dt)
-            y[0] = x[S_Y]
-            ys[0] = GOOD_NC if good else BAD_NON_SPECIFIC
+            end_scan(x, y, ys, v, dt, cap, good, y_old, x1_old)
             return
     # General path (dt has varied): walk the recorded durations.
     end = theta + dt
@@ -442,6 +456,22 @@ def dead_time_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us:
         j -= 1
         d = dt if j == 0 else line_duration(x, S_LINE, cap, j)
         a -= d
+    end_scan(x, y, ys, v, dt, cap, good, y_old, x1_old)
+
+
+@primitive
+def end_scan(x: FloatArray, y: FloatArray, ys: IntArray, v: float, dt: float, cap: int,
+             good: bool, y_old: float, x1_old: float) -> None:
+    """Finish a scan of fopdt/sopdt/ipdt: record the input in the line and publish y; a
+    result outside the float range skips the scan instead (module docstring, Bad input)."""
+    if not (finite(x[S_Y]) and finite(x[S_X1])):
+        x[S_Y] = y_old
+        x[S_X1] = x1_old
+        y[0] = y_old
+        ys[0] = BAD_NON_SPECIFIC
+        return
+    if good:
+        x[S_HELD] = v
     line_push(x, S_LINE, cap, v, dt)
     y[0] = x[S_Y]
     ys[0] = GOOD_NC if good else BAD_NON_SPECIFIC
@@ -647,7 +677,7 @@ class IPDT(_DeadTimeProcess):
 
 # p layout: header, then C' (nmax), Φ (nmax·nmax, row-major), Γ1 (nmax), Γ0 (nmax)
 (TF_TS, TF_ORDER, TF_NMAX, TF_U0, TF_Y0, TF_NDELAY, TF_CAP, TF_BAD_MODE, TF_E1, TF_E0,
- TF_HEAD) = range(11)
+ TF_SCALE, TF_HEAD) = range(12)
 # x layout: output, last good input, ξ (nmax), work (nmax), then the delay line
 X_Y, X_HELD, X_XI = range(3)
 
@@ -660,14 +690,12 @@ def tf_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArr
         y[0] = x[X_Y]
         ys[0] = BAD_CONFIGURATION_ERROR
         return
-    good = input_good(u[0], us[0])
-    if good:
-        x[X_HELD] = u[0]
-    elif p[TF_BAD_MODE] == FREEZE:
+    good = input_good(u[0], us[0], p[TF_U0], p[TF_SCALE])
+    if not good and p[TF_BAD_MODE] == FREEZE:
         y[0] = x[X_Y]
         ys[0] = BAD_NON_SPECIFIC
         return
-    v = x[X_HELD]
+    v = u[0] if good else x[X_HELD]
     order = int(p[TF_ORDER])
     nmax = int(p[TF_NMAX])
     n = int(p[TF_NDELAY])
@@ -684,13 +712,23 @@ def tf_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArr
     out = p[TF_Y0] + p[TF_E1] * w_old + p[TF_E0] * w_new
     for i in range(order):
         out += p[c_row + i] * x[X_XI + i]
+    sound = finite(out)
     for i in range(order):
         s = p[g1_at + i] * w_old + p[g0_at + i] * w_new
         for jj in range(order):
             s += p[phi_at + i * nmax + jj] * x[X_XI + jj]
         x[work + i] = s
+        sound = sound and finite(s)
+    if not sound:  # the model left the float range: skip the scan (module docstring)
+        for i in range(order):
+            x[work + i] = 0.0
+        y[0] = x[X_Y]
+        ys[0] = BAD_NON_SPECIFIC
+        return
     for i in range(order):
         x[X_XI + i] = x[work + i]
+    if good:
+        x[X_HELD] = v
     line_push(x, line, cap, v, dt)
     x[X_Y] = out
     y[0] = out
@@ -843,9 +881,11 @@ class TransferFunction(_LineProcess):
         e0 = num[0] if order == 0 else 0.0
         if order > 0:
             e1, e0 = self._discretise(num, den, ts, f, cprime, phi_m, g1, g0)
+        # the input's largest coefficient: (u - u0) times it must stay within MODEL_RANGE
+        scale = max(1.0, abs(e1), abs(e0), *(abs(g) for g in g1), *(abs(g) for g in g0))
         values = [ts, float(order), float(nmax), float(self.params["u0"]), self.initial_output(),
                   float(n), float(self.params["delay_capacity"]),
-                  FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT, e1, e0,
+                  FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT, e1, e0, scale,
                   *cprime, *phi_m, *g1, *g0]
         if not all(math.isfinite(v) for v in values):
             raise ParameterError(

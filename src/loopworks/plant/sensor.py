@@ -19,6 +19,9 @@ Signal path, one scan of ``dt`` seconds (k = this scan)::
 * The lag is the exact zero-order-hold step of T·dz/dt = m - z (Åström & Wittenmark,
   *Computer-Controlled Systems*, ch. 2; the shared primitive ``lag_step``); T = 0 is no lag.
   It starts settled: z takes the first good measurement (no start-up transient).
+* Before its first scan the transmitter publishes the PV of that settled start for the ``y``
+  input latched now (issue 11 point 8): calibration, quantisation and range of it, no noise;
+  so a controller that reads ``pv`` earlier in a module's order sees a real measurement.
 * Noise is added after the lag (electronics noise on the sensed value) and before the
   quantiser (the A/D converter digitises the noisy signal), as in a real transmitter. The
   quantiser is the memoryless one of plant-and-tuning 1.5 (``y = q·round(x/q)``, halves
@@ -58,18 +61,24 @@ module events). During the failure:
   (128): a stuck transmitter (plugged impulse line, frozen electronics) does not know it.
 * ``bad``: the value holds the last PV before the failure (the last usable value); status Bad,
   sensor failure (0x10): the device detects the fault, as an AI block reports it.
-* ``nan``: the value is NaN; status Good (128): a corrupted value that carries no status, as a
-  PLC float tag or a Modbus register gives it.
+* ``nan``: the value is NaN; status Bad, non-specific (0x00): a corrupted value, as a PLC
+  float tag or a Modbus register gives it. A NaN is Bad whatever the device claims (issue 11
+  point 1: no value is non-finite unless its status is Bad), so loopworks marks it where it
+  arises (until issue 11 this mode gave status Good).
 
-``failure_status`` (a status byte) replaces the mode's status.
+``failure_status`` (a status byte) replaces the mode's status; with ``failure = "nan"`` it must
+be a Bad status (0..63).
 
 The sensing element keeps following the process during a failure (the lag keeps running), so
 when the failure ends the PV returns to the current reading at once. If the failure is active
 from the first scan, the frozen value is the first scan's reading.
 
 Input status: an Uncertain ``y`` gives an Uncertain ``pv`` (the input's byte, limit bits
-cleared); a Bad or non-finite ``y`` (a broken process model) holds the PV and the lag, with
-the input's status if it is Bad, else Bad non-specific (0x00). An injected failure takes
+cleared); a Bad or non-finite ``y`` (a broken process model), or a reading gain·y + offset
+beyond ±1e150 (``MODEL_RANGE`` of the process models: a fault, not a measurement), holds the PV
+and the lag, with the input's status if it is Bad, else Bad non-specific (0x00); so does a
+noisy value that overflows (a noise_std near the float range). Before the first usable scan
+the PV held is the start value published before the first scan. An injected failure takes
 precedence over both.
 
 Options for the spec's [A]/[?] points
@@ -128,6 +137,8 @@ from loopworks.blocks.status import (
     UNCERTAIN_EU_RANGE_VIOLATION,
 )
 from loopworks.errors import ParameterError
+from loopworks.plant.process import MODEL_RANGE
+from loopworks.plant.valve import quantise
 
 # -- the seeded generator (shared with loopworks.plant.disturbance) ---------------------------
 
@@ -249,8 +260,31 @@ PV = 0
 # State (x): the lag, its started flag, the PV held for failures, the time, the generator
 S_LAG, S_STARTED, S_HELD, S_HELD_OK, S_TIME, S_RNG = range(6)
 
-# floor() is exact and safe below this magnitude; beyond it a double is already an integer
-_FLOOR_SAFE = 4.0e15
+@primitive
+def usable(reading: float, status: int) -> bool:
+    """A reading the transmitter can measure: status not Bad, finite, within ±MODEL_RANGE."""
+    return (status & 0xC0) != BAD and finite(reading) and abs(reading) <= MODEL_RANGE
+
+
+@primitive
+def shaped(p: FloatArray, value: float, status_in: int) -> tuple[float, int]:
+    """(pv, status) of a measured value: quantised (q > 0), then limited to pv_lo..pv_hi with
+    the limit bits and the range status; Good, or the Uncertain input's byte (limit bits
+    cleared)."""
+    q = float(p[QUANTUM])
+    if q > 0.0:
+        value = quantise(value, q)
+    status = GOOD_NC
+    if (status_in & 0xC0) == UNCERTAIN:
+        status = status_in & 0xFC
+    base = GOOD_NC if p[RANGE_GOOD] != 0.0 else UNCERTAIN_EU_RANGE_VIOLATION
+    if value > p[PV_HI]:
+        value = float(p[PV_HI])
+        status = base | HIGH_LIMITED
+    elif value < p[PV_LO]:
+        value = float(p[PV_LO])
+        status = base | LOW_LIMITED
+    return value, status
 
 
 def transmitter_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
@@ -264,31 +298,20 @@ def transmitter_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, u
         noise = float(p[NOISE]) * rng_normal(x, S_RNG)
     status_in = us[Y]
     reading = float(p[GAIN]) * float(u[Y]) + float(p[OFFSET])
-    if (status_in & 0xC0) == BAD or not finite(reading):
-        value = float(x[S_HELD])  # hold, like the lag
-        status = status_in if (status_in & 0xC0) == BAD else BAD_NON_SPECIFIC
-    else:
+    value = math.nan
+    status = BAD_NON_SPECIFIC
+    if usable(reading, status_in):
         if x[S_STARTED] == 0.0:  # starts settled at the first good measurement
             x[S_LAG] = reading
             x[S_STARTED] = 1.0
-        else:
+        else:  # a weighted mean of readings within MODEL_RANGE: finite
             x[S_LAG] = lag_step(x[S_LAG], reading, dt, p[TAU])
         value = float(x[S_LAG]) + noise
-        q = float(p[QUANTUM])
-        if q > 0.0:
-            w = value / q + 0.5
-            if abs(w) < _FLOOR_SAFE:
-                value = q * float(math.floor(w))
-        status = GOOD_NC
-        if (status_in & 0xC0) == UNCERTAIN:
-            status = status_in & 0xFC
-        base = GOOD_NC if p[RANGE_GOOD] != 0.0 else UNCERTAIN_EU_RANGE_VIOLATION
-        if value > p[PV_HI]:
-            value = p[PV_HI]
-            status = base | HIGH_LIMITED
-        elif value < p[PV_LO]:
-            value = p[PV_LO]
-            status = base | LOW_LIMITED
+        if finite(value):
+            value, status = shaped(p, value, status_in)
+    if not finite(value):  # hold, like the lag; before any scan, the published start
+        value = float(x[S_HELD]) if x[S_HELD_OK] != 0.0 else float(y[PV])
+        status = status_in if (status_in & 0xC0) == BAD else BAD_NON_SPECIFIC
     mode = p[FAILURE]
     failed = mode != NONE and at_or_after(t, p[F_START]) and not at_or_after(t, p[F_END])
     if failed:
@@ -305,7 +328,7 @@ def transmitter_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, u
 
 
 _DEFAULT_STATUS = {"none": GOOD_NC, "stuck": GOOD_NC, "bad": BAD_SENSOR_FAILURE,
-                   "nan": GOOD_NC}
+                   "nan": BAD_NON_SPECIFIC}
 
 
 @register
@@ -340,9 +363,9 @@ class Transmitter(Block):
         Param("failure_start", 0.0, "s", "time the failure begins (clock input or own time)"),
         Param("failure_end", math.inf, "s", "time the failure ends; inf = never",
               hi=math.inf, hi_open=False),
-        Param("failure_status", None, "", "status byte during the failure", "int",
-              lo=0.0, hi=255.0, lo_open=False, hi_open=False,
-              default_text="stuck 128, bad 16 (0x10), nan 128"),
+        Param("failure_status", None, "", "status byte during the failure (nan: a Bad "
+              "status, 0..63)", "int", lo=0.0, hi=255.0, lo_open=False, hi_open=False,
+              default_text="stuck 128, bad 16 (0x10), nan 0"),
     )
     INPUTS: ClassVar[tuple[Port, ...]] = (
         Port("y", 0.0, "y", "the true process variable (process output)", status=True),
@@ -369,6 +392,11 @@ class Transmitter(Block):
         status = prm["failure_status"]
         if status is None:
             status = _DEFAULT_STATUS[prm["failure"]]
+        elif prm["failure"] == "nan" and int(status) & 0xC0 != BAD:
+            raise ParameterError(
+                f"{self.kind}: parameter 'failure_status' = {int(status)} is out of range for "
+                "failure = 'nan': a NaN value is Bad, so its status must be Bad, 0..63 "
+                "(issue 11 point 1)")
         return [float(prm["gain"]), float(prm["offset"]), float(prm["time_constant"]),
                 float(prm["noise_std"]), float(prm["quantum"]), float(prm["pv_lo"]),
                 float(prm["pv_hi"]), 1.0 if prm["range_status"] == "good" else 0.0,
@@ -378,3 +406,19 @@ class Transmitter(Block):
     def initial_state(self) -> list[float]:
         return [0.0, 0.0, 0.0, 0.0, 0.0,
                 *rng_seed_state(int(self.params["seed"]), STREAM_SENSOR)]
+
+    def reset(self) -> None:
+        super().reset()
+        self.publish_start()
+
+    def publish_start(self) -> None:
+        """Before the first scan: the PV of the settled start for the ``y`` latched now
+        (module docstring): calibrated, quantised and limited, no noise; 0 with Bad status
+        when that ``y`` is unusable. A module that settles its wires calls it again."""
+        p = self.p
+        reading = float(p[GAIN]) * float(self.u[Y]) + float(p[OFFSET])
+        status_in = int(self.us[Y])
+        if usable(reading, status_in):
+            self.y[PV], self.ys[PV] = shaped(p, reading, status_in)
+        else:
+            self.y[PV], self.ys[PV] = 0.0, BAD_NON_SPECIFIC

@@ -99,6 +99,9 @@ slow monotone ramp gives stick-slip steps of about J (spec 1.4).
 
     y = q·round(x/q),  round(z) = floor(z + 1/2)    (ties upward; x >= 0 after clipping)
 
+(y = x where x/q is beyond 4e15: a step below the float resolution of x, or a q so small
+that x/q overflows; :func:`quantise`.)
+
 Initial state (spec 1.2 table, 1.8)
 -----------------------------------
 
@@ -108,6 +111,11 @@ states; He u_r = 0), and the first sample is processed like any other: this is h
 1.8 tables start ("valve initially at rest at 0"). Without ``y0`` (the default) the first
 sample initialises the state, at rest at that op (the spec 1.2 table: x_prev = y = xss = OP),
 and is not processed as a move.
+
+Before its first scan a valve publishes the position it starts at (issue 11 point 8): ``y0``,
+or without ``y0`` the outputs its first scan gives for the ``op`` input latched now (0 %
+unless given): the valve at rest at that op, Good. So a process that reads ``position``
+earlier in a module's order sees the valve's real start, never a placeholder.
 
 Output stage, common to the six kinds
 -------------------------------------
@@ -128,11 +136,13 @@ Status
 ------
 
 A Good ``op`` gives Good (128) outputs; an Uncertain ``op`` is used and gives Uncertain (64).
-A Bad or non-finite ``op`` (NaN, ±inf) is handled by ``bad_op``:
+A Bad or non-finite ``op`` (NaN, ±inf: issue 11 point 1, a non-finite value is Bad input
+whatever its status) is handled by ``bad_op``:
 
 * ``hold`` (default): the sample is skipped: the valve state and ``position`` are frozen and
   both outputs are Bad (0), like ``process.first_order`` (no input, no trustworthy output).
-  Before the first good sample (no ``y0``) the position is NaN.
+  Before the first good sample (no ``y0``) the position held is the start value published
+  before the first scan.
 * ``fail``: the signal is lost and the actuator goes to its fail position: the model is driven
   with ``fail_op`` (default 0 %, air-to-open fails closed) through its friction, and the outputs
   are Uncertain: substitute (72).
@@ -249,6 +259,17 @@ def op_in(p: FloatArray, op: float, status: int) -> float:
 
 
 @primitive
+def quantise(v: float, q: float) -> float:
+    """q·floor(v/q + 1/2) (spec 1.5, halves rounded up), for q > 0; v itself where |v/q| is
+    beyond 4e15 (a double there is already a whole number: the step is below the resolution
+    of v, or q is so small that v/q overflows)."""
+    w = v / q + 0.5
+    if abs(w) < 4.0e15:
+        return q * float(math.floor(w))
+    return v
+
+
+@primitive
 def op_status(op: float, status: int) -> int:
     """Output status for a scan that ran: Good, Uncertain (Uncertain op) or Uncertain:
     substitute (bad op, fail action)."""
@@ -270,21 +291,24 @@ def flow_of(p: FloatArray, position: float) -> float:
 
 @primitive
 def hold(p: FloatArray, x: FloatArray, y: FloatArray, ys: IntArray) -> None:
-    """bad_op = hold: outputs frozen at the last position, status Bad."""
-    y[POS] = x[S_POS]
-    y[FLOW] = flow_of(p, x[S_POS])
+    """bad_op = hold: outputs frozen at the last position, status Bad. Before the first good
+    sample (no y0) that is the start value published before the first scan."""
+    pos = x[S_POS] if x[S_INIT] != 0.0 else y[POS]
+    y[POS] = pos
+    y[FLOW] = flow_of(p, pos)
     ys[POS] = BAD_NON_SPECIFIC
     ys[FLOW] = BAD_NON_SPECIFIC
 
 
 @primitive
 def finish(dt: float, p: FloatArray, x: FloatArray, y: FloatArray, ys: IntArray, ym: float,
-           status: int) -> None:
+           status: int, first: bool) -> None:
     """Output stage: clip the model's y to [0, 100], stroke towards it at most stroke_rate·dt,
-    then the characteristic."""
+    then the characteristic. ``first``: the sample that initialised the valve (no y0) sets the
+    stem there (no stroke from nowhere)."""
     target = clamp(ym, 0.0, 100.0)
     pos = x[S_POS]
-    if math.isnan(pos):  # first sample without y0: no stroke from nowhere
+    if first:
         pos = target
     else:
         step = p[C_RATE] * dt
@@ -366,12 +390,13 @@ def choudhury_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us:
     if math.isnan(xk):
         hold(p, x, y, ys)
         return
-    if x[S_INIT] == 0.0:
+    first = x[S_INIT] == 0.0
+    if first:
         choudhury_init(p, x, xk, xk - p[C_START] * p[P_FD])
         ym = x[CH_Y]
     else:
         ym = choudhury_step(p, x, xk)
-    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]))
+    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]), first)
 
 
 # -- Kano (spec 1.3) ------------------------------------------------------------------------------
@@ -436,12 +461,13 @@ def kano_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntA
     if math.isnan(uk):
         hold(p, x, y, ys)
         return
-    if x[S_INIT] == 0.0:
+    first = x[S_INIT] == 0.0
+    if first:
         kano_init(p, x, uk, uk - p[C_START] * p[P_FD])
         ym = x[KA_Y]
     else:
         ym = kano_step(p, x, uk)
-    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]))
+    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]), first)
 
 
 # -- He (spec 1.4) --------------------------------------------------------------------------------
@@ -481,12 +507,13 @@ def he_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArr
     if math.isnan(uk):
         hold(p, x, y, ys)
         return
-    if x[S_INIT] == 0.0:
+    first = x[S_INIT] == 0.0
+    if first:
         he_init(p, x, uk, uk - p[C_START] * p[P_FD])
         ym = x[HE_Y]
     else:
         ym = he_step(p, x, uk)
-    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]))
+    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]), first)
 
 
 # -- backlash, resolution, quantiser (spec 1.5) ---------------------------------------------------
@@ -502,14 +529,15 @@ def backlash_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: 
         hold(p, x, y, ys)
         return
     half = p[P_BAND]
-    if x[S_INIT] == 0.0:
+    first = x[S_INIT] == 0.0
+    if first:
         x[Y_MODEL] = xk - p[C_START] * half
         x[S_INIT] = 1.0
     elif xk - x[Y_MODEL] > half:
         x[Y_MODEL] = xk - half
     elif xk - x[Y_MODEL] < -half:
         x[Y_MODEL] = xk + half
-    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]))
+    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]), first)
 
 
 def resolution_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
@@ -519,10 +547,11 @@ def resolution_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     if math.isnan(xk):
         hold(p, x, y, ys)
         return
-    if x[S_INIT] == 0.0 or abs(xk - x[Y_MODEL]) > p[P_BAND]:
+    first = x[S_INIT] == 0.0
+    if first or abs(xk - x[Y_MODEL]) > p[P_BAND]:
         x[Y_MODEL] = xk
         x[S_INIT] = 1.0
-    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]))
+    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]), first)
 
 
 def quantiser_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
@@ -532,10 +561,10 @@ def quantiser_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us:
     if math.isnan(xk):
         hold(p, x, y, ys)
         return
-    q = p[P_BAND]
-    x[Y_MODEL] = q * math.floor(xk / q + 0.5)
+    first = x[S_INIT] == 0.0
+    x[Y_MODEL] = quantise(xk, p[P_BAND])
     x[S_INIT] = 1.0
-    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]))
+    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]), first)
 
 
 # -- block classes --------------------------------------------------------------------------------
@@ -645,28 +674,39 @@ class _Valve(Block):
         x[S_INIT] = 1.0
 
     def initial_state(self) -> list[float]:
-        x = np.zeros(len(self.STATES))
+        x = np.zeros(len(self.STATES))  # no y0: init = 0 until the first op, every state finite
         y0 = self.p[C_Y0]
-        if math.isnan(y0):
-            x[S_POS] = math.nan
-        else:
+        if not math.isnan(y0):
             self.model_init(x, y0)
             x[S_POS] = y0
         return [float(v) for v in x]
 
     def reset(self) -> None:
         super().reset()
-        publish_rest_position(self, self.x[S_POS])
+        self.publish_start()
+
+    def publish_start(self) -> None:
+        """Publish the outputs before the first scan for the op latched now (:func:`publish_start`;
+        a module that settles its wires before the first scan calls it again)."""
+        publish_start(self)
 
 
-def publish_rest_position(block: Block, pos: float) -> None:
-    """Before the first scan a valve at rest shows its position and flow (Good), or Bad when
-    the first op will set it (y0 not given)."""
-    block.y[POS] = pos
-    block.y[FLOW] = flow_of(block.p, pos)
-    status = GOOD_NC if finite(pos) else BAD_NON_SPECIFIC
-    block.ys[POS] = status
-    block.ys[FLOW] = status
+def publish_start(block: Block) -> None:
+    """Before the first scan a valve shows where it starts (module docstring): at rest at y0
+    (Good), or without y0 the outputs its first scan gives for the op latched now, computed
+    on copies of its arrays (the valve initialised at rest at that op; Bad if that op is Bad
+    and bad_op = hold)."""
+    y0 = block.p[C_Y0]
+    if not math.isnan(y0):
+        block.y[POS] = y0
+        block.y[FLOW] = flow_of(block.p, y0)
+        block.ys[:] = GOOD_NC
+        return
+    y = np.zeros(len(block.y))
+    ys = np.full(len(block.ys), BAD_NON_SPECIFIC, dtype=np.int64)
+    type(block).kernel(1.0, block.p, block.x.copy(), block.u.copy(), block.us.copy(), y, ys)
+    block.y[:] = y
+    block.ys[:] = ys
 
 
 class _StictionValve(_Valve):

@@ -12,15 +12,20 @@ Wires go from destination to source, as in a scenario file's ``[wires]`` table::
            inputs={"pid": {"sp": 50.0}})
 
 An unwired input takes the constant given for it in ``inputs`` (a scenario block table's
-``sp = 50.0``), else its port default. Events set an unwired input, or change a parameter
-(a new tuning, a new disturbance size), at a given time. A block
-with an input named ``clock`` (a controller clock in seconds, as GE's PID measures its own dt)
-gets the module time t_k there, unless it is wired or given.
+``sp = 50.0``), else its port default. An enumerated input (a ``mode``: codes that name
+choices, MAN 0, AUTO 1, ...) takes a wire only from an output with the same codes (DeltaV's
+``mode_actual``); an analog signal there is refused when the module is made.
+
+Events set an unwired input, or change a parameter (a new tuning, a new disturbance size), at
+a given time; both are checked when the module is made. A block with an input named
+``clock`` (a controller clock in seconds, as GE's PID measures its own dt) gets the module
+time t_k there, unless it is wired or given.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -28,8 +33,14 @@ from typing import Any
 import numpy as np
 
 from loopworks.blocks.block import Block
-from loopworks.errors import InputError
+from loopworks.blocks.params import Port
+from loopworks.errors import InputError, LoopworksError
 from loopworks.sim.result import SimResult
+
+#: bytes a run records per signal per scan: a float64 value and an int64 status
+RECORD_BYTES = 16
+#: the most a run may record when the available memory cannot be read (bytes)
+RECORD_CAP = 8 * 1024**3
 
 
 @dataclass(frozen=True)
@@ -46,6 +57,63 @@ def _split(ref: str, what: str) -> tuple[str, str]:
         raise InputError(f"{what} '{ref}' must be written 'block.port'")
     block, port = ref.rsplit(".", 1)
     return block, port
+
+
+def _codes(choices: tuple[str, ...]) -> str:
+    return ", ".join(f"{c} {i}" for i, c in enumerate(choices))
+
+
+def scan_count(duration: float, dt: float) -> int:
+    """n = round(duration/dt) scans, at t_k = k·dt; InputError unless dt and duration are
+    finite and > 0 and give at least one scan."""
+    if not 0.0 < dt < math.inf:
+        raise InputError(f"dt = {dt!r} s is not allowed: dt must be > 0 and finite")
+    if not 0.0 < duration < math.inf:
+        raise InputError(f"duration = {duration!r} s is not allowed: must be > 0 and finite")
+    ratio = duration / dt
+    if not math.isfinite(ratio):
+        raise InputError(f"duration = {duration:g} s in scans of dt = {dt:g} s is more scans "
+                         "than can be counted")
+    n = round(ratio)
+    if n < 1:
+        raise InputError(f"duration = {duration:g} s is shorter than one scan of dt = {dt:g} s")
+    return n
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to a new allocation (Linux MemAvailable, else free physical
+    pages), or None when the system does not say."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, OSError, ValueError):
+        return None
+
+
+def _gb(n: float) -> str:
+    return f"{n / 1e9:.3g} GB" if n >= 1e9 else f"{n / 1e6:.3g} MB"
+
+
+def check_record_size(need: int, duration: float, dt: float, n: int) -> None:
+    """InputError when a run's record of ``need`` bytes (``n`` scans) would not fit: beyond
+    the available memory, or beyond RECORD_CAP when that is unknown."""
+    if need <= 2**26:  # 64 MB fits anywhere this runs; skip reading the system's figure
+        return
+    avail = available_memory()
+    limit = RECORD_CAP if avail is None else avail
+    if need > limit:
+        have = ("the record cap of " + _gb(RECORD_CAP) if avail is None
+                else f"{_gb(avail)} is available")
+        raise InputError(
+            f"duration = {duration:g} s in scans of dt = {dt:g} s is {n:.4g} scans; recording "
+            f"them needs about {_gb(need)} of memory and {have}: use a shorter duration or a "
+            "longer dt")
 
 
 class Module:
@@ -66,8 +134,11 @@ class Module:
         # per block: list of (dest input index, source block, source output index)
         self._links: dict[str, list[tuple[int, Block, int]]] = {n: [] for n in self.blocks}
         for dest, src in (wires or {}).items():
-            dblock, dport = self._port(dest, "input")
-            sblock, sport = self._port(src, "output")
+            dblock, dport = self._port(dest, "input", "wire")
+            sblock, sport = self._port(src, "output", "wire")
+            self._check_kind(dest, src, self.blocks[dblock].INPUTS[
+                self.blocks[dblock]._in_index[dport]], self.blocks[sblock].OUTPUTS[
+                self.blocks[sblock]._out_index[sport]])
             self.wires[dest] = src
             self.blocks[dblock]._all_good = False  # the scan writes its input statuses
             self._links[dblock].append((self.blocks[dblock]._in_index[dport],
@@ -75,7 +146,7 @@ class Module:
         self.constants: dict[str, dict[str, Any]] = {}
         for name, values in (inputs or {}).items():
             for port, value in values.items():
-                self._check_unwired(f"{name}.{port}", "a constant")
+                self._check_unwired(f"{name}.{port}", "constant")
                 self.constants.setdefault(name, {})[port.lower()] = value
         # blocks that read the controller clock (an input named "clock", s) get the module time
         self._clocks: dict[str, int] = {
@@ -84,31 +155,95 @@ class Module:
             and "clock" not in self.constants.get(name, {})}
         self.events: list[Event] = sorted(events or [], key=lambda e: e.t)
         for ev in self.events:
-            if not self._is_parameter(ev.target):
-                self._check_unwired(ev.target, "an event")
             if not math.isfinite(ev.t) or ev.t < 0.0:
                 raise InputError(f"event at t = {ev.t!r} s: t must be finite and >= 0")
+        self._check_events()
         self.t = 0.0
         self.k = 0
         self.reset()
 
-    def _port(self, ref: str, direction: str) -> tuple[str, str]:
-        block, port = _split(ref, f"wire {direction}")
+    def _port(self, ref: str, direction: str, what: str) -> tuple[str, str]:
+        """``ref`` split into (block, port), checked; ``what`` ("wire", "constant", "event")
+        names the reference in errors."""
+        block, port = _split(ref, f"{what} {direction}" if what == "wire" else what)
         if block not in self.blocks:
-            raise InputError(f"wire '{ref}': unknown block '{block}'; blocks: "
+            raise InputError(f"{what} '{ref}': unknown block '{block}'; blocks: "
                              + ", ".join(self.blocks))
         b = self.blocks[block]
         names = b._in_index if direction == "input" else b._out_index
         if port.lower() not in names:
-            raise InputError(f"wire '{ref}': block '{block}' ({b.kind}) has no {direction} "
+            raise InputError(f"{what} '{ref}': block '{block}' ({b.kind}) has no {direction} "
                              f"'{port}'; {direction}s: {', '.join(names)}")
         return block, port.lower()
 
+    @staticmethod
+    def _check_kind(dest: str, src: str, inp: Port, out: Port) -> None:
+        """An enumerated input (a mode: codes that name choices) takes a wire only from an
+        output with the same codes; an analog value there would run the block in a mode that
+        does not exist (pid mode 37) or in one nobody chose."""
+        if not inp.choices or out.choices == inp.choices:
+            return
+        what = ("an analog output" if not out.choices
+                else f"an output with other codes ({_codes(out.choices)})")
+        raise InputError(
+            f"wire '{dest}' = '{src}': '{dest}' is an enumerated input ({_codes(inp.choices)}) "
+            f"and '{src}' is {what}; wire it from an output with the same codes, or set it "
+            "with a constant or an event")
+
+    def _check_events(self) -> None:
+        """Each event's target and value, checked before any scan: an input event's value
+        must parse for its port (a mode by name or code), and a parameter event must leave
+        the block's parameters valid (applied in time order, as the run would)."""
+        trials: dict[str, Block] = {}  # interpreted copies that take the parameter events
+        for ev in self.events:
+            where = f"event at t = {ev.t:g} s, set = '{ev.target}'"
+            if self._is_parameter(ev.target):
+                block, name = _split(ev.target, "event")
+                b = self.blocks[block]
+                try:
+                    if block not in trials:
+                        trials[block] = type(b)(jit=False, **b.given)
+                    trials[block].set_params(**{name: ev.value})
+                except LoopworksError as exc:
+                    raise InputError(f"{where}: {exc}") from None
+                continue
+            block, port = _split(ev.target, "event")
+            known = self.blocks.get(block)
+            if known is None:
+                raise InputError(f"{where}: unknown block '{block}'; blocks: "
+                                 + ", ".join(self.blocks))
+            if port.lower() not in known._in_index:
+                raise InputError(
+                    f"{where}: block '{block}' ({known.kind}) has no input or parameter "
+                    f"'{port}'; inputs: {', '.join(known._in_index)}; parameters: "
+                    + ", ".join(p.name for p in known.PARAMS))
+            self._check_unwired(ev.target, "event")
+            if isinstance(ev.value, tuple):
+                continue  # (value, status): checked by set_inputs when applied
+            try:
+                known.INPUTS[known._in_index[port.lower()]].parse(ev.value)
+            except (TypeError, ValueError) as exc:
+                raise InputError(f"{where}: {exc}") from None
+
+    def late_events(self, duration: float, dt: float) -> list[Event]:
+        """The events a run of ``duration`` s in scans of ``dt`` s from t = 0 never reaches
+        (the last scan executes at t = (n - 1)·dt, n = round(duration/dt))."""
+        last = (scan_count(duration, dt) - 1) * dt
+        return [ev for ev in self.events if ev.t > last + 1e-9]
+
+    def record_bytes(self, n: int) -> int:
+        """Memory a run of ``n`` scans records: every input and output of every block, a
+        float64 value and an int64 status each (16 bytes per signal per scan)."""
+        signals = sum(len(b.INPUTS) + len(b.OUTPUTS) for b in self.blocks.values())
+        return n * signals * RECORD_BYTES
+
     def _check_unwired(self, ref: str, what: str) -> None:
-        block, port = self._port(ref, "input")
+        block, port = self._port(ref, "input", what)
         if f"{block}.{port}" in self.wires:
-            raise InputError(f"{what} for '{ref}' conflicts with its wire from "
-                             f"'{self.wires[f'{block}.{port}']}'")
+            article = "an" if what[0] in "aeiou" else "a"
+            raise InputError(f"the {what} for '{ref}' conflicts with its wire from "
+                             f"'{self.wires[f'{block}.{port}']}': an input takes a wire or "
+                             f"{article} {what}, not both")
 
     def reset(self) -> None:
         """Every block to its initial state, constant inputs applied, time to 0."""
@@ -160,20 +295,17 @@ class Module:
         """Run ``duration`` seconds in scans of ``dt``; scan k executes at t = k·dt.
 
         With ``reset=False`` the run continues from the current state (and time), so a run can
-        be split, saved with :meth:`state_dict` and resumed.
+        be split, saved with :meth:`state_dict` and resumed. A run whose record (every input
+        and output, :meth:`record_bytes`) would not fit in memory is refused before its first
+        scan.
         """
-        if not 0.0 < dt < math.inf:
-            raise InputError(f"dt = {dt!r} s is not allowed: dt must be > 0 and finite")
-        if not 0.0 < duration < math.inf:
-            raise InputError(f"duration = {duration!r} s is not allowed: must be > 0 and finite")
+        n = scan_count(duration, dt)
+        check_record_size(self.record_bytes(n), duration, dt, n)
         if reset:
             self.reset()
         for block in self.blocks.values():
             block._release_last()
             block.check_dt(dt)
-        n = round(duration / dt)
-        if n < 1:
-            raise InputError(f"duration = {duration} s is shorter than one scan of dt = {dt} s")
         names: list[str] = []
         recs: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         for name in self.order:

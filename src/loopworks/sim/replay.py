@@ -69,14 +69,20 @@ def _columns(block: Block, header: list[str], source: str) -> tuple[dict[int, tu
             mapping[pos] = ("s", ins[low[:-3]])
         else:
             raise FileFormatError(f"{source}, line 1: unknown column '{name}' for {block.kind}; "
-                                  f"valid columns: {', '.join(valid)}")
+                                  f"valid columns: {', '.join(valid)}"
+                                  + _NOT_UTF8 * (_BAD_BYTE in name))
     return mapping, t_col, dt_col
 
 
 def _cell_error(source: str, line: int, header: list[str], pos: int, cell: str,
                 expected: str) -> FileFormatError:
     col = header[pos].strip() if pos < len(header) else f"#{pos + 1}"
-    return FileFormatError(f"{source}, line {line}, column '{col}': {cell!r} is not {expected}")
+    return FileFormatError(f"{source}, line {line}, column '{col}': {cell!r} is not {expected}"
+                           + _NOT_UTF8 * (_BAD_BYTE in cell))
+
+
+_BAD_BYTE = "\ufffd"  # what an undecodable byte reads as
+_NOT_UTF8 = " (the file is not UTF-8 text: save it as UTF-8 CSV)"
 
 
 def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | None = None,
@@ -90,11 +96,13 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
     if dt is not None and not 0.0 < dt < math.inf:
         raise InputError(f"--dt = {dt!r} s is not allowed: dt must be > 0 and finite")
     try:
-        fh = open(input_path, newline="", encoding="utf-8-sig")  # noqa: SIM115 - closed below
+        # undecodable bytes become U+FFFD, so the cell holding them is the located error
+        fh = open(input_path, newline="", encoding="utf-8-sig",  # noqa: SIM115 - closed below
+                  errors="replace")
     except OSError as exc:
         raise FileFormatError(f"{source}: cannot read the input: {exc.strerror}") from None
     with fh:
-        reader = csv.reader(fh)
+        reader = _Rows(csv.reader(fh), source)
         header = next(reader, None)
         while header is not None and not any(c.strip() for c in header):
             header = next(reader, None)
@@ -178,6 +186,9 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
                         else:
                             step = float(dt or 0.0)
                         t_clock = t_clock + step if rows + r > 0 else 0.0
+                        if not math.isfinite(t_clock):
+                            raise FileFormatError(f"{source}, line {line}: the accumulated time "
+                                                  "overflows: the dt values are too large")
                         ts[r] = t_clock
                         dts[r] = step
                 if clock is not None:
@@ -191,6 +202,8 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
                     block.check_dt(float(step))
                 Y = np.empty((n, len(block.OUTPUTS)))
                 YS = np.empty((n, len(block.OUTPUTS)), dtype=np.int64)
+                Y[0] = block.y
+                YS[0] = block.ys
                 run_rows(type(block).kernel, dts, block.p, block.x, U, US, Y, YS, jit=block.jit)
                 block.u[:] = U[-1]
                 block.us[:] = US[-1]
@@ -218,6 +231,27 @@ def _number(cell: str, source: str, line: int, header: list[str], pos: int) -> f
     if not math.isfinite(v):
         raise _cell_error(source, line, header, pos, cell, "a finite number")
     return v
+
+
+class _Rows:
+    """A csv reader whose malformed rows (an oversized field) are located FileFormatErrors."""
+
+    def __init__(self, reader: Any, source: str) -> None:
+        self.reader = reader
+        self.source = source
+
+    @property
+    def line_num(self) -> int:
+        return int(self.reader.line_num)
+
+    def __iter__(self) -> _Rows:
+        return self
+
+    def __next__(self) -> list[str]:
+        try:
+            return list(next(self.reader))
+        except csv.Error as exc:
+            raise FileFormatError(f"{self.source}, line {self.line_num}: {exc}") from None
 
 
 def _chunks(reader: Any, size: int) -> Iterator[list[tuple[int, list[str]]]]:
@@ -258,6 +292,9 @@ class _open_output:
         if not isinstance(self.output, str | Path):
             return self.output
         target = Path(self.output)
+        if target.is_dir():
+            raise FileFormatError(f"{self.output}: is a directory: give the output CSV file's "
+                                  "name")
         self.partial = target.with_name(target.name + ".partial")
         try:
             self.fh = open(self.partial, "w", newline="", encoding="utf-8")
@@ -272,6 +309,11 @@ class _open_output:
             return
         self.fh.close()
         if exc_type is None:
-            self.partial.replace(target_of(self.output))
+            try:
+                self.partial.replace(target_of(self.output))
+            except OSError as exc:
+                self.partial.unlink(missing_ok=True)
+                raise FileFormatError(f"{self.output}: cannot write the output: "
+                                      f"{exc.strerror}") from None
         else:
             self.partial.unlink(missing_ok=True)

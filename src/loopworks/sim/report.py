@@ -1,12 +1,23 @@
-"""The simulate report: a trend plot per variant, ``metrics.json``, the scenario used and
-``report.html`` showing them together.
+"""The simulate report: did the compensator (or whatever the variants change) help, and at
+what cost. Written by ``loopworks simulate``:
 
     DIR/
-      report.html        the metrics table and every trend plot
-      metrics.json       {variant: {metric name: value}}, names as in the printed table
+      report.html        the headline per variant, the figures, the metrics table with units
+      metrics.json       {variant: {metric name: value, or null where the data cannot support
+                         one}}, names as in the printed table
+      metrics.md         every metric's unit, definition and n/a rule (docs/metrics.md)
       scenario.toml      the scenario file that was run
-      VARIANT.png        PV and SP, controller output (and compensated signal), valve position
+      autotune.json      the [autotune] relay test, when the scenario has one
+      overview.png       the variants overlaid: PV and SP, valve position, valve command, the
+                         scored window shaded, a zoom of about 100 s beside the whole run
+                         (overview_LOOP.png for each loop of a scenario with several)
+      signature.png      valve position against controller output (and valve command), one
+                         panel per variant, over the scored window (signature_LOOP.png)
+      VARIANT.png        one variant: PV and SP, controller output and compensated signal,
+                         valve position
       VARIANT.csv        every signal of the run, with .ST status columns
+
+Every JSON file is strict JSON (``json_text``): a non-finite figure is written as null.
 """
 
 from __future__ import annotations
@@ -17,11 +28,218 @@ import math
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from loopworks.sim.metrics import METRICS, markdown, metric_info
 from loopworks.sim.result import SimResult
 
+#: the zoomed panel of the overview figure, s
+ZOOM_SPAN = 100.0
 
-def trend_plot(result: SimResult, path: Path, title: str) -> None:
-    """PV and SP, controller output, and valve position (when there is a valve) against time."""
+#: the headline's figures: (metric name, the headline's word for it)
+HEADLINE = (("PV std", "PV std"), ("valve travel", "stem travel"),
+            ("valve-command travel", "valve-command travel"))
+
+_WINDOW_COLOUR = "#fff2b3"
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with every non-finite float (at any depth) replaced by None."""
+    if isinstance(value, dict):
+        return {str(k): _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return [_finite(v) for v in value.tolist()]
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def json_text(data: Any) -> str:
+    """Strict JSON (RFC 8259: no NaN or Infinity), indented; non-finite floats become null."""
+    return json.dumps(_finite(data), indent=2, allow_nan=False) + "\n"
+
+
+def metric_key(variant: str, loop: str, loops: list[str]) -> str:
+    """The metrics table's column for ``loop`` of ``variant``: the variant's name, or
+    "variant: loop" when the variant has several loops (as ``loopworks simulate`` names it)."""
+    return variant if len(loops) == 1 else f"{variant}: {loop}"
+
+
+def relative_change(base: float, value: float) -> float:
+    """(value - base) / |base| · 100 %; NaN where either is n/a or ``base`` is 0."""
+    if not (math.isfinite(base) and math.isfinite(value)) or base == 0.0:
+        return math.nan
+    return (value - base) / abs(base) * 100.0
+
+
+def headline(base: dict[str, float], other: dict[str, float]) -> str:
+    """"PV std -20 %, stem travel +38 %, valve-command travel +1090 %": ``other`` against
+    ``base``, for the figures of ``HEADLINE`` that both have (controller output travel
+    instead of the valve's for a loop without a valve)."""
+    terms = [t for t in HEADLINE if t[0] in base and t[0] in other]
+    if not any(name == "valve travel" for name, _ in terms):
+        terms.append(("output travel", "output travel"))
+    parts = []
+    for name, word in terms:
+        change = relative_change(base[name], other.get(name, math.nan))
+        parts.append(f"{word} n/a" if math.isnan(change) else f"{word} {change:+.0f} %")
+    return ", ".join(parts)
+
+
+def _cell(value: float) -> str:
+    return "n/a" if not math.isfinite(value) else f"{value:.4g}"
+
+
+def _scored(t: np.ndarray, window: tuple[float, float] | None) -> np.ndarray:
+    """The samples of the scored window (the whole run without one)."""
+    if window is None:
+        return np.ones(len(t), dtype=bool)
+    return (t >= window[0]) & (t <= window[1])
+
+
+def zoom_span(t: np.ndarray, window: tuple[float, float] | None,
+              command: np.ndarray | None, span: float = ZOOM_SPAN) -> tuple[float, float]:
+    """The zoomed panel's time range: ``span`` s inside the scored window, centred on the
+    largest single move of ``command`` there (a kick, where the compensator shows both its
+    kicks and its dither), or the middle of the window without a command."""
+    lo, hi = (float(t[0]), float(t[-1])) if window is None else window
+    lo, hi = max(lo, float(t[0])), min(hi, float(t[-1]))
+    if hi - lo <= span:
+        return lo, hi
+    centre = 0.5 * (lo + hi)
+    if command is not None:
+        keep = np.flatnonzero(_scored(t, (lo, hi)))
+        moves = np.abs(np.diff(command[keep]))
+        if len(moves) and np.any(np.isfinite(moves)):
+            centre = float(t[keep[int(np.nanargmax(moves)) + 1]])
+    start = min(max(centre - 0.5 * span, lo), hi - span)
+    return start, start + span
+
+
+def _loop_signals(result: SimResult, loop: str) -> dict[str, np.ndarray]:
+    """PV, working SP, controller output and, through the valve the loop drives, its position
+    and command (the signal at its op input)."""
+    signals = {"pv": result[f"{loop}.pv"], "sp": result.working_sp(loop),
+               "out": result[f"{loop}.out"]}
+    valve = result.valve_of(loop)
+    if valve is not None:
+        signals["position"] = result[f"{valve}.position"]
+        if f"{valve}.op" in result.values:
+            signals["command"] = result[f"{valve}.op"]
+    return signals
+
+
+def overview_plot(results: dict[str, SimResult], loop: str, path: Path, title: str,
+                  window: tuple[float, float] | None = None) -> None:
+    """The variants overlaid on shared axes: PV and SP, valve position and valve command (or
+    controller output without a valve), against time; the whole run on the left with the
+    scored window shaded, a zoom of ``ZOOM_SPAN`` s on the right."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.artist import Artist
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    sigs = {v: _loop_signals(r, loop) for v, r in results.items()}
+    first = next(iter(results.values()))
+    rows = [("pv", "PV and SP (PV units)")]
+    if all("position" in s for s in sigs.values()):
+        rows.append(("position", "valve position (%)"))
+        if all("command" in s for s in sigs.values()):
+            rows.append(("command", "valve command (%)"))
+    else:
+        rows.append(("out", "controller output (%)"))
+    last = list(sigs.values())[-1]
+    z0, z1 = zoom_span(first.t, window, last.get("command", last["out"]))
+    fig, axes = plt.subplots(len(rows), 2, figsize=(14, 2.7 * len(rows) + 1.2), squeeze=False,
+                             sharex="col", gridspec_kw={"width_ratios": (2.2, 1.0)},
+                             layout="constrained")
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    same_sp = all(np.array_equal(s["sp"], sigs[next(iter(sigs))]["sp"]) for s in sigs.values())
+    for row, (signal, label) in enumerate(rows):
+        for col in (0, 1):
+            ax = axes[row, col]
+            for i, (variant, s) in enumerate(sigs.items()):
+                t = results[variant].t
+                keep = _scored(t, None if col == 0 else (z0, z1))
+                ax.plot(t[keep], s[signal][keep], color=colours[i % len(colours)], lw=0.8,
+                        alpha=0.9, zorder=3 - i * 0.1)
+                if signal == "pv" and (i == 0 or not same_sp):
+                    ax.plot(t[keep], s["sp"][keep], color="k" if same_sp else
+                            colours[i % len(colours)], ls="--", lw=1.0, zorder=4)
+            if col == 0:
+                if window is not None:
+                    ax.axvspan(*window, color=_WINDOW_COLOUR, zorder=0)
+                ax.axvspan(z0, z1, fill=False, ec="0.4", ls=":", lw=1.0, zorder=5)
+                ax.set_ylabel(label)
+            ax.grid(True, alpha=0.3)
+    axes[-1, 0].set_xlabel("t (s): the whole run")
+    axes[-1, 1].set_xlabel(f"t (s): zoom {z0:g}..{z1:g} s (dotted box on the left)")
+    handles: list[Artist] = [Line2D([], [], color=colours[i % len(colours)], lw=1.5, label=v)
+                             for i, v in enumerate(sigs)]
+    handles.append(Line2D([], [], color="k", ls="--", label="SP"))
+    if window is not None:
+        handles.append(Patch(color=_WINDOW_COLOUR, label=f"scored window {window[0]:g}.."
+                             f"{window[1]:g} s"))
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), frameon=False)
+    fig.suptitle(f"{title}: {loop}")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+
+
+def signature_plot(results: dict[str, SimResult], loop: str, path: Path,
+                   window: tuple[float, float] | None = None) -> bool:
+    """Valve position against controller output (the stiction signature: a sticking valve
+    traces flat stretches and jumps) and against the valve command, one panel per variant on
+    shared axes, over the scored window. False (no file) when the loop drives no valve."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    sigs = {v: _loop_signals(r, loop) for v, r in results.items()}
+    if not all("position" in s for s in sigs.values()):
+        return False
+    n = len(sigs)
+    fig, axes = plt.subplots(1, n, figsize=(5.2 * n + 0.6, 5.4), squeeze=False, sharex=True,
+                             sharey=True, layout="constrained")
+    for ax, (variant, s) in zip(axes[0], sigs.items(), strict=True):
+        keep = _scored(results[variant].t, window)
+        same = "command" not in s or np.array_equal(s["command"][keep], s["out"][keep])
+        if not same:
+            ax.plot(s["command"][keep], s["position"][keep], color="0.7", lw=0.5,
+                    label="vs valve command")
+        ax.plot(s["out"][keep], s["position"][keep], color="C3", lw=0.9,
+                label="vs controller output")
+        ax.set_title(variant + (" (valve command = controller output)"
+                                if same and "command" in s else ""))
+        ax.set_xlabel(f"{loop} output, valve command (%)")
+        ax.grid(True, alpha=0.3)
+    axes[0, 0].set_ylabel("valve position (%)")
+    legend: dict[str, Any] = {}
+    for ax in axes[0]:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            legend.setdefault(label, handle)
+    scored = ("the whole run" if window is None
+              else f"scored window {window[0]:g}..{window[1]:g} s")
+    fig.legend(list(legend.values()), list(legend), loc="outside lower center", ncol=2,
+               frameon=False)
+    fig.suptitle(f"{loop}: valve position vs controller output and vs valve command\n"
+                 f"{scored}")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return True
+
+
+def _trend_figure(result: SimResult, title: str,
+                  window: tuple[float, float] | None) -> tuple[Any, list[Any]]:
+    """The figure of ``trend_plot`` and its panels, not yet saved."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -32,36 +250,52 @@ def trend_plot(result: SimResult, path: Path, title: str) -> None:
     comps = [n for n in result.kinds if f"{n}.signal_out" in result.values
              or f"{n}.op_out" in result.values]
     panels = 2 + (1 if valves else 0)
-    fig, axes = plt.subplots(panels, 1, sharex=True, figsize=(10, 2.8 * panels), squeeze=False)
+    fig, axes = plt.subplots(panels, 1, sharex=True, figsize=(12, 2.6 * panels + 0.6),
+                             squeeze=False, layout="constrained")
     ax = axes[0, 0]
     for loop in loops:
-        ax.plot(result.t, result.working_sp(loop), label=f"{loop} SP", linestyle="--")
-        ax.plot(result.t, result[f"{loop}.pv"], label=f"{loop} PV")
-    ax.set_ylabel("PV, SP (EU)")
+        ax.plot(result.t, result[f"{loop}.pv"], label=f"{loop} PV", lw=0.8)
+        ax.plot(result.t, result.working_sp(loop), label=f"{loop} SP", ls="--", lw=1.0)
+    ax.set_ylabel("PV, SP (PV units)")
     ax = axes[1, 0]
-    for loop in loops:
-        ax.plot(result.t, result[f"{loop}.out"], label=f"{loop} OUT")
     for comp in comps:
         port = "signal_out" if f"{comp}.signal_out" in result.values else "op_out"
-        ax.plot(result.t, result[f"{comp}.{port}"], label=f"{comp} {port}", alpha=0.7)
+        ax.plot(result.t, result[f"{comp}.{port}"], label=f"{comp} {port}", lw=0.6,
+                color="0.6")
+    for loop in loops:
+        ax.plot(result.t, result[f"{loop}.out"], label=f"{loop} OUT", lw=0.8)
     ax.set_ylabel("controller output (%)")
     if valves:
         ax = axes[2, 0]
         for valve in valves:
-            ax.plot(result.t, result[f"{valve}.position"], label=f"{valve} position")
+            ax.plot(result.t, result[f"{valve}.position"], label=f"{valve} position", lw=0.8)
         ax.set_ylabel("valve position (%)")
     for a in axes[:, 0]:
+        if window is not None:
+            a.axvspan(*window, color=_WINDOW_COLOUR, zorder=0,
+                      label="scored window" if a is axes[0, 0] else None)
         a.grid(True, alpha=0.3)
-        a.legend(loc="best", fontsize=8)
+        a.legend(loc="upper left", bbox_to_anchor=(1.005, 1.0), fontsize=8, frameon=False)
     axes[-1, 0].set_xlabel("t (s)")
     fig.suptitle(title)
-    fig.tight_layout(rect=(0.0, 0.0, 1.0, 0.97))
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    return fig, list(axes[:, 0])
 
 
-def _cell(value: float) -> str:
-    return "n/a" if math.isnan(value) else f"{value:.4g}"
+def trend_plots(results: dict[str, SimResult], directory: Path, title: str,
+                window: tuple[float, float] | None = None) -> None:
+    """VARIANT.png for each variant: PV and SP, controller output (and compensated signal),
+    and valve position (when there is a valve) against time, the scored window shaded; a
+    panel has the same y range in every variant's plot, so they can be compared."""
+    import matplotlib.pyplot as plt
+
+    figures = {v: _trend_figure(r, f"{title}: {v}", window) for v, r in results.items()}
+    for row in range(min(len(axes) for _, axes in figures.values())):
+        lows, highs = zip(*(axes[row].get_ylim() for _, axes in figures.values()), strict=True)
+        for _, axes in figures.values():
+            axes[row].set_ylim(min(lows), max(highs))
+    for variant, (fig, _) in figures.items():
+        fig.savefig(directory / f"{variant}.png", dpi=100)
+        plt.close(fig)
 
 
 #: what the report shows of an [autotune] relay test (the whole record is in autotune.json)
@@ -74,7 +308,7 @@ def _autotune_html(autotune: dict[str, Any] | None) -> str:
         return ""
     rows = "\n".join(
         f"<tr><th>{html.escape(k)}</th><td>"
-        + html.escape(f"{autotune[k]:.4g}" if isinstance(autotune[k], float)
+        + html.escape(_cell(autotune[k]) if isinstance(autotune[k], float)
                       else str(autotune[k])) + "</td></tr>"
         for k in AUTOTUNE_ROWS if autotune.get(k) is not None)
     return ("<h2>Relay auto-tune ([autotune])</h2>\n<p>Before the run a relay test identified "
@@ -83,44 +317,115 @@ def _autotune_html(autotune: dict[str, Any] | None) -> str:
             f"<table>{rows}</table>")
 
 
+def _anchor(name: str) -> str:
+    return "m-" + "".join(c if c.isalnum() else "-" for c in name)
+
+
+def _metrics_html(metrics: dict[str, dict[str, float]]) -> str:
+    """The metrics table: a row per metric with its unit, linked to its definition."""
+    names = list(dict.fromkeys(n for m in metrics.values() for n in m))
+    head = "".join(f"<th>{html.escape(v)}</th>" for v in metrics)
+    rows = "\n".join(
+        f'<tr><th><a href="#{_anchor(n)}">{html.escape(n)}</a></th>'
+        f"<td class=u>{html.escape(_unit(n))}</td>"
+        + "".join(f"<td>{_cell(metrics[v].get(n, math.nan))}</td>" for v in metrics) + "</tr>"
+        for n in names)
+    return f"<table><tr><th>metric</th><th>unit</th>{head}</tr>\n{rows}\n</table>"
+
+
+def _unit(name: str) -> str:
+    try:
+        return metric_info(name).unit
+    except KeyError:
+        return ""
+
+
+def _definitions_html() -> str:
+    rows = "\n".join(
+        f'<tr id="{_anchor(m.name)}"><th>{html.escape(m.name)}</th>'
+        f"<td class=u>{html.escape(m.unit)}</td><td class=l>{html.escape(m.definition)}</td>"
+        f"<td class=l>{html.escape(m.not_available)}</td></tr>" for m in METRICS)
+    return ("<h2>Metric definitions</h2>\n<p>From <a href=\"metrics.md\">metrics.md</a> "
+            "(docs/metrics.md of loopworks), which says more. A figure the data cannot "
+            "support is n/a here and null in metrics.json.</p>\n"
+            "<table><tr><th>metric</th><th>unit</th><th>definition</th><th>n/a when</th></tr>"
+            f"\n{rows}\n</table>")
+
+
+def _headlines_html(results: dict[str, SimResult],
+                    metrics: dict[str, dict[str, float]]) -> str:
+    """A line per variant (after the first) and loop: its headline against the first."""
+    variants = list(results)
+    if len(variants) < 2:
+        return ""
+    base_variant = variants[0]
+    base_loops = results[base_variant].controllers()
+    lines = []
+    for variant in variants[1:]:
+        loops = results[variant].controllers()
+        for loop in loops:
+            key = metric_key(variant, loop, loops)
+            base_key = metric_key(base_variant, loop, base_loops)
+            if key not in metrics or base_key not in metrics:
+                continue
+            lines.append(f"<li><b>{html.escape(key)}</b> against "
+                         f"{html.escape(base_key)}: "
+                         f"{html.escape(headline(metrics[base_key], metrics[key]))}</li>")
+    return "<ul class=headline>\n" + "\n".join(lines) + "\n</ul>" if lines else ""
+
+
 def write_report(directory: Path, title: str, scenario_text: str,
                  results: dict[str, SimResult], metrics: dict[str, dict[str, float]],
-                 autotune: dict[str, Any] | None = None) -> None:
+                 autotune: dict[str, Any] | None = None,
+                 window: tuple[float, float] | None = None) -> None:
     """Write the report directory (created if needed); ``autotune`` is the scenario's
-    [autotune] result (autotune.json and a section of the page)."""
+    [autotune] result (autotune.json and a section of the page), ``window`` the scored
+    window (s; shaded in the figures)."""
     directory.mkdir(parents=True, exist_ok=True)
     if autotune is not None:
-        (directory / "autotune.json").write_text(json.dumps(autotune, indent=2) + "\n",
-                                                 encoding="utf-8")
+        (directory / "autotune.json").write_text(json_text(autotune), encoding="utf-8")
     (directory / "scenario.toml").write_text(scenario_text, encoding="utf-8")
-    clean = {v: {k: (None if math.isnan(x) else x) for k, x in m.items()}
-             for v, m in metrics.items()}
-    (directory / "metrics.json").write_text(json.dumps(clean, indent=2) + "\n",
-                                            encoding="utf-8")
+    (directory / "metrics.json").write_text(json_text(metrics), encoding="utf-8")
+    (directory / "metrics.md").write_text(markdown(), encoding="utf-8")
+    loops = list(dict.fromkeys(loop for r in results.values() for loop in r.controllers()))
+    loops = [lp for lp in loops if all(lp in r.controllers() for r in results.values())]
+    figures = []
+    for loop in loops:
+        suffix = "" if len(loops) == 1 else f"_{loop}"
+        overview_plot(results, loop, directory / f"overview{suffix}.png", title, window)
+        figures.append((f"overview{suffix}.png", f"{loop}: the variants overlaid"))
+        if signature_plot(results, loop, directory / f"signature{suffix}.png", window):
+            figures.append((f"signature{suffix}.png",
+                            f"{loop}: valve position against controller output"))
+    trend_plots(results, directory, title, window)
     for variant, result in results.items():
-        trend_plot(result, directory / f"{variant}.png", f"{title}: {variant}")
         result.to_csv(directory / f"{variant}.csv")
-    names = list(next(iter(metrics.values()))) if metrics else []
-    rows = "\n".join(
-        "<tr><th>" + html.escape(n) + "</th>"
-        + "".join(f"<td>{_cell(metrics[v][n])}</td>" for v in metrics) + "</tr>"
-        for n in names)
-    head = "".join(f"<th>{html.escape(v)}</th>" for v in metrics)
-    images = "\n".join(f'<h2>{html.escape(v)}</h2><img src="{html.escape(v)}.png" '
+    scored = ("over the whole run" if window is None
+              else f"over the scored window {window[0]:g}..{window[1]:g} s")
+    overviews, signatures = ("\n".join(
+        f'<h2>{html.escape(caption)}</h2><img src="{html.escape(name)}" '
+        f'alt="{html.escape(caption)}">' for name, caption in figures if name.startswith(kind))
+        for kind in ("overview", "signature"))
+    trends = "\n".join(f'<h2>{html.escape(v)}</h2><img src="{html.escape(v)}.png" '
                        f'alt="trend plot of {html.escape(v)}">' for v in results)
     page = f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
 <style>body{{font-family:sans-serif;margin:2em}}table{{border-collapse:collapse}}
-td,th{{border:1px solid #ccc;padding:4px 8px;text-align:right}}img{{max-width:100%}}</style>
+td,th{{border:1px solid #ccc;padding:4px 8px;text-align:right}}td.u,td.l{{text-align:left}}
+td.l{{max-width:40em}}img{{max-width:100%}}ul.headline{{font-size:1.15em}}</style>
 </head><body>
 <h1>{html.escape(title)}</h1>
-<table><tr><th>metric</th>{head}</tr>
-{rows}
-</table>
+{_headlines_html(results, metrics)}
+{overviews}
+<p>Metrics {html.escape(scored)}; every metric's unit and definition are
+<a href="#definitions">below</a> and in <a href="metrics.md">metrics.md</a>.</p>
+{_metrics_html(metrics)}
+{signatures}
 {_autotune_html(autotune)}
 <p>Data: <a href="metrics.json">metrics.json</a>, <a href="scenario.toml">scenario.toml</a>,
 {", ".join(f'<a href="{html.escape(v)}.csv">{html.escape(v)}.csv</a>' for v in results)}.</p>
-{images}
+{trends}
+<div id="definitions">{_definitions_html()}</div>
 </body></html>
 """
     (directory / "report.html").write_text(page, encoding="utf-8")

@@ -42,10 +42,12 @@ class SimResult:
 
     def metrics(self, loop: str | None = None, valve: str | None = None,
                 window: tuple[float, float] | None = None) -> dict[str, float]:
-        """Loop metrics (spec plant-and-tuning 4.1) of controller ``loop`` (default: the first
-        controller), with valve stem travel when ``valve`` names a block with a ``position``
-        output (default: the valve the loop drives, found along the wires), over ``window``
-        = (t0, t1) s."""
+        """Loop metrics (spec plant-and-tuning 4.1, ``loopworks.sim.metrics.METRICS``) of
+        controller ``loop`` (default: the first controller), with the valve's stem travel (its
+        ``position``) and valve-command travel (the signal at its ``op`` input) when ``valve``
+        names a block with a ``position`` output (default: the valve the loop drives, found
+        along the wires), over ``window`` = (t0, t1) s. NaN marks a figure the data cannot
+        support."""
         from loopworks.sim.metrics import loop_metrics
 
         loops = self.controllers()
@@ -56,8 +58,10 @@ class SimResult:
         if valve is None:
             valve = self.valve_of(loop)
         position = self.values[f"{valve}.position"] if valve is not None else None
+        command = self.values.get(f"{valve}.op") if valve is not None else None
         return loop_metrics(self.t, self.working_sp(loop), self[f"{loop}.pv"],
-                            self[f"{loop}.out"], position=position, window=window)
+                            self[f"{loop}.out"], position=position, window=window,
+                            command=command)
 
     def valve_of(self, loop: str) -> str | None:
         """The first block with a ``position`` output downstream of ``loop.out`` along the

@@ -25,6 +25,8 @@ match parameter and input names in any letter case. Errors name the file and the
 
 from __future__ import annotations
 
+import math
+import re
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -35,9 +37,11 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from loopworks.errors import FileFormatError, LoopworksError
-from loopworks.sim.module import Event, Module
+from loopworks.sim.module import Event, Module, check_record_size, scan_count
 
 DEFAULT_SCENARIO = "default.toml"
+#: a [compare] variant name, usable as a report file name on any system
+_FILE_NAME = re.compile(r"[A-Za-z0-9_+-][A-Za-z0-9_+ .-]{0,99}")
 
 
 class _Simulation(BaseModel):
@@ -86,7 +90,8 @@ class _Scenario(BaseModel):
 @dataclass
 class Scenario:
     """A loaded scenario: its modules (one per ``[compare]`` variant, else one named "base";
-    ``module`` is the first), and how long and how finely to run them."""
+    ``module`` is the first), and how long and how finely to run them. ``warnings`` are what
+    loaded but looks unintended (an event after the end of the run)."""
 
     module: Module
     dt: float
@@ -99,6 +104,7 @@ class Scenario:
     metrics_window: tuple[float, float] | None = None
     autotune: dict[str, Any] | None = None
     autotune_test: AutotuneTest | None = None
+    warnings: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -132,6 +138,9 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise FileFormatError(f"{p}: cannot read the scenario: {exc.strerror}") from None
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"{p}: not UTF-8 text (byte {exc.start}): a scenario is a TOML "
+                              "file") from None
     return parse_scenario(text, str(p))
 
 
@@ -158,6 +167,11 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     if not sc.compare:
         variants["base"] = tables
     for variant, overrides in sc.compare.items():
+        if not _FILE_NAME.fullmatch(variant):
+            raise FileFormatError(
+                f"{source}: [compare.{variant}]: a variant's name names its report files "
+                f"({variant}.png, {variant}.csv): use letters, digits, '_', '-', '.' and "
+                "spaces, not starting with '.'")
         changed = {name: dict(table) for name, table in tables.items()}
         for key, value in overrides.items():
             block, sep, fname = key.rpartition(".")
@@ -174,15 +188,54 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     def where(name: str) -> str:
         return source if name == "base" else f"{source} (compare.{name})"
 
+    sim = sc.simulation
+    try:
+        n = scan_count(sim.duration, sim.dt)
+    except LoopworksError as exc:
+        raise FileFormatError(f"{source}: [simulation]: {exc}") from None
+    window = _window(sim, n, source)
+    # every variant built and checked before anything runs (the autotune test included)
+    modules = {name: _build(sc, t, where(name)) for name, t in variants.items()}
+    try:
+        check_record_size(sum(m.record_bytes(n) for m in modules.values()), sim.duration,
+                          sim.dt, n)
+    except LoopworksError as exc:
+        raise FileFormatError(f"{source}: [simulation]: {exc}"
+                              + (f" ({len(modules)} variants)" if len(modules) > 1 else "")
+                              ) from None
+    warnings = [f"{source}: event at t = {ev.t:g} s (set = '{ev.target}') is after the last "
+                f"scan (t = {(n - 1) * sim.dt:g} s) of the {sim.duration:g} s run: it never "
+                "happens" for ev in next(iter(modules.values())).late_events(sim.duration, sim.dt)]
     test = None if sc.autotune is None else _autotune_test(sc, variants, source)
     autotune = None if test is None else _autotune(sc, test, variants, source)
-    modules = {name: _build(sc, t, where(name)) for name, t in variants.items()}
-    sim = sc.simulation
+    if autotune is not None:  # the identified gain is in the tables now
+        modules = {name: _build(sc, t, where(name)) for name, t in variants.items()}
     first = next(iter(modules.values()))
-    window = None if sim.metrics_window is None else (sim.metrics_window[0],
-                                                      sim.metrics_window[1])
     return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, modules, text,
-                    window, autotune, test)
+                    window, autotune, test, warnings)
+
+
+def _window(sim: _Simulation, n: int, source: str) -> tuple[float, float] | None:
+    """``metrics_window`` checked: finite, increasing, inside the run, and holding at least
+    two scans (the scans execute at t_k = k·dt, k = 0..n-1)."""
+    if sim.metrics_window is None:
+        return None
+    t0, t1 = sim.metrics_window
+    where = f"{source}: simulation.metrics_window = [{t0:g}, {t1:g}]"
+    end = (n - 1) * sim.dt
+    if not (math.isfinite(t0) and math.isfinite(t1)):
+        raise FileFormatError(f"{where}: the bounds must be finite numbers of seconds")
+    if not t0 < t1:
+        raise FileFormatError(f"{where}: the window is reversed or empty: expected t0 < t1")
+    if t0 < 0.0 or t1 > sim.duration:
+        raise FileFormatError(f"{where} s is outside the run: expected 0 <= t0 < t1 <= "
+                              f"duration = {sim.duration:g} s")
+    k0, k1 = math.ceil(t0 / sim.dt - 1e-9), min(math.floor(t1 / sim.dt + 1e-9), n - 1)
+    if k1 - k0 + 1 < 2:
+        raise FileFormatError(f"{where} s holds {max(k1 - k0 + 1, 0)} scan(s) of the run "
+                              f"(scans at 0, {sim.dt:g}, ..., {end:g} s): it must hold at "
+                              "least 2")
+    return t0, t1
 
 
 def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]],
@@ -195,11 +248,21 @@ def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]]
     if name not in variants:
         raise FileFormatError(f"{where}: variant = {name!r} is not a [compare] variant of this "
                               f"scenario ({', '.join(variants)})")
+    from loopworks.blocks.registry import block_class
+
     for ref in at.process_gain:
-        block, sep, _ = ref.rpartition(".")
+        block, sep, param = ref.rpartition(".")
         if not sep or block.lower() not in variants[name]:
             raise FileFormatError(f"{where}: process_gain entry {ref!r} must be "
                                   f"'block.parameter' with a block of this scenario")
+        try:
+            cls = block_class(str(variants[name][block.lower()]["kind"]))
+        except LoopworksError:
+            continue  # the block's own table reports its unknown kind
+        params = [p.name for p in cls.PARAMS]
+        if param.lower() not in params:
+            raise FileFormatError(f"{where}: process_gain entry {ref!r}: {cls.kind} has no "
+                                  f"parameter '{param}'; parameters: {', '.join(params)}")
     tables = {block: dict(table) for block, table in variants[name].items()}
     for ref, value in at.set.items():
         block, sep, param = ref.rpartition(".")
@@ -266,9 +329,42 @@ def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Mod
             blocks[name] = cls(**params)
         except LoopworksError as exc:
             raise FileFormatError(f"{where}: {exc}") from None
+    for name, values in constants.items():
+        for port, value in values.items():
+            spec = blocks[name].INPUTS[blocks[name]._in_index[port]]
+            where = f"{source}: [blocks.{name}]: {port} = {value!r}"
+            if not isinstance(value, int | float | str):
+                raise FileFormatError(f"{where}: a constant input is a number"
+                                      + (" or a name" if spec.choices else ""))
+            if not _finite(value):
+                hint = ("to leave it 'not given' (its default, nan), leave the key out"
+                        if math.isnan(spec.default) else
+                        f"leave the key out for its default, {spec.default:g}")
+                raise FileFormatError(f"{where}: a constant input must be a finite number "
+                                      f"({hint})")
+            try:
+                spec.parse(value)
+            except ValueError as exc:
+                raise FileFormatError(f"{source}: [blocks.{name}]: {exc}") from None
     events = [Event(e.t, e.set, e.value) for e in sc.events]
     try:
-        return Module(blocks, wires=sc.wires, inputs=constants, order=sc.simulation.order,
-                      events=events)
+        module = Module(blocks, wires=sc.wires, inputs=constants, order=sc.simulation.order,
+                        events=events)
     except LoopworksError as exc:
         raise FileFormatError(f"{source}: {exc}") from None
+    for i, ev in enumerate(events, 1):
+        if not _finite(ev.value) and not module._is_parameter(ev.target):
+            raise FileFormatError(f"{source}: [[events]] #{i} (t = {ev.t:g} s, set = "
+                                  f"'{ev.target}'): value = {ev.value}: an input event must "
+                                  "set a finite number")
+    return module
+
+
+def _finite(value: Any) -> bool:
+    """False for a float (or a numeric text, "nan", "inf") that is not finite."""
+    if isinstance(value, str):
+        try:
+            value = float(value)
+        except ValueError:
+            return True  # a name (a mode), checked by its port
+    return not isinstance(value, float) or math.isfinite(value)

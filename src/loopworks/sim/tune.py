@@ -5,7 +5,9 @@ runs the procedure of 3.4 on the module's own plant:
 
 1. The module runs under its controller until ``start`` (s); events after ``start`` are left
    out. PV0 and the noise σn are measured over the last quarter of that settling time (σn
-   from the scan-to-scan differences, σn = std(ΔPV)/√2, which a slow drift does not inflate).
+   from the second differences of the samples, σn = std(Δ²PV)/√6 (white noise of σ gives
+   std(Δ²) = √6·σ), which neither a drift nor a smoothly settling transient inflates: first
+   differences would read the changing slope of a loop still settling as noise).
 2. A ``relay`` block is put between the controller and what it drives; the controller tracks
    the relay's output while the test runs (its LO/manual-tracking path, the hand-over table
    ``HANDOVER``), so it hands back bumplessly when the test ends.
@@ -17,8 +19,11 @@ runs the procedure of 3.4 on the module's own plant:
    stage's PV amplitude. The relay's switching-point shift Δ is recorded in the
    :class:`~loopworks.tuning.identify.RelayTest` (``offset``).
 4. The test ends when the relay block reports convergence or aborts (timeout, runaway, no
-   oscillation, bad PV); the loop then runs ``handback`` more seconds under its controller.
-5. :func:`loopworks.tuning.identify.identify` analyses the recorded cycles.
+   oscillation, bad PV, a cycle too short to measure); the loop then runs ``handback`` more
+   seconds under its controller.
+5. :func:`loopworks.tuning.identify.identify` analyses the recorded cycles. A test that ends
+   without converging, or whose record the identification refuses, raises
+   :class:`RelayTestRefused` (an InputError) with the one-line reason and the run.
 """
 
 from __future__ import annotations
@@ -35,7 +40,13 @@ from loopworks.blocks.relay import PHASE_NAMES, RUNNING, Relay
 from loopworks.errors import InputError
 from loopworks.sim.module import Module
 from loopworks.tuning.convert import Conversion
-from loopworks.tuning.identify import Identification, RelayTest, identify
+from loopworks.tuning.identify import (
+    Identification,
+    IdentificationRefused,
+    RelayTest,
+    identify,
+    short_cycle,
+)
 from loopworks.tuning.rules import Tuning
 
 #: kind: (output port, pv port, sp port, [(controller input, relay output)], params to set)
@@ -69,6 +80,61 @@ class RelayRun:
     noise_std: float
     identification: Identification | None = None
     notes: list[str] = field(default_factory=list)
+    refusal: str | None = None
+
+    def refusal_record(self) -> dict[str, Any]:
+        """What ``loopworks tune --json`` prints for a refused test (docs/tune.md)."""
+        return {"loop": self.loop, "kind": self.kind, "outcome": self.outcome,
+                "refusal": self.refusal, "relay_amplitude": self.test.amplitude,
+                "relay_amplitude_down": self.test.amplitude_down,
+                "hysteresis": self.test.hysteresis, "noise_std": self.noise_std,
+                "settings": None}
+
+
+class RelayTestRefused(IdentificationRefused):
+    """A relay test whose record supports no identification (the message says why); ``run``
+    is the test."""
+
+    def __init__(self, message: str, run: RelayRun) -> None:
+        super().__init__(message)
+        self.run = run
+
+
+def controllers(module: Module) -> list[str]:
+    """The blocks of ``module`` that ``relay_test`` can tune (kinds in ``HANDOVER``)."""
+    return [name for name, block in module.blocks.items() if block.kind in HANDOVER]
+
+
+def default_loop(module: Module) -> str:
+    """The module's only controller; InputError naming the choices when there are several or
+    none."""
+    names = controllers(module)
+    if len(names) == 1:
+        return names[0]
+    if not names:
+        raise InputError("the scenario has no controller to tune (kinds: "
+                         + ", ".join(HANDOVER) + ")")
+    raise InputError("--loop is required: the scenario has several controllers: "
+                     + ", ".join(names))
+
+
+def _why(outcome: str, relay: Relay, dt: float) -> str:
+    """One line: why a relay test that ended with ``outcome`` gives no identification."""
+    prm = relay.params
+    period = float(relay.y[relay._out_index["period"]])
+    reasons = {
+        "too_fast": short_cycle(period, dt),
+        "not_converged": f"no {prm['stable_cycles']} consecutive cycles agreed within "
+                         f"{100 * prm['tolerance']:g} % (period, amplitude, cycle means) in "
+                         f"{prm['max_cycles']} cycles: the loop was not at rest or a load moved "
+                         "it (a later --start), or noise (a larger --hysteresis)",
+        "timeout": f"the test reached its timeout of {prm['timeout']:g} s",
+        "runaway": f"|SP - PV| exceeded max_deviation = {prm['max_deviation']:g}",
+        "no_oscillation": f"the relay did not switch for {prm['max_half_period']:g} s: no "
+                          "oscillation (a larger --amplitude: 2d must move a sticky valve)",
+        "bad_input": "the PV or SP went Bad or non-finite during the test",
+    }
+    return reasons.get(outcome, f"the test ended with '{outcome}'")
 
 
 def direct_acting(block: Block) -> bool:
@@ -105,7 +171,8 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
                progress: Callable[[float], None] | None = None) -> RelayRun:
     """Run a relay test on controller ``loop`` of ``module`` with scans of ``dt`` seconds
     (procedure in the module docstring). Raises InputError for a loop that is not a known
-    controller or is not wired to a PV."""
+    controller or is not wired to a PV, and RelayTestRefused for a test that supports no
+    identification."""
     if loop not in module.blocks:
         raise InputError(f"--loop '{loop}': no such block; blocks: {', '.join(module.blocks)}")
     ctrl = module.blocks[loop]
@@ -147,7 +214,7 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
         pv_hist[k] = _read(module, pv_src)
     tail = pv_hist[n_settle - max(n_settle // 4, 2):] if n_settle >= 8 else pv_hist
     pv0 = float(np.mean(tail)) if len(tail) else _read(module, pv_src)
-    noise = float(np.std(np.diff(tail)) / math.sqrt(2.0)) if len(tail) > 2 else 0.0
+    noise = float(np.std(np.diff(tail, 2)) / math.sqrt(6.0)) if len(tail) > 3 else 0.0
     eps = 3.0 * noise if hysteresis is None else float(hysteresis)
     relay_params["hysteresis"] = eps
 
@@ -220,10 +287,15 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
                    stage=np.asarray(rec_stage), relay=np.asarray(rec_r),
                    controller_out=np.asarray(rec_c), noise_std=noise)
     if outcome == "converged":
-        run.identification = identify(run.t, run.pv, run.u, test, relay=run.relay,
-                                      stage=run.stage,
-                                      cycles=stable_cycles, ku_convention=ku_convention,
-                                      amplitude_estimate=amplitude_estimate)
+        try:
+            run.identification = identify(run.t, run.pv, run.u, test, relay=run.relay,
+                                          stage=run.stage,
+                                          cycles=stable_cycles, ku_convention=ku_convention,
+                                          amplitude_estimate=amplitude_estimate)
+        except IdentificationRefused as exc:
+            run.refusal = str(exc)
+    else:
+        run.refusal = _why(outcome, relay, dt)
     extra = (2.0 * run.identification.period if run.identification else 10.0 * dt) \
         if handback is None else handback
     spliced.blocks[RELAY].set_inputs({"enable": 0.0})
@@ -235,6 +307,10 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
         run.stage = np.append(run.stage, 0.0)
         run.relay = np.append(run.relay, 0.0)
         run.controller_out = np.append(run.controller_out, float(ctrl.y[c_out]))
+    if run.refusal is not None:
+        raise RelayTestRefused(f"the relay test on '{loop}' ended with '{outcome}' after "
+                               f"{run.t[-1] - start if len(run.t) else 0.0:.0f} s and gives no "
+                               f"identification: {run.refusal}", run)
     return run
 
 
@@ -279,6 +355,8 @@ class TuneReport:
             "process_type": idn["process_type"], "process_gain": idn["process_gain"],
             "integrating_gain": idn["integrating_gain"], "dead_time": idn["dead_time"],
             "time_constant": idn["time_constant"], "cycles": idn["cycles"],
+            "scan": idn["scan"], "uncertainty": idn["uncertainty"],
+            "warnings": list(idn["warnings"]), "refusal": None,
             "rule": self.tuning.rule, "controller": self.tuning.controller,
             "rule_form": self.tuning.form,
             "tuning": {"kc": self.tuning.kc, "ti": _finite(self.tuning.ti),
@@ -307,12 +385,7 @@ def tune_loop(module: Module, loop: str, dt: float, *, rule: str | None = None,
     from loopworks.tuning.rules import default_rule, tune
 
     run = relay_test(module, loop, dt, **relay_options)
-    if run.identification is None:
-        raise InputError(
-            f"the relay test on '{loop}' ended with '{run.outcome}' after "
-            f"{run.t[-1] - run.start if len(run.t) else 0.0:.0f} s: no identification. Try a "
-            "larger --amplitude (2d must move a sticky valve), a larger --hysteresis (noise), "
-            "or a longer timeout")
+    assert run.identification is not None  # relay_test raises RelayTestRefused otherwise
     data = run.identification.process_data()
     name = default_rule(data) if rule is None else rule
     tuning = tune(name, data, controller, **(options or {}))

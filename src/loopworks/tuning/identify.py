@@ -37,6 +37,19 @@ rest, a valve stuck away from its signal)::
     K = (mean PV over the biased cycles - mean PV over the symmetric cycles)
         / (mean u over the biased cycles - mean u over the symmetric cycles)
 
+The balance is exact only over a window whose ends see the same PV (for K·e^(-Ls)/(Ts + 1),
+integrating T·y' + y = K·u(t - L) over [t_a, t_b] gives T·(y(t_b) - y(t_a)) + ∫y = K·∫u(t - L)).
+A relay switches on the scan after the PV crossed its band, so a window from switch to switch
+ends up to a scan past the crossing, at a PV that differs from cycle to cycle by up to a scan
+of PV slope; on a lag-dominant plant T times that is as large as the biased relay's whole mean
+offset (issue 11: K = 1 read as 0.64..1.3 from one cycle to the next). So each window runs
+from the crossing of the switching level ℓ = c - s·ε (c the stage's switching point, s = +1
+reverse, -1 direct) located between the two samples around it by linear interpolation, to the
+same crossing cycles later: the PV integrates as the linear interpolation of its samples, the
+output as held (zero-order hold). Both window ends then lie on the same relay level, longer
+than the dead time before them, so ∫u(t - L) = ∫u and the balance holds for the FOPDT exactly
+(up to the interpolation).
+
 The second stage may also switch around a shifted point SP + Δ (``RelayTest.offset``, the relay
 block's ``offset``): the balance holds for any relay centre, so the PV mean moves by about Δ and
 the output mean by Δ/K, a gain that does not rest on the small mean offsets of a biased relay
@@ -85,11 +98,39 @@ amplitudes); y below is (PV - c), negated for direct action.
 
 Integrating plants (``process = "integrating"``, or ``auto`` when a biased relay's mean output
 equals u0, 3.2): ``a = ε + Kv·d·L`` gives Kv = (a - ε)/(d·L); there is no static gain.
+
+Refusals (:class:`IdentificationRefused`, an InputError: one line, never settings). A record
+the formulas above cannot be applied to is refused with its reason:
+
+* a limit cycle shorter than ``MIN_CYCLE_SCANS`` scans (the reason is at the constant, in
+  ``loopworks.blocks.relay``): the sampling's cycle, not the plant's;
+* a dead time shorter than ``MIN_DEAD_TIME_SCANS`` scans: not identifiable from the samples
+  (a pure lag, or a scan too slow for the plant), while every model above divides by it or
+  needs it (θ·ωu > π/2);
+* a PV amplitude within the hysteresis (a ≤ ε: no point of the Nyquist curve, 3.1);
+* a time constant or integrating gain that comes out zero, negative or not finite, or a
+  trajectory whose logarithms have no positive argument (the cycle is not FOPDT-like);
+* the second stage's equilibrium input outside the relay levels, ρ ≥ γ (3.3).
+
+With a symmetric relay only, the FOPDT through the ultimate point is dropped (a warning; the
+ultimate point stays) when its K, estimated per cycle and at the dead time ± its uncertainty,
+spreads by more than ``ILL_CONDITIONED`` (±25 %) of its value.
+
+Uncertainty. Every quantity is also estimated cycle by cycle (the amplitude, period and Ku of
+each cycle; the dead time of each switch; K from each cycle of the second stage against the
+first stage's window; T from each half period or cycle), and ``uncertainty`` holds half the
+range of those estimates, for times read on the scan grid (period, dead time) at least half a
+scan; None where there is only one estimate. A quantity whose uncertainty exceeds
+``SPREAD_WARNING`` (5 %, the spread 3.4 calls stable) of its value gets a warning, and so does a
+stage whose interpolated cycle means of the PV or of the output moved by more than 5 % of a or
+of d over the analysed cycles (the cycles are not stationary: a load, or a loop that was not at
+rest, moved them, and the static gain rests on those means).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from itertools import pairwise
 from typing import Any
@@ -97,6 +138,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
+from loopworks.blocks.relay import MIN_CYCLE_SCANS
 from loopworks.errors import InputError, ParameterError
 from loopworks.tuning.settings import ProcessData
 
@@ -104,6 +146,21 @@ KU_CONVENTIONS = ("hysteresis_corrected", "describing_function", "harmonic")
 AMPLITUDE_ESTIMATES = ("peaks", "harmonic")
 TIME_CONSTANT_METHODS = ("trajectory", "dead_time", "half_period_ratio")
 PROCESS_TYPES = ("auto", "self_regulating", "integrating")
+#: The shortest dead time the record can show, in scans: the switch-to-extremum time is read
+#: on the scan grid, and a loop closed through a sampled controller has up to a scan of delay
+#: of its own, so a measured L of one scan or less is the sampling, not the plant.
+MIN_DEAD_TIME_SCANS = 2
+#: Relative half-range of the per-cycle estimates above which a quantity gets a warning (the
+#: "≤ 5 % spread" of stable cycles, plant-and-tuning 3.4 item 4).
+SPREAD_WARNING = 0.05
+#: Relative half-range above which the FOPDT through the ultimate point (symmetric relay only)
+#: is dropped: τ = tan(π - θ·ωu)/ωu is ill-conditioned as θ·ωu nears π/2 (lag-dominant
+#: plants), and a K known to ±25 % does not determine settings whose gain scales with 1/K.
+ILL_CONDITIONED = 0.25
+
+
+class IdentificationRefused(InputError):
+    """The record cannot support an identification: the message says why (one line)."""
 
 
 @dataclass(frozen=True)
@@ -125,7 +182,10 @@ class RelayTest:
 
 @dataclass(frozen=True)
 class Identification:
-    """The identified quantities (units: PV, OUT, s; gains PV per OUT, Ku OUT per PV)."""
+    """The identified quantities (units: PV, OUT, s; gains PV per OUT, Ku OUT per PV).
+    ``uncertainty``: half the range of the per-cycle estimates of each quantity (None: one
+    estimate, or not identified); ``warnings``: what makes the result uncertain; ``scan``: the
+    record's sampling interval (s)."""
 
     relay_amplitude: float
     relay_amplitude_down: float
@@ -147,6 +207,9 @@ class Identification:
     time_constant: float | None
     cycles: int
     notes: list[str] = field(default_factory=list)
+    uncertainty: dict[str, float | None] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    scan: float = math.nan
 
     def process_data(self) -> ProcessData:
         """What the tuning rules take."""
@@ -157,11 +220,16 @@ class Identification:
             relay_phase_lag=self.phase_lag)
 
     def as_dict(self) -> dict[str, Any]:
-        """Plain dict (JSON-ready; NaN becomes None)."""
-        out: dict[str, Any] = {}
-        for key, value in asdict(self).items():
-            out[key] = None if isinstance(value, float) and not math.isfinite(value) else value
-        return out
+        """Plain dict (JSON-ready; NaN and ±inf become None, in nested dicts too)."""
+        return {key: _json_ready(value) for key, value in asdict(self).items()}
+
+
+def _json_ready(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_ready(v) for k, v in value.items()}
+    return value
 
 
 @dataclass(frozen=True)
@@ -195,21 +263,123 @@ def first_harmonic(t: np.ndarray, x: np.ndarray, period: float, i0: int, i1: int
     return complex(2.0 / total * np.sum(seg * np.exp(-1j * w * t[i0:i1]) * dts))
 
 
-def _trajectory_time_constant(y: np.ndarray, high: np.ndarray, i0: int, i1: int, t_on: float,
-                              t_off: float, lag: float, k: float, d_up: float, d_down: float,
-                              eps: float) -> float:
-    """T from the measured trough/peak of the biased stage (``trajectory`` method); y is the PV
-    relative to the stage's switching point, signed so that a high output raises it, and
-    d_up, d_down the relay levels relative to the equilibrium input there."""
-    sw = _slice_switches(high, i0, i1)
-    lows = [float(np.min(y[a:b + 1])) for a, b in _pairs(sw.ups, sw.downs)]
-    highs = [float(np.max(y[a:b + 1])) for a, b in _pairs(sw.downs, sw.ups)]
-    if not lows or not highs:
-        raise InputError("the biased relay stage has no complete on and off half periods")
-    y_lo, y_hi = float(np.mean(lows)), float(np.mean(highs))
-    t_up = (t_on - lag) / math.log((k * d_up - y_lo) / (k * d_up - eps))
-    t_dn = (t_off - lag) / math.log((k * d_down + y_hi) / (k * d_down - eps))
-    return 0.5 * (t_up + t_dn)
+def _ku_df(d: float, a: float) -> float:
+    """Ku = 4d/(πa), the describing function of the ideal relay (3.1)."""
+    return 4.0 * d / (math.pi * a)
+
+
+def _ku_hc(d: float, a: float, eps: float) -> float:
+    """Ku = 4d/(π√(a² - ε²)), the hysteresis-corrected convention (3.1); NaN when a ≤ ε."""
+    return 4.0 * d / (math.pi * math.sqrt(a * a - eps * eps)) if a > eps else math.nan
+
+
+def short_cycle(period: float, scan: float) -> str:
+    """Why a limit cycle of ``period`` s on scans of ``scan`` s under ``MIN_CYCLE_SCANS``
+    scans is refused (one line)."""
+    return (f"the limit cycle's period {period:.4g} s is {period / scan:.3g} scans of {scan:g} "
+            f"s, under the {MIN_CYCLE_SCANS} scans a relay cycle needs to be measured: it is the "
+            "sampling's cycle, not the plant's (no dead time the scan can resolve); a shorter dt "
+            "or a plant with dead time")
+
+
+# --- whole-cycle windows between interpolated crossings ----------------------------------------
+
+@dataclass(frozen=True)
+class _Record:
+    """The record with its running integrals: PV as linear interpolation (trapezoids), the
+    output as held (zero-order hold)."""
+
+    t: np.ndarray
+    pv: np.ndarray
+    u: np.ndarray
+    pv_cum: np.ndarray
+    u_cum: np.ndarray
+
+    @classmethod
+    def of(cls, t: np.ndarray, pv: np.ndarray, u: np.ndarray) -> _Record:
+        dts = np.diff(t)
+        zero = np.zeros(1)
+        return cls(t, pv, u, np.concatenate([zero, np.cumsum(0.5 * (pv[1:] + pv[:-1]) * dts)]),
+                   np.concatenate([zero, np.cumsum(u[:-1] * dts)]))
+
+    def _at(self, tau: float) -> tuple[int, float]:
+        j = int(np.clip(np.searchsorted(self.t, tau, side="right") - 1, 0, len(self.t) - 2))
+        return j, tau - float(self.t[j])
+
+    def pv_integral(self, tau: float) -> float:
+        """∫ PV dt from t[0] to tau (linear interpolation between samples)."""
+        j, h = self._at(tau)
+        slope = (self.pv[j + 1] - self.pv[j]) / (self.t[j + 1] - self.t[j])
+        return float(self.pv_cum[j] + (self.pv[j] + 0.5 * slope * h) * h)
+
+    def u_integral(self, tau: float) -> float:
+        """∫ u dt from t[0] to tau (u[k] held from t[k] to t[k + 1])."""
+        j, h = self._at(tau)
+        return float(self.u_cum[j] + self.u[j] * h)
+
+    def crossing(self, k: int, level: float) -> float:
+        """The time in (t[k-1], t[k]] at which the PV's linear interpolation crosses
+        ``level`` (t[k] when the two samples do not bracket it)."""
+        if k < 1:
+            return float(self.t[k])
+        x0, x1 = float(self.pv[k - 1]), float(self.pv[k])
+        if (x0 - level) * (x1 - level) > 0.0 or x0 == x1:
+            return float(self.t[k])
+        frac = (x0 - level) / (x0 - x1)
+        return float(self.t[k - 1] + frac * (self.t[k] - self.t[k - 1]))
+
+
+@dataclass(frozen=True)
+class _Means:
+    """Interpolated whole-cycle means of a stage: over all its analysed cycles and per cycle."""
+
+    pv: float
+    u: float
+    pv_cycles: np.ndarray
+    u_cycles: np.ndarray
+
+
+def _stage_means(rec: _Record, ups: np.ndarray, level: float) -> _Means:
+    """Means over the windows between the interpolated crossings of ``level`` at the switches
+    up ``ups`` (module docstring)."""
+    edges = [rec.crossing(int(k), level) for k in ups]
+    fy = np.array([rec.pv_integral(e) for e in edges])
+    fu = np.array([rec.u_integral(e) for e in edges])
+    span = np.diff(edges)
+    whole = edges[-1] - edges[0]
+    return _Means(float((fy[-1] - fy[0]) / whole), float((fu[-1] - fu[0]) / whole),
+                  np.diff(fy) / span, np.diff(fu) / span)
+
+
+# --- time constant -----------------------------------------------------------------------------
+
+def _trajectory_time_constants(y: np.ndarray, rec: _Record, sw: Cycles, levels: tuple[float, float],
+                               lag: float, k: float, d_up: float, d_down: float,
+                               eps: float) -> list[list[float]]:
+    """T of each on and each off half period of the biased stage (``trajectory`` method): [[T_on
+    per half period], [T_off per half period]]; y is the PV relative to the stage's switching
+    point, signed so that a high output raises it, and d_up, d_down the relay levels relative to
+    the equilibrium input there. Refused where a logarithm has no positive argument."""
+    out: list[list[float]] = [[], []]
+    for which, (starts, ends, drive) in enumerate(((sw.ups, sw.downs, d_up),
+                                                   (sw.downs, sw.ups, d_down))):
+        for a, b in _pairs(starts, ends):
+            half = _half_period(rec, a, b, levels[1 - which])
+            # the trough below c after a switch up (as a depth), the peak after a switch down
+            extreme = -float(np.min(y[a:b + 1])) if which == 0 else float(np.max(y[a:b + 1]))
+            num, den = k * drive + extreme, k * drive - eps
+            if not (den > 0.0 and num > den and half > lag):
+                level = "high" if which == 0 else "low"
+                raise IdentificationRefused(
+                    f"the {level}-level half period ({half:.4g} s, dead time {lag:.4g} s) does "
+                    "not follow a first-order trajectory (its log argument "
+                    f"{num:.4g}/{den:.4g} is not above 1): the cycle is not FOPDT-like, no "
+                    "time constant")
+            out[which].append((half - lag) / math.log(num / den))
+    if not out[0] or not out[1]:
+        raise IdentificationRefused("the biased relay stage has no complete on and off half "
+                                    "periods")
+    return out
 
 
 def _pairs(starts: np.ndarray, ends: np.ndarray) -> list[tuple[int, int]]:
@@ -222,7 +392,8 @@ def _solve_time_constant(t_on: float, lag_ratio: float | None, dead_time: float 
     """T from the 3.3 "on" half-period relation; lag_ratio = τ/(1 - τ) when known, else L/T
     with the measured dead time (solved for T)."""
     if d_up - eps_k <= 0.0:
-        raise InputError("the relay amplitude is too small for the hysteresis: d_up <= ε/|K|")
+        raise IdentificationRefused(
+            "the relay amplitude is too small for the hysteresis: d_up <= ε/|K|")
 
     def rhs(ratio: float) -> float:  # ln((e^r(d_up + d_down) - d_down + ε/|K|)/(d_up - ε/|K|))
         return ratio + math.log(((d_up + d_down) - (d_down - eps_k) * math.exp(-ratio))
@@ -237,9 +408,26 @@ def _solve_time_constant(t_on: float, lag_ratio: float | None, dead_time: float 
 
     lo, hi = 1e-9 * t_on, 1e9 * t_on
     if f(lo) * f(hi) > 0.0:
-        raise InputError("no time constant matches the measured half period and dead time")
+        raise IdentificationRefused(
+            "no time constant matches the measured half period and dead time")
     return float(brentq(f, lo, hi, xtol=1e-12 * t_on, rtol=1e-12))
 
+
+def _half_period_ratio(t_on: float, t_off: float, e_up: float, e_down: float,
+                       eps_k: float) -> tuple[float, float]:
+    """(T, L) by Berner's half-period ratio (module docstring)."""
+    gamma = max(e_up, e_down) / min(e_up, e_down)
+    rho = max(t_on, t_off) / min(t_on, t_off)
+    tau = (gamma - rho) / ((gamma - 1.0) * (0.35 * rho + 0.65))
+    if not 0.0 < tau < 1.0:
+        raise IdentificationRefused(
+            f"half-period ratio ρ = {rho:.4g} gives τ = {tau:.4g}, outside (0, 1): the "
+            f"process is not FOPDT-like (spec 3.3 needs ρ < γ = {gamma:.4g})")
+    tc = _solve_time_constant(t_on, tau / (1.0 - tau), None, e_up, e_down, eps_k)
+    return tc, tc * tau / (1.0 - tau)
+
+
+# --- the identification ------------------------------------------------------------------------
 
 def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
              relay: np.ndarray | None = None, stage: np.ndarray | None = None, cycles: int = 2,
@@ -250,8 +438,9 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
     ``relay`` is the relay state per sample (> 0 high; the ``relay`` block's output of that
     name); without it the state is u > u0. ``stage`` (per sample: 1 symmetric, 2 biased,
     0 other) selects the stages; without it every sample belongs to one stage, biased when
-    amplitude_down != amplitude. Raises InputError
-    when there are fewer than ``cycles`` full cycles to analyse.
+    amplitude_down != amplitude. Raises InputError when there are fewer than ``cycles`` full
+    cycles to analyse, and :class:`IdentificationRefused` when the record cannot support an
+    identification (module docstring, "Refusals").
     """
     for name, value, allowed in (("ku_convention", ku_convention, KU_CONVENTIONS),
                                  ("amplitude_estimate", amplitude_estimate, AMPLITUDE_ESTIMATES),
@@ -264,62 +453,104 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
     if cycles < 1:
         raise ParameterError(f"cycles = {cycles} is out of range: allowed [1, inf)")
     t, pv, u = (np.asarray(a, dtype=float) for a in (t, pv, u))
+    if len(t) < 3 or not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0.0)):
+        raise InputError("the relay record needs at least 3 samples at increasing finite times")
     high = (u > test.u0) if relay is None else (np.asarray(relay, dtype=float) > 0.0)
+    scan = float(np.median(np.diff(t)))
     notes: list[str] = []
+    warnings: list[str] = []
+    unc: dict[str, float | None] = {}
     d_up, d_down, eps = test.amplitude, test.amplitude_down, test.hysteresis
+    s = 1.0 if test.action == "reverse" else -1.0
     biased_only = stage is None and d_up != d_down
     if stage is None:
         stage = np.full(len(t), 2 if biased_only else 1)
-    sym = _window(high, np.asarray(stage) == (2 if biased_only else 1), cycles,
+    stage = np.asarray(stage)
+    sym = _window(high, stage == (2 if biased_only else 1), cycles,
                   "biased" if biased_only else "symmetric")
-    has_biased = biased_only or bool(np.any(np.asarray(stage) == 2))
+    has_biased = biased_only or bool(np.any(stage == 2))
     bia = sym if biased_only else (
-        _window(high, np.asarray(stage) == 2, cycles, "biased") if has_biased else None)
+        _window(high, stage == 2, cycles, "biased") if has_biased else None)
+    rec = _Record.of(t, pv, u)
 
     i0, i1 = sym
-    ups = _slice_switches(high, i0, i1).ups
+    sw_sym = _slice_switches(high, i0, i1)
+    ups = sw_sym.ups
     n_cyc = len(ups) - 1
     periods = np.diff(t[ups])
     period = float(np.mean(periods))
-    amps = [0.5 * (np.max(pv[a:b]) - np.min(pv[a:b])) for a, b in pairwise(ups)]
+    if period < (MIN_CYCLE_SCANS - 0.5) * scan:
+        raise IdentificationRefused(short_cycle(period, scan))
+    amps = np.array([0.5 * (np.max(pv[a:b]) - np.min(pv[a:b])) for a, b in pairwise(ups)])
     a_peaks = float(np.mean(amps))
     pv1 = first_harmonic(t, pv, period, i0, i1)
     u1 = first_harmonic(t, u, period, i0, i1)
     a_h1 = abs(pv1)
     a = a_peaks if amplitude_estimate == "peaks" else a_h1
+    if not a > eps:
+        raise IdentificationRefused(
+            f"the PV amplitude {a:.4g} is not above the hysteresis ε = {eps:.4g}: the relay "
+            "identified no point (spec 3.1 needs a > ε)")
     d = 0.5 * (d_up + (d_down if biased_only else d_up))
-    ku_df = 4.0 * d / (math.pi * a)
-    ku_hc = 4.0 * d / (math.pi * math.sqrt(a * a - eps * eps)) if a > eps else math.nan
+
+    def ku_of(amp: float) -> float:  # Ku of one cycle under the convention (harmonic: DF)
+        return _ku_hc(d, amp, eps) if ku_convention == "hysteresis_corrected" \
+            else _ku_df(d, amp)
+
+    ku_df = _ku_df(d, a)
+    ku_hc = _ku_hc(d, a, eps)
     ku_h1 = abs(u1) / a_h1
     ku = {"describing_function": ku_df, "hysteresis_corrected": ku_hc,
           "harmonic": ku_h1}[ku_convention]
     phase_lag = math.pi - math.asin(min(eps / a, 1.0))
-    dead_time = _dead_time(t, pv, high, test.sp, i0, i1)
+    lags = _lags(t, pv, high, s, i0, i1)
+    dead_time = float(np.mean(lags))
+    if dead_time < MIN_DEAD_TIME_SCANS * scan - 1e-9 * scan:
+        raise IdentificationRefused(
+            f"the dead time {dead_time:.4g} s (switch to PV extremum) is under "
+            f"{MIN_DEAD_TIME_SCANS} scans of {scan:g} s: not identifiable from the record (a "
+            "pure lag, or a scan too slow for the plant), and every model needs it")
+    unc["amplitude"] = _half_range(amps)
+    unc["period"] = _time_half_range(periods, scan)
+    unc["ku"] = _half_range(np.array([ku_of(x) for x in amps])) if ku_convention != "harmonic" \
+        else None
+    unc["dead_time"] = _time_half_range(np.asarray(lags), scan)
+    # the switching point of the second stage (of the only stage, for a biased relay alone)
+    centre = test.sp + (test.offset if has_biased else 0.0)
+    means_sym = _stage_means(rec, ups, (centre if biased_only else test.sp) - s * eps)
+    _stationarity(warnings, "biased" if biased_only else "symmetric", means_sym, a, d)
 
     # static gain and process type
     k_static: float | None = None
+    k_cycles: np.ndarray | None = None
     kv: float | None = None
     kind = process
-    mean_u2 = mean_y2 = math.nan
+    means_bia: _Means | None = None
     if bia is not None:
         b0, b1 = bia
-        mean_u2, mean_y2 = _mean(t, u, b0, b1), _mean(t, pv, b0, b1)
+        means_bia = means_sym if biased_only else _stage_means(
+            rec, _slice_switches(high, b0, b1).ups, centre - s * eps)
         if biased_only:
-            mean_du, mean_dy = mean_u2 - test.u0, mean_y2 - test.pv0
+            mean_du, mean_dy = means_bia.u - test.u0, means_bia.pv - test.pv0
+            du_cyc, dy_cyc = means_bia.u_cycles - test.u0, means_bia.pv_cycles - test.pv0
         else:  # two levels: differences of the two stages' whole-cycle means
-            mean_du = mean_u2 - _mean(t, u, i0, i1)
-            mean_dy = mean_y2 - _mean(t, pv, i0, i1)
+            _stationarity(warnings, "second", means_bia, a, 0.5 * (d_up + d_down))
+            mean_du, mean_dy = means_bia.u - means_sym.u, means_bia.pv - means_sym.pv
+            du_cyc, dy_cyc = means_bia.u_cycles - means_sym.u, means_bia.pv_cycles - means_sym.pv
         if process == "auto":
             kind = "integrating" if abs(mean_du) < 0.01 * max(d_up, d_down) else "self_regulating"
         if kind == "self_regulating":
             k_static = mean_dy / mean_du
-            if (k_static < 0.0) != (test.action == "direct"):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                k_cycles = dy_cyc / du_cyc
+            if (k_static < 0.0) != (test.action == "direct") or not math.isfinite(k_static):
                 notes.append(
                     f"the two stages give K = {k_static:.4g}, whose sign contradicts the "
                     f"{test.action} action under which the relay oscillated: the stages' means "
                     "moved with something else (a load change, a sticky valve); no static gain "
                     "(a larger offset or amplitude, or a quieter plant, helps)")
-                k_static = None
+                warnings.append(notes[-1])
+                k_static = k_cycles = None
     elif process == "auto":
         kind = "self_regulating"
         notes.append("symmetric relay only: the process is taken as self-regulating and its "
@@ -327,49 +558,143 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
     time_constant: float | None = None
     if kind == "integrating":
         kv = (a_peaks - eps) / (d * dead_time)
+        if not (math.isfinite(kv) and kv > 0.0):
+            raise IdentificationRefused(f"the integrating gain comes out {kv:.4g}: not "
+                                        "identifiable (spec 3.2 needs a > ε)")
+        unc["integrating_gain"] = _half_range((amps - eps) / (d * dead_time))
         notes.append("integrating process: Kv = (a - ε)/(d·L) (spec 3.2)")
-    elif k_static is not None and bia is not None:
-        b0, b1 = bia
-        t_on, t_off = _on_off(t, _slice_switches(high, b0, b1))
-        eps_k = eps / abs(k_static)
-        # the relay levels relative to the input that holds the PV at the switching point c,
-        # on the static line through the stage's means: y = ȳ2 + K·(u - ū2)
-        centre = test.sp + (test.offset if has_biased else 0.0)
-        u_eq = mean_u2 + (centre - mean_y2) / k_static
-        e_up = test.u0 + test.amplitude - u_eq
-        e_down = u_eq - (test.u0 - test.amplitude_down)
-        if min(e_up, e_down) <= 0.0:
-            raise InputError(f"the second stage's equilibrium input {u_eq:.4g} is outside the "
-                             "relay levels: the static gain is not consistent with the cycle")
+    elif k_static is not None and bia is not None and means_bia is not None:
+        unc["process_gain"] = None if k_cycles is None else _half_range(k_cycles)
+        time_constant, dead_time, unc_t = _time_constant(
+            rec, high, bia, test, means_bia, k_static, centre, dead_time, s, eps,
+            time_constant_method)
+        unc["time_constant"] = unc_t
         if time_constant_method == "half_period_ratio":
-            gamma = max(e_up, e_down) / min(e_up, e_down)
-            rho = max(t_on, t_off) / min(t_on, t_off)
-            tau = (gamma - rho) / ((gamma - 1.0) * (0.35 * rho + 0.65))
-            if not 0.0 < tau < 1.0:
-                raise InputError(f"half-period ratio ρ = {rho:.4g} gives τ = {tau:.4g}, outside "
-                                 "(0, 1): the process is not FOPDT-like (spec 3.3 needs ρ < γ)")
-            time_constant = _solve_time_constant(t_on, tau / (1.0 - tau), None, e_up, e_down,
-                                                 eps_k)
-            dead_time = time_constant * tau / (1.0 - tau)
-        elif time_constant_method == "dead_time":
-            time_constant = _solve_time_constant(t_on, None, dead_time, e_up, e_down, eps_k)
-        else:
-            sign = 1.0 if test.action == "reverse" else -1.0
-            time_constant = _trajectory_time_constant(
-                sign * (pv - centre), high, b0, b1, t_on, t_off, dead_time, abs(k_static),
-                e_up, e_down, eps)
+            unc["dead_time"] = None
     else:
         try:
             k_static, time_constant = fopdt_from_ultimate(ku, period, dead_time)
+            # per cycle, and at the dead time ± its uncertainty (θ·ωu enters through a tan)
+            spread_l = unc["dead_time"] or 0.0
+            per_cycle = np.array([
+                _or_nan(lambda x=x, p=p, lag=lag: fopdt_from_ultimate(  # type: ignore[misc]
+                    ku_of(x), p, lag))
+                for x, p in zip(amps, periods, strict=True)
+                for lag in (dead_time - spread_l, dead_time + spread_l)])
+            unc["process_gain"] = _half_range(per_cycle[:, 0])
+            unc["time_constant"] = _half_range(per_cycle[:, 1])
+            spread_k = unc["process_gain"]
+            if spread_k is not None and spread_k > ILL_CONDITIONED * k_static:
+                warnings.append(
+                    f"no FOPDT model: K = {k_static:.3g} ± "
+                    f"{'∞' if math.isinf(spread_k) else f'{spread_k:.2g}'} through the ultimate "
+                    f"point is ill-conditioned here (θ·ωu = {2 * math.pi * dead_time / period:.3g}"
+                    " rad, near π/2: a lag-dominant plant); only the ultimate point is used (a "
+                    "biased stage gives K)")
+                k_static = time_constant = None
         except InputError as exc:
+            k_static = time_constant = None
             notes.append(f"{exc} (vendor-blocks 5.2)")
+            warnings.append(f"no FOPDT model: {exc}; only the ultimate point is identified")
+    if time_constant is not None and not (math.isfinite(time_constant) and time_constant > 0.0):
+        raise IdentificationRefused(f"the time constant comes out {time_constant:.4g} s: not "
+                                    "identifiable (the cycle is not FOPDT-like)")
+    values = {"amplitude": a_peaks, "period": period, "ku": ku, "dead_time": dead_time,
+              "process_gain": k_static, "integrating_gain": kv, "time_constant": time_constant}
+    for key, est in values.items():
+        spread = unc.get(key)
+        if est is not None and spread is not None and spread > SPREAD_WARNING * abs(est):
+            warnings.append(f"{key} = {est:.4g} ± {spread:.2g} ({100 * spread / abs(est):.0f} "
+                            f"%): uncertain by more than {100 * SPREAD_WARNING:.0f} % (the "
+                            "spread of the per-cycle estimates; for times, at least half a scan)")
+    if n_cyc < 2:
+        warnings.append("one cycle analysed per stage: no spread, the uncertainty is unknown")
     return Identification(
         relay_amplitude=d_up, relay_amplitude_down=d_down if has_biased else d_up,
         hysteresis=eps, amplitude=a_peaks, amplitude_harmonic=a_h1, period=period, ku=ku,
         ku_convention=ku_convention, ku_describing_function=ku_df,
         ku_hysteresis_corrected=ku_hc, ku_harmonic=ku_h1, pu=period, phase_lag=phase_lag,
         process_type=kind, process_gain=k_static, integrating_gain=kv, dead_time=dead_time,
-        time_constant=time_constant, cycles=n_cyc, notes=notes)
+        time_constant=time_constant, cycles=n_cyc, notes=notes,
+        uncertainty={key: unc.get(key) if values[key] is not None else None for key in values},
+        warnings=warnings, scan=scan)
+
+
+def _time_constant(rec: _Record, high: np.ndarray, bia: tuple[int, int], test: RelayTest,
+                   means: _Means, k: float, centre: float, dead_time: float, s: float,
+                   eps: float, method: str) -> tuple[float, float, float | None]:
+    """(T, L, uncertainty of T) from the second stage (module docstring, time constant)."""
+    b0, b1 = bia
+    sw = _slice_switches(high, b0, b1)
+    levels = (centre - s * eps, centre + s * eps)
+    on, off = _on_off(rec, sw, levels)
+    t_on, t_off = float(np.mean(on)), float(np.mean(off))
+    eps_k = eps / abs(k)
+    # the relay levels relative to the input that holds the PV at the switching point c,
+    # on the static line through the stage's means: y = ȳ2 + K·(u - ū2)
+    u_eq = means.u + (centre - means.pv) / k
+    e_up = test.u0 + test.amplitude - u_eq
+    e_down = u_eq - (test.u0 - test.amplitude_down)
+    if min(e_up, e_down) <= 0.0:
+        raise IdentificationRefused(
+            f"the second stage's equilibrium input {u_eq:.4g} is outside the relay levels: "
+            "the static gain is not consistent with the cycle")
+    per_cycle: Callable[[float, float], tuple[float, float]]
+    if method == "half_period_ratio":
+        tc, lag = _half_period_ratio(t_on, t_off, e_up, e_down, eps_k)
+        per_cycle = lambda a, b: _half_period_ratio(a, b, e_up, e_down, eps_k)  # noqa: E731
+    elif method == "dead_time":
+        tc, lag = _solve_time_constant(t_on, None, dead_time, e_up, e_down, eps_k), dead_time
+        per_cycle = lambda a, b: (  # noqa: E731
+            _solve_time_constant(a, None, dead_time, e_up, e_down, eps_k), dead_time)
+    else:
+        halves = _trajectory_time_constants(s * (rec.pv - centre), rec, sw, levels, dead_time,
+                                            abs(k), e_up, e_down, eps)
+        tc = 0.5 * (float(np.mean(halves[0])) + float(np.mean(halves[1])))
+        return tc, dead_time, _half_range(np.array(halves[0] + halves[1]))
+    n = min(len(on), len(off))
+    estimates = np.array([_or_nan(lambda i=i: per_cycle(on[i], off[i]))[0]  # type: ignore[misc]
+                          for i in range(n)])
+    return tc, lag, _half_range(estimates)
+
+
+def _half_range(x: np.ndarray) -> float | None:
+    """(max - min)/2 of the finite estimates; None with fewer than two, inf when any is not
+    finite (an estimate that failed for one cycle)."""
+    if len(x) < 2:
+        return None
+    if not np.all(np.isfinite(x)):
+        return math.inf
+    return 0.5 * float(np.max(x) - np.min(x))
+
+
+def _time_half_range(x: np.ndarray, scan: float) -> float | None:
+    """:func:`_half_range` of times read on the scan grid: at least half a scan."""
+    spread = _half_range(x)
+    return None if spread is None else max(spread, 0.5 * scan)
+
+
+def _stationarity(warnings: list[str], what: str, means: _Means, a: float, d: float) -> None:
+    """Warn when a stage's interpolated cycle means of the PV moved by more than
+    SPREAD_WARNING·a, or of the output by more than SPREAD_WARNING·d, over its cycles."""
+    if len(means.pv_cycles) < 2:
+        return
+    dy = float(np.ptp(means.pv_cycles))
+    du = float(np.ptp(means.u_cycles))
+    if dy > SPREAD_WARNING * a or du > SPREAD_WARNING * d:
+        warnings.append(
+            f"the {what} stage is not stationary: its cycle means moved by {dy:.3g} (PV, "
+            f"{100 * dy / a:.0f} % of a) and {du:.3g} (output, {100 * du / d:.0f} % of d) over "
+            f"the analysed cycles, above {100 * SPREAD_WARNING:.0f} % (a load, or a loop not at "
+            "rest when the test began): the static gain rests on those means")
+
+
+def _or_nan(estimate: Callable[[], tuple[float, float]]) -> tuple[float, float]:
+    """A per-cycle estimate, (NaN, NaN) where that cycle admits none."""
+    try:
+        return estimate()
+    except InputError:
+        return math.nan, math.nan
 
 
 def fopdt_from_ultimate(ku: float, pu: float, dead_time: float) -> tuple[float, float]:
@@ -406,30 +731,37 @@ def _window(high: np.ndarray, mask: np.ndarray, cycles: int, what: str) -> tuple
     return int(ups[-cycles - 1]), int(ups[-1])
 
 
-def _mean(t: np.ndarray, x: np.ndarray, i0: int, i1: int) -> float:
-    """Time-weighted mean of x over samples i0..i1-1 (zero-order hold)."""
-    return float(np.sum(x[i0:i1] * np.diff(t[i0:i1 + 1])) / (t[i1] - t[i0]))
+def _half_period(rec: _Record, a: int, b: int, level: float) -> float:
+    """From the switch at sample a to the PV's crossing of ``level`` that made the relay
+    switch back at sample b (interpolated: the 3.3 relations take the switch at the crossing,
+    while a sampled relay switches up to a scan after it)."""
+    return rec.crossing(b, level) - float(rec.t[a])
 
 
-def _on_off(t: np.ndarray, sw: Cycles) -> tuple[float, float]:
-    """Mean durations of the high (on) and low (off) relay levels between the switches."""
-    on = [float(t[b] - t[a]) for a, b in _pairs(sw.ups, sw.downs)]
-    off = [float(t[b] - t[a]) for a, b in _pairs(sw.downs, sw.ups)]
+def _on_off(rec: _Record, sw: Cycles, levels: tuple[float, float]
+            ) -> tuple[list[float], list[float]]:
+    """Durations of the high (on) and low (off) relay levels, from each switch to the crossing
+    behind the next one; ``levels`` = (switch-up level, switch-down level) of the PV."""
+    on = [_half_period(rec, a, b, levels[1]) for a, b in _pairs(sw.ups, sw.downs)]
+    off = [_half_period(rec, a, b, levels[0]) for a, b in _pairs(sw.downs, sw.ups)]
     if not on or not off:
-        raise InputError("the biased relay stage has no complete on and off half periods")
-    return float(np.mean(on)), float(np.mean(off))
+        raise IdentificationRefused("the biased relay stage has no complete on and off half "
+                                    "periods")
+    return on, off
 
 
-def _dead_time(t: np.ndarray, pv: np.ndarray, high: np.ndarray, sp: float, i0: int,
-               i1: int) -> float:
-    """Mean time from a relay switch to the next PV extremum (3.3)."""
+def _lags(t: np.ndarray, pv: np.ndarray, high: np.ndarray, s: float, i0: int,
+          i1: int) -> list[float]:
+    """Time from each relay switch to the next PV extremum (3.3): after a switch to the high
+    level the PV (reverse action, s = +1) still falls to its trough; direct action, the other
+    way round."""
     sw = _slice_switches(high, i0, i1)
     idx = np.sort(np.concatenate([sw.ups, sw.downs]))
     lags = []
     for a, b in pairwise(idx):
-        seg = pv[a:b + 1]
-        j = int(np.argmin(seg)) if pv[a] < sp else int(np.argmax(seg))
+        seg = s * pv[a:b + 1]
+        j = int(np.argmin(seg)) if high[a] else int(np.argmax(seg))
         lags.append(float(t[a + j] - t[a]))
     if not lags:
         raise InputError("the relay test has no switch to measure the dead time from")
-    return float(np.mean(lags))
+    return lags

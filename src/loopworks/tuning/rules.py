@@ -160,9 +160,17 @@ def _amigo_frequency(v: Mapping[str, float], model: tuple[str, ...], controller:
 
         PI:  Kc = 0.16Ku,              Ti = Pu/(1 + 4.5κ)
         PID: Kc = (0.3 - 0.1κ⁴)Ku,     Ti = 0.6Pu/(1 + 2κ),  Td = 0.15(1 - κ)Pu/(1 - 0.95κ)
+
+    Refused (ParameterError) when κ ≥ 1: a low-pass plant has 1/Ku = |G(jωu)| < K.
     """
     ku, pu = v["ku"], v["pu"]
     kappa = 1.0 / (v["process_gain"] * ku)
+    if not kappa < 1.0:
+        raise ParameterError(
+            f"process_gain·ku = {1.0 / kappa:.4g} is out of range for rule 'amigo_frequency': "
+            "allowed (1, inf): a low-pass plant's gain at its ultimate frequency, 1/Ku, is "
+            "below its static gain K, so K·Ku > 1 (κ = 1/(K·Ku) < 1; the Td formula has a pole "
+            "at κ = 1/0.95); the static gain and the ultimate point disagree")
     if controller == "PI":
         return _Out(0.16 * ku, pu / (1.0 + 4.5 * kappa))
     return _Out((0.3 - 0.1 * kappa**4) * ku, 0.6 * pu / (1.0 + 2.0 * kappa),
@@ -469,8 +477,23 @@ def tune(rule: str, data: ProcessData, controller: str = "PI", **options: float)
     values, direct = _checked(r, data, model)
     opts = _options(r, model, ctrl, values, options)
     out = r.compute(values, model, ctrl, opts)
+    _check_settings(r, out)
     return Tuning(rule=r.name, controller=ctrl, form=out.form, kc=out.kc, ti=out.ti,
                   td=out.td, note=out.note, direct=direct)
+
+
+def _check_settings(rule: Rule, out: _Out) -> None:
+    """Settings a controller can take: Kc finite and > 0, Ti in (0, inf], Td finite and >= 0;
+    anything else means the data lie outside the range where the rule's formulas hold, and is
+    refused rather than returned (ParameterError naming the setting)."""
+    for name, value, ok, allowed in (
+            ("kc", out.kc, math.isfinite(out.kc) and out.kc > 0.0, "(0, inf)"),
+            ("ti", out.ti, out.ti > 0.0, "(0, inf]"),
+            ("td", out.td, math.isfinite(out.td) and out.td >= 0.0, "[0, inf)")):
+        if not ok:
+            raise ParameterError(
+                f"rule {rule.name!r} gives {name} = {value:.4g}, outside {allowed}: the process "
+                "data lie outside the range the rule's formulas hold for")
 
 
 def default_rule(data: ProcessData) -> str:

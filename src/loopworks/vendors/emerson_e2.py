@@ -73,12 +73,20 @@ output, error memories and adjustments hold; the filter keeps running on the hel
 ``out`` carries status 0x47 (Uncertain, last usable value, constant) while the input is bad; with
 ``bad_input = "failsafe"`` ``out`` is ``failsafe_output`` instead (0x4B, Uncertain, substitute,
 constant). When the input returns, the next scheduled update continues from the stored error, so
-the P window is not shifted by the gap. Finite inputs beyond ±1e12 EU saturate there (a guard
-against float overflow, far beyond any real measurement); an update whose arithmetic still
-gives NaN (extreme gains) is skipped like a bad input. Uncertain inputs are used and make
+the P window is not shifted by the gap. A ``pv`` or ``sp`` beyond ±1e12 EU is not a
+measurement either: it is bad input like NaN (issue 11 point 1; the limit of the generic
+``pid``, far beyond any real measurement, below which the error arithmetic cannot overflow); an
+update whose arithmetic is still not finite (extreme gains: kp·Δe·100/TR beyond the float
+range) is skipped like a bad input, so no output and no state is ever non-finite and the cell
+computes again at the first good input. An ``override`` that is NaN, ±inf or Bad is no
+override (NaN is the input's "not given"). Uncertain inputs are used and make
 ``out`` Uncertain (0x40). Otherwise ``out`` is Good non-cascade (128), with the limit bits
 high (130) / low (129) when ``out`` is at ``output_max`` / ``output_min``, and constant (131)
 while overridden.
+
+Before the first scan (issue 11 point 8) ``out`` and ``pid_out`` show the start-up output
+(``initial_output``, above) and the adjustments 0, so a block that reads the E2 earlier in a
+module's order sees where it starts, not 0.
 
 Options for the spec's [A]/[?] points
 -------------------------------------
@@ -151,11 +159,13 @@ gives ``out`` 0, 10, 70 (overridden), 30 and ``pid_out`` 0, 10, 20, 30.
 from __future__ import annotations
 
 import math
+import sys
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
+from loopworks.blocks.pid import measured
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import (
@@ -187,7 +197,6 @@ OUT, PID_OUT, P_ADJ, I_ADJ, D_ADJ = range(5)
  S_UPDATED, S_STARTED) = range(13)
 
 DUE_TOLERANCE = 1e-9  # relative: a timer within 1e-9·interval of the interval is due
-EU_LIMIT = 1e12  # pv and sp saturate here (EU), so the error arithmetic cannot overflow
 
 
 @primitive
@@ -237,10 +246,10 @@ def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     sp = u[SP]
     q_pv = us[PV] & 0xC0
     q_sp = us[SP] & 0xC0
-    bad = not finite(pv) or not finite(sp) or q_pv == BAD or q_sp == BAD
+    bad = not measured(pv, us[PV]) or not measured(sp, us[SP])  # beyond ±1e12 EU too
     e = 0.0
-    if not bad:  # spec 3.3: e = input - setpoint [A]; inputs saturated at ±EU_LIMIT
-        e = p[SIGN] * (clamp(pv, -EU_LIMIT, EU_LIMIT) - clamp(sp, -EU_LIMIT, EU_LIMIT))
+    if not bad:  # spec 3.3: e = input - setpoint [A]
+        e = p[SIGN] * (pv - sp)
     # -- PID cell (spec 3.3-3.5) ----------------------------------------------------------------
     if pid_due and not bad:
         if x[S_UPDATED] == 0.0:  # first update: no measured times yet (spec 3.9 [?])
@@ -260,8 +269,9 @@ def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
             iadj = p[KI] * e
             if p[I_NORM] != 0.0:
                 iadj = iadj * 100.0 / p[TR]
-        if p[D_FORM] == D_AS_PRINTED:  # times in minutes, as printed (026-1614 p.D-4)
-            dadj = p[KD] * (e - 2.0 * e1 / (t1 / 60.0) + e2 / (t2 / 60.0))
+        if p[D_FORM] == D_AS_PRINTED:  # times in minutes, as printed (026-1614 p.D-4):
+            # e/(t/60) written 60·e/t, so that a zero error is 0 for any t > 0
+            dadj = p[KD] * (e - 2.0 * (60.0 * e1 / t1) + 60.0 * e2 / t2)
         else:
             dadj = p[KD] * (e - 2.0 * e1 + e2)
         if p[D_NORM] != 0.0:
@@ -270,7 +280,7 @@ def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
         if p[OLD_OUT] == OLD_FILTERED:
             old = clamp(x[S_F], lo, hi)
         v = old + padj + iadj + dadj
-        if math.isnan(v):  # overflowing inputs: skip the update like a bad input
+        if not finite(padj + iadj + dadj + v):  # overflow (extreme gains): skip, as bad input
             bad = True
         else:
             x[S_OUT] = clamp(v, lo, hi)  # spec 3.4: increments past a clamp are lost
@@ -432,6 +442,12 @@ class E2PID(Block):
             raise ParameterError(
                 f"e2.pid: parameter 'output_max' = {hi:g} must be greater than "
                 f"output_min = {lo:g}")
+        tr = float(prm["throttling_range"])
+        if not math.isfinite(100.0 / tr):
+            raise ParameterError(
+                f"e2.pid: parameter 'throttling_range' = {tr:g} is out of range: the P "
+                f"adjustment's 100 %/TR must be a finite number: allowed "
+                f"({100.0 / sys.float_info.max:.3g}, inf) EU")
         init = prm["initial_output"]
         if init is not None and not lo <= float(init) <= hi:
             raise ParameterError(
@@ -468,3 +484,7 @@ class E2PID(Block):
         x[S_F] = start
         x[S_T1] = self.p[UPDATE]
         return x
+
+    def initial_outputs(self) -> list[float]:
+        """Before the first scan: out = pid_out = the start-up output, no adjustments."""
+        return [float(self.x[S_F]), float(self.x[S_OUT]), 0.0, 0.0, 0.0]

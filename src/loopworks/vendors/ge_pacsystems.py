@@ -46,8 +46,9 @@ goes backwards makes the block wait until it passes ``t_last`` again. A module's
 at t = 0, the initial time of last solution, so there the first solution comes one sample
 period (at least 10 ms) later.
 
-Per solution, with ``e = SP - PV`` (``direct_acting``: ``PV - SP``), SP and PV saturated to
-16 bits and (native) rounded to whole counts, halves away from zero::
+Per solution, with ``e = SP - PV`` (``direct_acting``: ``PV - SP``), SP and PV the INT
+operands (native: rounded to whole counts, halves away from zero; one that is not a 16-bit
+word is Bad input, see below)::
 
     dead band (1.7 step 6, strict edges):
         e_db = 0                    if DB- < e < DB+
@@ -100,14 +101,24 @@ Inputs
 
 ``sp``, ``pv`` (counts); ``man``, ``up``, ``dn``, ``enable`` (booleans as 0/1, true above
 0.5; ``enable`` is the power flow in, default 1); ``clock`` (s, see Timing). Writes of the
-program or HMI into the array, applied each sweep before the block runs when finite (NaN = no
-write, the word keeps its value): ``manual_command`` (word 14, counts), ``control_word``
-(word 15), ``internal_sp`` / ``internal_pv`` (words 16 / 18, used under Override). A program
-that writes word 14 every sweep overrides UP/DN and the Auto tracking, as on the PLC: set it
-to NaN to stop writing.
+program or HMI into the array, applied each sweep before the block runs when they are 16-bit
+words (NaN = no write, the word keeps its value; so does a value that no word can hold: ±inf,
+or beyond -32768..32767, 0..65535 for word 15): ``manual_command`` (word 14, counts),
+``control_word`` (word 15), ``internal_sp`` / ``internal_pv`` (words 16 / 18, used under
+Override). A program that writes word 14 every sweep overrides UP/DN and the Auto tracking, as
+on the PLC: set it to NaN to stop writing.
 
 Outputs: ``cv`` (counts, after polarity), ``output`` (word 19, before polarity), ``ok``
-(power flow out, 1/0). GE has no status bytes: the outputs are always Good (128).
+(power flow out, 1/0). GE has no status bytes: the outputs are always Good (128), and always
+finite whole words (native) inside the clamps; ``ok`` is the only sign of trouble.
+
+Before its first sweep the block shows its start value (issue 11 point 8): word 19 =
+clamp(Bias, lower_clamp, upper_clamp), the output a first solution gives at zero error with the
+empty integral; CV, word 17 and word 14 hold the same (CV after polarity), and ``ok`` = 0. A
+fresh reference array holds 0 in these words; the start value differs from it only when the
+bias is not 0 or 0 is outside the clamps, and it is where the output stays until the first
+solution (sweeps before the sample period has elapsed hold it). With a parameter error
+(``on_parameter_error = "ok_off"``) the block never solves and CV stays at the fresh 0.
 
 Vendor behaviour reproduced
 ---------------------------
@@ -126,7 +137,10 @@ Vendor behaviour reproduced
   the integral steps by Ki·e·dt (saturated at 32 bits). ``load_clock_at_start = true`` loads the
   clock at the first sweep instead, as the vendor's SVC_REQ 16/51 remedy does. The other
   internal words also start at 0 (a fresh reference array): word 20 (the previous error, or
-  PV with bit 2) is 0, so the first solution's derivative sees a change from 0.
+  PV with bit 2) is 0, so the first solution's derivative sees a change from 0: a full kick
+  Kd·(-PV)/dt even with ``derivative_on_pv``, which a clamp can turn into a lasting offset
+  (the integral is back-calculated to the clamped output). ``prime_derivative = true`` loads
+  word 20 with the first solution's PV (bit 2) or error instead, so that derivative is 0.
 * UP/DN act once per solution, not per sweep, and stay subject to the slew limit and clamps.
   Word 14 itself is not clamped in Manual (spec 1.7 step 13 writes it in Auto only): UP beyond
   the clamp raises word 14 but not CV.
@@ -137,10 +151,13 @@ Vendor behaviour reproduced
   Ki = 0 the integral of a P-only loop acts as a frozen manual reset after Manual or a clamp.
 * The rate limit is 32000 counts per ``min_slew_time`` whatever the CV span.
 * PID_ISA uses the same words with the ISA maths; nothing is converted silently.
-* Bad measurement (spec silent, an [A]): a NaN or infinite ``sp``/``pv``, or a Bad status
-  (``sp.ST``/``pv.ST``), on a sweep where a solution is due makes the block skip that solution
-  as if unpowered: CV holds, ``ok`` = 0, no state changes (the time of the last solution too, so
-  the next good solution integrates over the whole gap). The block never raises at run time.
+* Bad measurement (spec silent, an [A]): an ``sp``/``pv`` that is no INT operand (NaN, ±inf,
+  or beyond -32768..32767 once rounded: a PLC word cannot hold it, so it is not saturated into
+  a plausible full-scale value), or a Bad status (``sp.ST``/``pv.ST``), on a sweep where a
+  solution is due makes the block skip that solution as if unpowered: CV holds, ``ok`` = 0, no
+  state changes (the time of the last solution too, so the next good solution integrates over
+  the whole gap). A NaN or infinite ``man``/``up``/``dn`` (no BOOL) does the same; a NaN
+  ``enable`` is no power flow. The block never raises at run time.
 
 Options for the spec's [A]/[?] points
 -------------------------------------
@@ -173,9 +190,12 @@ Options for the spec's [A]/[?] points
   behaviour (words 24-26) [spec 1.7, the emulator must reproduce the step by default].
 * ``on_parameter_error`` = ``"raise"`` or ``"ok_off"`` (the PLC's silent ok = 0) [spec 1.7 step 2,
   1.10].
-* ``bad_input`` = ``"hold"``: NaN/inf or Bad-status SP/PV skip the solution (above) [A, spec
-  silent]; ``"ignore_status"`` uses the value whatever its status (the PLC has no status), and
-  still holds on NaN/inf.
+* ``bad_input`` = ``"hold"``: NaN/inf/beyond-16-bit or Bad-status SP/PV skip the solution
+  (above) [A, spec silent]; ``"ignore_status"`` uses the value whatever its status (the PLC has
+  no status), and still holds on a value that is not a 16-bit word.
+* ``prime_derivative`` = false: word 20 starts at 0 (a fresh array: the first solution's
+  derivative kicks, literal); true loads it from the first solution's PV or error (no kick)
+  [spec 1.2 word 20 / 1.7: the internal words of a fresh array].
 * The dead band's bit-3 wording in the manual can be read against the table of spec 1.3;
   ``deadband_subtract`` follows the table (the edge is subtracted outside the band) [?, 1.7
   step 6].
@@ -228,16 +248,17 @@ from loopworks.errors import ParameterError
 # Coefficient layout (p)
 (ISA, NATIVE, PERIOD, DB_POS, DB_NEG, G6, G7, G8, BIAS, UPPER, LOWER, SLEW, DIRECT, INVERT,
  D_ON_PV, DB_SUB, ARW_HOLD, D_FILT, TF, UNITS, UNIT_MUL, UNIT_DIV, QUANT, FLOOR, STAGED,
- OVR_SPPV, TRACK_CV, LAST0, LOAD_CLOCK, PARAM_ERR, IGNORE_STATUS, SLEW_CARRY, SAT_SUM) = range(33)
-N_COEFFS = 33
+ OVR_SPPV, TRACK_CV, LAST0, LOAD_CLOCK, PARAM_ERR, IGNORE_STATUS, SLEW_CARRY, SAT_SUM,
+ PRIME_D) = range(34)
+N_COEFFS = 34
 # Inputs (u, us)
 SP, PV, MAN, UP, DN, ENABLE, CLOCK, MANUAL_COMMAND, CONTROL_WORD, INTERNAL_SP, INTERNAL_PV = \
     range(11)
 # Outputs (y, ys)
 CV, OUTPUT, OK = range(3)
 # State (x), named after the reference-array words they hold
-(W14, W15, W16, W17, W18, W19, W20, W21, W27, W23, W24, S_CLOCK, S_DF, S_STARTED, S_CV) = \
-    range(15)
+(W14, W15, W16, W17, W18, W19, W20, W21, W27, W23, W24, S_CLOCK, S_DF, S_STARTED, S_CV,
+ S_SOLVED) = range(16)
 
 TICKS_PER_S = 10_000.0  # the controller clock has 100 µs resolution (spec 1.5)
 MIN_PERIOD_TICKS = 100.0  # at least 10 ms between solutions (spec 1.2 word 3)
@@ -280,6 +301,17 @@ def _word(x: float, native: float) -> float:
 
 
 @primitive
+def _is_word(x: float, lo: float, hi: float, native: float) -> bool:
+    """True when x can be written into a word of range lo..hi: finite and, rounded to a whole
+    count in native arithmetic (halves away from zero), inside the range."""
+    if not finite(x):
+        return False
+    if native != 0.0:
+        x = _round_away(x)
+    return lo <= x and x <= hi
+
+
+@primitive
 def _bit(word: float, weight: float) -> bool:
     """Bit of value ``weight`` (1, 2, 4, ...) of a whole number 0..65535."""
     q = math.floor(word / weight)
@@ -302,15 +334,16 @@ def ge_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     ys[OK] = GOOD_NC
     native = p[NATIVE]
     floor_mode = p[FLOOR]
-    # Writes of the program / HMI into the array (every sweep, before the block runs).
-    if finite(u[MANUAL_COMMAND]):
+    # Writes of the program / HMI into the array (every sweep, before the block runs). A value
+    # that is not a 16-bit word (NaN: no write; inf, out of range) never reaches the array.
+    if _is_word(u[MANUAL_COMMAND], WORD_MIN, WORD_MAX, native):
         x[W14] = _word(u[MANUAL_COMMAND], native)
-    if finite(u[CONTROL_WORD]):
-        cw = _round_away(clamp(u[CONTROL_WORD], -32768.0, 65535.0))
+    if _is_word(u[CONTROL_WORD], WORD_MIN, 65535.0, 1.0):
+        cw = _round_away(u[CONTROL_WORD])
         x[W15] = cw + 65536.0 if cw < 0.0 else cw
-    if finite(u[INTERNAL_SP]):
+    if _is_word(u[INTERNAL_SP], WORD_MIN, WORD_MAX, native):
         x[W16] = _word(u[INTERNAL_SP], native)
-    if finite(u[INTERNAL_PV]):
+    if _is_word(u[INTERNAL_PV], WORD_MIN, WORD_MAX, native):
         x[W18] = _word(u[INTERNAL_PV], native)
     # The controller clock (spec 1.7 step 3): the clock input, else the block's own clock.
     clock = u[CLOCK]
@@ -340,6 +373,9 @@ def ge_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
         up = _bit(x[W15], 8.0)
         dn = _bit(x[W15], 16.0)
     else:
+        if not (finite(u[MAN]) and finite(u[UP]) and finite(u[DN])):  # no BOOL: Bad input
+            _hold(x, y, 0.0)
+            return
         man = u[MAN] > 0.5
         up = u[UP] > 0.5
         dn = u[DN] > 0.5
@@ -349,7 +385,9 @@ def ge_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     else:
         sp = u[SP]
         pv = u[PV]
-        bad = not finite(sp) or not finite(pv)
+        # an SP or PV that is no INT operand (NaN, inf, beyond 16 bits) is Bad input
+        bad = (not _is_word(sp, WORD_MIN, WORD_MAX, native)
+               or not _is_word(pv, WORD_MIN, WORD_MAX, native))
         if p[IGNORE_STATUS] == 0.0 and ((us[SP] & 0xC0) == BAD or (us[PV] & 0xC0) == BAD):
             bad = True
         if bad:  # [A] skip the solution as if unpowered
@@ -375,7 +413,11 @@ def ge_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
         e_db = e - db_pos
     else:
         e_db = e - db_neg
-    # 7. derivative change (seed 003 table); word 20 keeps the previous error or PV
+    # 7. derivative change (seed 003 table); word 20 keeps the previous error or PV. A fresh
+    # array holds 0 there; prime_derivative loads it at the first solution (no kick).
+    if x[S_SOLVED] == 0.0 and p[PRIME_D] != 0.0:
+        x[W20] = pv if p[D_ON_PV] != 0.0 else e
+    x[S_SOLVED] = 1.0
     if p[D_ON_PV] != 0.0:
         delta = pv - x[W20] if p[DIRECT] != 0.0 else x[W20] - pv
         x[W20] = pv
@@ -544,9 +586,12 @@ def _common_params() -> tuple[Param, ...]:
         Param("on_parameter_error", "raise", "", "bad dead band or clamps: raise, or ok_off "
               "(the PLC: ok = 0 and CV frozen every sweep), spec 1.7 step 2", "choice",
               choices=("raise", "ok_off")),
-        Param("bad_input", "hold", "", "NaN/inf or Bad-status sp/pv: hold (skip the solution, "
-              "ok = 0) or ignore_status (use the value), [A] spec silent", "choice",
-              choices=("hold", "ignore_status")),
+        Param("bad_input", "hold", "", "NaN/inf/beyond 16 bits or Bad-status sp/pv: hold "
+              "(skip the solution, ok = 0) or ignore_status (use a finite word whatever its "
+              "status), [A] spec silent", "choice", choices=("hold", "ignore_status")),
+        Param("prime_derivative", False, "", "load word 20 (diff term storage) from the first "
+              "solution's PV (or error) so the first derivative sees no change; off: word 20 "
+              "starts at 0 (a fresh array) and the first solution kicks, spec 1.2/1.7", "bool"),
     )
 
 
@@ -580,7 +625,7 @@ _OUTPUTS: tuple[Port, ...] = (
 _STATES: tuple[str, ...] = (
     "manual_command", "control_word", "internal_sp", "internal_cv", "internal_pv", "output",
     "diff_storage", "integral", "int_remainder", "slew_storage", "last_solution", "clock",
-    "d_filter", "started", "cv")
+    "d_filter", "started", "cv", "solved")
 
 
 def _word_of(value: float, scale: float) -> int:
@@ -710,13 +755,33 @@ class GEPIDBlock(Block):
         c[IGNORE_STATUS] = 1.0 if prm["bad_input"] == "ignore_status" else 0.0
         c[SLEW_CARRY] = 1.0 if prm["slew_remainder"] else 0.0
         c[SAT_SUM] = 1.0 if prm["saturate_sum"] else 0.0
+        c[PRIME_D] = 1.0 if prm["prime_derivative"] else 0.0
         return c
 
     def initial_state(self) -> list[float]:
-        """A fresh reference array: internal words 0, words 24-26 = initial_last_solution."""
+        """A fresh reference array: internal words 0, words 24-26 = initial_last_solution;
+        except that the output words start at the start value (:meth:`start_output`)."""
         x = [0.0] * len(self.STATES)
         x[W24] = self.p[LAST0]
+        out = self.start_output()
+        cv = -out if self.p[INVERT] != 0.0 else out
+        x[W19] = out
+        x[S_CV] = cv
+        x[W17] = cv
+        x[W14] = cv if self.p[TRACK_CV] != 0.0 else out
         return x
+
+    def start_output(self) -> float:
+        """Word 19 before the first solution: the Bias limited to the clamps, the output a
+        first solution gives at zero error with the empty integral (issue 11 point 8); 0 (the
+        fresh array) when the clamps are a parameter error, as the block never solves then."""
+        if self.p[PARAM_ERR] != 0.0:
+            return 0.0
+        return float(min(max(self.p[BIAS], self.p[LOWER]), self.p[UPPER]))
+
+    def initial_outputs(self) -> list[float]:
+        """CV and word 19 at their start values, ok = 0 (the block has not run)."""
+        return [float(self.x[S_CV]), float(self.x[W19]), 0.0]
 
     def parameter_words(self) -> dict[int, int]:
         """The user words 3-13 of the reference array this block runs with (spec 1.2)."""

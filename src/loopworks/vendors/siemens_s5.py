@@ -40,15 +40,26 @@ derivative on the measurement with the usual sign feed xz = -X.
 DW 48 is the integrator of the whole controller in positioning mode (spec 2.7): Auto continues
 from whatever it holds (bumpless Manual → Auto), ``y0`` presets it, REG_AUS clears it to 0.
 
-I-action at a limit (spec 2.8, realisation [A]): when the unclamped Y_k (velocity: dY_k) is
-above BGOG and the I element pushes up (K·dI_k > 0), dY_k is recomputed with dI_k = 0, then
-clamped; symmetrically at BGUG. The spec's suggested rule says "dI_k > 0"; it is read here as
-the I element's contribution to the output, K·dI_k, which is the same thing for K > 0 and the
-spec's stated intent ("the direction the I-element would push further") for K < 0. A
-consequence of this realisation, kept as the spec's default: when the I element alone would
-carry Y past the limit (P and D at rest), the increment is dropped whole and Y stops short of
-the limit (spec 2.8 test: 120, 140, 140, ... with BGOG = 150); ``i_suppression = "flag"`` lets
-Y reach the limit and then holds the I element there.
+Velocity mode (spec 2.8 [V]: "dYA is the limited correcting increment"): DW 48 is dY_k
+clamped to [BGUG, BGOG], and that is all. The block holds no integral in this mode (the
+actuator integrates), so nothing winds up in it; the I part beyond a limit is what the clamp
+cuts off. ``i_suppression`` does not apply: recomputing the increment without dI_k would give
+0 for a steady error whose I part alone exceeds the limit, and a motor valve would stall
+(issue 11 point 6).
+
+I-action at a limit, positioning mode (spec 2.8, realisation [A]): when the unclamped
+Y_k = Y_{k-1} + dY_k is above BGOG and the I element pushes up (K·dI_k > 0), dY_k is
+recomputed with dI_k = 0, then clamped; symmetrically at BGUG. The comparison takes the true
+sum, before anything limits it (the CPU's fixed-point add reports an overflow, it does not hide
+one): a sum saturated to 16 bits first could never exceed the default BGOG = 32767, and a
+one-count change of BGOG would switch the suppression on or off (issue 11 point 6). The
+spec's suggested rule says "dI_k > 0"; it is read here as the I element's contribution to
+the output, K·dI_k, which is the same thing for K > 0 and the spec's stated intent ("the
+direction the I-element would push further") for K < 0. A consequence of this realisation,
+kept as the spec's default: when the I element alone would carry Y past the limit (P and D at
+rest), the increment is dropped whole and Y stops short of the limit (spec 2.8 test: 120,
+140, 140, ... with BGOG = 150); ``i_suppression = "flag"`` lets Y reach the limit and then
+holds the I element there.
 
 Manual mode (``auto`` = MAN, D 11.0 = 0; spec 2.9): the algorithm is not computed, but the
 histories are kept current (XW_{k-1} and PW_{k-1}; XZ_{k-1} and PZ_{k-1} if xz_on; Z_{k-1} if
@@ -58,9 +69,10 @@ not no_z) and dD_{k-1} is set to 0, so the return to Auto is bumpless. The outpu
                                 ``manual_steps`` samples after entering Manual, then Y_k = YH
     hold = false, velocity:     DW 48 = dYH (the yh input)
     hold = true,  positioning:  the last output is held
-    hold = true,  velocity:     DW 48 = 0
+    hold = true,  velocity:     DW 48 = 0 (no increment, whatever the limits)
 
-BGOG/BGUG stay active in Manual.
+BGOG/BGUG stay active in Manual (spec 2.9 [V]): also a held output, and the ``y0`` preset of
+DW 48 is limited to [BGUG, BGOG] from the start (a preset outside them is not output).
 
 Controller off (``off`` = OFF, D 11.2 = 1; spec 2.10): DW 18..48 are cleared (the histories,
 dD, the X and Z words, the DW 48 accumulator, the limit flags) and the algorithm does not run;
@@ -70,13 +82,21 @@ call after construction, starts from the cleared histories, so a step in XW give
 
 Outputs: ``y`` is DW 48; ``dy`` is the change of the output in this scan, Y_k - Y_{k-1}
 (positioning; also in Manual and when REG_AUS clears DW 48), or the increment DW 48 itself
-(velocity). The S5 has no status: no port carries one.
+(velocity). The S5 has no status: no port carries one, the status bytes of the inputs are
+not read, and the outputs are always finite words. Before the first call (issue 11 point 8)
+``y`` is DW 48 as the DB holds it: the limited ``y0`` in positioning mode, 0 (no increment)
+in velocity mode; ``dy`` is 0. Y lies in [BGUG, BGOG] (positioning) and dY too (velocity),
+except the 0 that REG_AUS writes (spec 2.10), a held 0 after it, and the velocity-mode
+HANDART 0 (spec 2.9).
 
 Arithmetic
 ----------
 ``arithmetic = "native"`` (default) is 16-bit fixed point: every input is rounded to the
-nearest integer word (half away from zero) and limited to -32768..32767, as the user program
-writes integer words into the DB (an emulator interface choice, not a firmware point). Every
+nearest integer (half away from zero) and, as a DB word holds 16 bits, a value beyond
+-32768..32767 is saturated or wrapped (its low 16 bits) as ``overflow`` says, like every
+intermediate: 1e308 gives 32767 (or 0 wrapped). This is how the user program's integer words
+reach the DB (an emulator interface choice, not a firmware point; the S5 has no status to
+mark such a value). Every
 coefficient product c·v is the integer word (coefficient × v)/scale rounded by ``rounding``;
 every intermediate (XW, PW, QW, PZ, QZ, dZ, the products, dD, the sums, dY, Y) is a 16-bit word,
 saturated or wrapped by ``overflow``. The ×0.001 of the manual is really ÷1024 (spec 2.2):
@@ -86,6 +106,19 @@ Rounding loses fractions of a count at every product, so native results differ f
 spec's exact real-number values by about a count per step (spec 2.13), and a decaying D
 memory ends a count or two short: the law-A kick of the 2.13 D-element check settles at 101
 instead of 100, the ramp check at 18 instead of TD·r = 20.
+
+**The native I element has a dead zone** (real S5 behaviour, from the word arithmetic): with
+P and D at rest (XW constant) the increment is dY = round(K·dI/1024) with dI =
+round(TI·XW/1024). dI is 0 while |XW| <= 512/TI counts (500/TI with ``scale = "nominal"``;
+with the default half-to-even rounding an exact half rounds to 0), and for |K| <= 512 a dI of
+1 still gives dY = 0: the I element then needs |dI| > 512/|K|. Inside the zone Y stops, so
+a loop settles off the setpoint by up to that much:
+
+    TI (DW 5)   1      10     50     100    200    500    above 512
+    |XW| <=     512    51     10     5      2      1      0 (no dead zone)     (|K| > 512)
+
+e.g. TI = 100 with K = 500: dI = 1 needs |XW| >= 6 but gives dY = round(0.49) = 0, dI = 2
+needs |XW| >= 16, so the zone is |XW| <= 15. ``arithmetic = "float"`` has no dead zone.
 
 ``arithmetic = "float"`` runs the same equations in double precision for engineering studies:
 no rounding and no word overflow in between; the inputs are still limited to the word range
@@ -109,7 +142,8 @@ Options for the spec's [A]/[?] points
 * ``i_suppression`` = ``"recompute"`` (default: the unclamped result beyond a limit with the I
   element pushing further is recomputed with dI = 0, then clamped [A], spec 2.8) | ``"flag"``
   (dI = 0 while the previous scan's output was at that limit, as the CPU 928B's MERK flags,
-  spec 2.8/2.12) | ``"none"`` (clamp only).
+  spec 2.8/2.12) | ``"none"`` (clamp only). Positioning mode only: in velocity mode the
+  increment is clamped whatever this says (above).
 * ``manual_steps`` = 3 (default): the manual-mode exponential transition (spec 2.9, law [A]):
   Y halves its distance to YH for this many samples after entering Manual, then equals YH;
   0 jumps to YH at once.
@@ -122,7 +156,9 @@ Options for the spec's [A]/[?] points
   has no status (spec 7), so this is the emulator's choice. ``hold`` skips the scan: the
   histories, dD and DW 48 are kept, positioning holds the output and velocity outputs a zero
   increment (the actuator stays). ``last`` runs the scan with the last finite value of that
-  input, as the DB word would keep it when the user program writes nothing new.
+  input, as the DB word would keep it when the user program writes nothing new. An ``auto``
+  or ``off`` bit that is NaN or infinite (no bit) holds the scan in both settings. A finite
+  value beyond the word range is not bad input: it is saturated or wrapped (Arithmetic).
 
 Quirks reproduced (spec 2.14)
 -----------------------------
@@ -171,6 +207,7 @@ from loopworks.errors import ParameterError
 
 WORD_MIN = -32768.0
 WORD_MAX = 32767.0
+_WHOLE = 4503599627370496.0  # 2^52: every float64 at least this large is a whole number
 
 # Coefficient layout (p)
 (K, R, TI, TD, BGOG, BGUG, Y0, SCALE, NATIVE, ROUNDING, WRAP, DD_DECAY, ISUP, MANUAL_STEPS,
@@ -191,7 +228,11 @@ _ISUPS = ("recompute", "flag", "none")
 
 @primitive
 def s5_round(q: float, mode: float) -> float:
-    """q rounded to an integer: half to even, half away from zero, floor or toward zero."""
+    """q rounded to an integer: half to even, half away from zero, floor or toward zero.
+    A finite q of 2^52 or more is a whole number already (and would overflow the integer
+    that compiled ``math.floor`` returns): it passes unchanged."""
+    if not (q < _WHOLE and q > -_WHOLE):
+        return q
     f = float(math.floor(q))
     if mode == ROUND_FLOOR:
         return f
@@ -212,8 +253,9 @@ def s5_word(v: float, native: bool, wrap: bool) -> float:
     """A 16-bit intermediate: saturated to -32768..32767 or wrapped (native); float: v."""
     if not native:
         return v
-    if wrap:
-        return v - 65536.0 * float(math.floor((v + 32768.0) / 65536.0))
+    if wrap:  # two's complement: the low 16 bits (% is exact for a whole v of any size)
+        r = v % 65536.0
+        return r - 65536.0 if r > WORD_MAX else r
     return clamp(v, WORD_MIN, WORD_MAX)
 
 
@@ -227,17 +269,41 @@ def s5_mul(c: float, v: float, scale: float, native: bool, mode: float, wrap: bo
 
 
 @primitive
-def s5_input(v: float, native: bool) -> float:
-    """A finite input as the DB word holds it: limited to the word range, rounded (native)."""
-    v = clamp(v, WORD_MIN, WORD_MAX)
+def s5_input(v: float, native: bool, wrap: bool) -> float:
+    """A finite input as the DB word holds it. Native: rounded to an integer (halves away from
+    zero), then a value outside -32768..32767 saturated or wrapped as ``overflow`` says (a DB
+    word holds 16 bits); float: limited to the word range."""
     if native:
-        return s5_round(v, ROUND_NEAREST)
-    return v
+        return s5_word(s5_round(v, ROUND_NEAREST), True, wrap)
+    return clamp(v, WORD_MIN, WORD_MAX)
+
+
+@primitive
+def s5_sum(a: float, b: float, native: bool, wrap: bool) -> float:
+    """Y_{k-1} + dY_k as the limit comparison sees it: the true sum (the CPU's add flags an
+    overflow, it does not hide it), wrapped only with ``overflow = "wrap"`` (native)."""
+    if native and wrap:
+        return s5_word(a + b, True, True)
+    return a + b
+
+
+@primitive
+def _s5_hold(x: FloatArray, y: FloatArray, y_prev: float, velocity: bool) -> None:
+    """A skipped scan (bad input): DW 48 is kept in positioning mode; velocity mode outputs
+    a zero increment, so the actuator stays."""
+    if velocity:
+        x[S_DW48] = 0.0
+        y[OUT_Y] = 0.0
+        y[OUT_DY] = 0.0
+    else:
+        y[OUT_Y] = y_prev
+        y[OUT_DY] = 0.0
 
 
 def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                   y: FloatArray, ys: IntArray) -> None:
-    """One OB 251 call (equations in the module docstring). ``dt`` is not used: no clock."""
+    """One OB 251 call (equations in the module docstring). ``dt`` is not used: no clock.
+    The S5 has no status: ``us`` is not read (the values alone decide)."""
     native = p[NATIVE] != 0.0
     wrap = p[WRAP] != 0.0
     mode = p[ROUNDING]
@@ -248,6 +314,9 @@ def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     xz_on = p[XZ_ON] != 0.0
     use_z = p[NO_Z] == 0.0
     y_prev = x[S_DW48]
+    if not finite(u[OFF]) or not finite(u[AUTO]):  # a control bit that is no bit: hold
+        _s5_hold(x, y, y_prev, velocity)
+        return
     if u[OFF] > 0.5:  # REG_AUS: clear DW 18..48 and do not compute (spec 2.3, 2.10)
         for i in (S_DW48, S_XW1, S_PW1, S_DD1, S_Z1, S_XZ1, S_PZ1, S_X, S_MAN_N, S_LIM):
             x[i] = 0.0
@@ -282,19 +351,13 @@ def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
         yh = x[S_YH]
         bad = bad or manual_follow
     if bad and not last:  # bad_input = hold: skip the scan, keep every history
-        if velocity:
-            x[S_DW48] = 0.0
-            y[OUT_Y] = 0.0
-            y[OUT_DY] = 0.0
-        else:
-            y[OUT_Y] = y_prev
-            y[OUT_DY] = 0.0
+        _s5_hold(x, y, y_prev, velocity)
         return
-    w = s5_input(w, native)
-    xv = s5_input(xv, native)
-    z = s5_input(z, native)
-    xz = s5_input(xz, native)
-    yh = s5_input(yh, native)
+    w = s5_input(w, native, wrap)
+    xv = s5_input(xv, native, wrap)
+    z = s5_input(z, native, wrap)
+    xz = s5_input(xz, native, wrap)
+    yh = s5_input(yh, native, wrap)
     x[S_W] = w
     x[S_X] = xv
     x[S_YH] = yh
@@ -316,7 +379,6 @@ def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     dz = 0.0
     if use_z:
         dz = s5_word(z - x[S_Z1], native, wrap)
-    base = 0.0 if velocity else y_prev
     if auto:
         dpw = s5_mul(p[R], pw, scale, native, mode, wrap)
         di = s5_mul(p[TI], xw, scale, native, mode, wrap)
@@ -324,18 +386,23 @@ def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
         dd = s5_mul(p[DD_DECAY], s5_word(tq + x[S_DD1], native, wrap), 1.0, native, mode, wrap)
         total = s5_word(s5_word(dpw + di, native, wrap) + dd, native, wrap)
         dy = s5_word(s5_mul(p[K], total, scale, native, mode, wrap) + dz, native, wrap)
-        v = s5_word(base + dy, native, wrap)
-        push = p[K] * di  # the direction the I element moves the output
-        isup = p[ISUP]
-        suppress = False
-        if isup == ISUP_RECOMPUTE:
-            suppress = (v > hi and push > 0.0) or (v < lo and push < 0.0)
-        elif isup == ISUP_FLAG:
-            suppress = (x[S_LIM] > 0.0 and push > 0.0) or (x[S_LIM] < 0.0 and push < 0.0)
-        if suppress:  # spec 2.8: recompute with dI = 0
-            total = s5_word(s5_word(dpw, native, wrap) + dd, native, wrap)
-            dy = s5_word(s5_mul(p[K], total, scale, native, mode, wrap) + dz, native, wrap)
-            v = s5_word(base + dy, native, wrap)
+        if velocity:  # spec 2.8: DW 48 = the limited increment (clamped below)
+            v = dy
+        else:
+            # the unclamped Y_k = Y_{k-1} + dY_k is compared with the limits before anything
+            # limits it (spec 2.8): a saturated sum could never exceed BGOG = 32767
+            v = s5_sum(y_prev, dy, native, wrap)
+            push = p[K] * di  # the direction the I element moves the output
+            isup = p[ISUP]
+            suppress = False
+            if isup == ISUP_RECOMPUTE:
+                suppress = (v > hi and push > 0.0) or (v < lo and push < 0.0)
+            elif isup == ISUP_FLAG:
+                suppress = (x[S_LIM] > 0.0 and push > 0.0) or (x[S_LIM] < 0.0 and push < 0.0)
+            if suppress:  # spec 2.8: recompute with dI = 0
+                total = s5_word(s5_word(dpw, native, wrap) + dd, native, wrap)
+                dy = s5_word(s5_mul(p[K], total, scale, native, mode, wrap) + dz, native, wrap)
+                v = s5_sum(y_prev, dy, native, wrap)
         x[S_DD1] = dd
         x[S_MAN_N] = 0.0
     else:  # Manual (spec 2.9): no algorithm; dD_{k-1} = 0
@@ -350,8 +417,9 @@ def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
         else:
             v = yh
         x[S_DD1] = 0.0
-    held = not auto and not velocity and p[HOLD] != 0.0  # the held DW 48 is not rewritten
-    out = v if held else clamp(v, lo, hi)
+    # spec 2.8, 2.9: the limits bound Y or dY, in Manual too; HANDART = 1 in velocity mode
+    # is dYA = 0 (the actuator stays) whatever the limits
+    out = 0.0 if velocity and not auto and p[HOLD] != 0.0 else clamp(v, lo, hi)
     x[S_LIM] = 1.0 if v >= hi else (-1.0 if v <= lo else 0.0)
     x[S_XW1] = xw
     x[S_PW1] = pw
@@ -476,7 +544,15 @@ class S5PID(Block):
         return c
 
     def initial_state(self) -> list[float]:
+        """The DB before the first call: histories 0 (spec 2.10); DW 48 = the ``y0`` preset,
+        limited to [BGUG, BGOG] (the limits are always active, spec 2.9) in positioning mode,
+        0 (no increment) in velocity mode."""
         x = [0.0] * len(self.STATES)
-        x[S_DW48] = self.p[Y0]
+        if self.p[VELOCITY] == 0.0:
+            x[S_DW48] = min(max(self.p[Y0], self.p[BGUG]), self.p[BGOG])
         x[S_FIRST] = 1.0
         return x
+
+    def initial_outputs(self) -> list[float]:
+        """Before the first call y is DW 48 (the preset Y, or no increment) and dy is 0."""
+        return [float(self.x[S_DW48]), 0.0]

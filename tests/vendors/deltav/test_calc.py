@@ -24,7 +24,7 @@ from typer.testing import CliRunner
 
 import loopworks
 from loopworks.blocks.block import Block
-from loopworks.blocks.kernel import run_rows
+from loopworks.blocks.kernel import _marked_np, compiled, run_rows
 from loopworks.cli import app
 from loopworks.errors import ParameterError
 from loopworks.sim.module import Module
@@ -41,7 +41,8 @@ OOS = 0x1C  # Bad: out of service, 28 (spec 6.8 variants)
 
 def f32(v: float) -> float:
     """The float32 rounding of v, as a float."""
-    return float(np.float32(v))
+    with np.errstate(over="ignore"):  # beyond the float32 range: inf
+        return float(np.float32(v))
 
 
 Make = Callable[..., Block]
@@ -193,7 +194,7 @@ def test_no_clamp_on_signal_out(make: Make) -> None:
         pytest.approx(-0.3)
 
 
-def test_nan_and_inf_inputs_follow_ieee_and_never_raise(make: Make) -> None:
+def test_nan_and_inf_inputs_follow_ieee_and_non_finite_results_hold_bad(make: Make) -> None:
     # spec 6.1: float values; NaN compares false: NaN PV is neither high nor low (band);
     # a NaN COMP_START is not 0 (compensate); NaN INITIALIZE is not 1 (band computed)
     block = make(precision="float64", comp_start=1.0, **SETUP)
@@ -206,8 +207,118 @@ def test_nan_and_inf_inputs_follow_ieee_and_never_raise(make: Make) -> None:
     assert r["signal_out"].value == pytest.approx(40.0 - 0.3 - 0.3)
     r = block.step(1.0, pv=INF, comp_start=1.0, initialize=0.0)
     assert r["kicker_delt"].value == pytest.approx(-0.3)  # inf > trigger: high
-    assert math.isnan(block.step(1.0, signal_in=NAN)["signal_out"].value)
-    assert block.step(1.0, signal_in=INF, pv=49.0)["signal_out"].value == INF
+    assert r["signal_out"] == (pytest.approx(39.7), GOOD)
+    # issue 11 point 1 (this test pinned a NaN / inf SIGNAL_OUT with Good status before): a
+    # non-finite result is not stored; SIGNAL_OUT holds its last value, 39.7, with status Bad,
+    # since SIGNAL_IN.ST reads Bad while SIGNAL_IN is not finite (line 28 passes it on)
+    r = block.step(1.0, signal_in=NAN)
+    assert (r["signal_out"].value, r["signal_out"].status) == (pytest.approx(39.7), 0)
+    r = block.step(1.0, signal_in=INF, pv=49.0)  # low: kick +0.3; 40 + inf: held, Bad
+    assert (r["signal_out"].value, r["signal_out"].status) == (pytest.approx(39.7), 0)
+    assert r["kicker_delt"] == (pytest.approx(0.3), GOOD)
+    r = block.step(1.0, signal_in=40.0, pv=49.0)  # good again: 40 + 0.3 + 0
+    assert r["signal_out"] == (pytest.approx(40.3), GOOD)
+
+
+@pytest.mark.parametrize("value", [NAN, INF, -INF, 1e308, -1e308, 3.5e38])
+def test_issue_11_non_finite_or_float32_overflow_signal_in_is_bad(make: Make,
+                                                                   value: float) -> None:
+    # issue 11 point 1: NaN, ±inf and values beyond float32 (1e308, 3.5e38 read as ±inf in
+    # float32 precision, spec 6.1 [A]) are Bad input. Line 12 (COMP_START 0) and line 26 give a
+    # non-finite result: SIGNAL_OUT holds f32(40 - 0.3) = 39.70000076 (scan 1, band, dither
+    # +0.3·-1), Bad; line 28 copies SIGNAL_IN.ST, which reads Bad (0) unless it arrives Bad
+    # with a substatus (0x1C out of service is kept). No state is non-finite; good input again
+    # gives the good answer at once.
+    block = make(comp_start=1.0, **SETUP)
+    held = block.step(1.0, pv=50.0, dither_out=0.3)["signal_out"].value
+    assert held == f32(40.0 - f32(0.3))
+    for comp in (1.0, 0.0):
+        r = block.step(1.0, pv=50.0, dither_out=0.3, comp_start=comp, signal_in=value)
+        assert r["signal_out"] == (held, 0)
+        assert np.isfinite(block.x).all()
+        r = block.step(1.0, pv=50.0, dither_out=0.3, comp_start=comp,
+                       signal_in=(value, OOS))
+        assert r["signal_out"] == (held, OOS)
+    r = block.step(1.0, pv=50.0, dither_out=-0.3, comp_start=1.0, signal_in=40.0)
+    assert r["signal_out"] == (f32(40.0 + f32(0.3)), GOOD)
+
+
+@pytest.mark.parametrize("value", [INF, -INF, 1e308, 3.5e38])
+def test_issue_11_extreme_dither_out_holds_dither_delt_bad(make: Make, value: float) -> None:
+    # issue 11 point 1: line 23 DITHER_DELT := DITHER_OUT·-1·1 is not finite (float32: 1e308
+    # and 3.5e38 read as ±inf): DITHER_DELT holds f32(-0.3·-1)... = its last value, Bad; line
+    # 26 adds the held value (40 + 0 + f32(0.3)) and SIGNAL_OUT keeps SIGNAL_IN's status Good;
+    # the next finite DITHER_OUT stores again (Good).
+    block = make(comp_start=1.0, **SETUP)
+    block.step(1.0, pv=50.0, dither_out=-0.3)  # DITHER_DELT = +f32(0.3)
+    r = block.step(1.0, pv=50.0, dither_out=value)
+    assert r["dither_delt"] == (f32(0.3), 0)
+    assert r["signal_out"] == (f32(40.0 + f32(0.3)), GOOD)
+    r = block.step(1.0, pv=50.0, dither_out=0.3)
+    assert r["dither_delt"] == (-f32(0.3), GOOD)
+
+
+def test_issue_11_an_overflowing_result_holds_bad_for_its_scan(make: Make) -> None:
+    # issue 11 point 1: 3e38 + 3e38 = 6e38 is beyond float32 (spec 6.1 [A]): not stored, Y
+    # holds 1, Bad (the assigned Good .ST does not hide it), and reading Y.ST in that scan gives
+    # the Bad status (Z := Y.ST); a later scan whose IF does not assign Y shows its last value
+    # with its .ST, as any parameter a scan leaves alone; the next finite result stores again.
+    text = ("IF '^/A' > -1 THEN '^/Y' := '^/A' + '^/A' END_IF; '^/Y.ST' := 130; "
+            "'^/Z' := '^/Y.ST';")
+    block = make(expression=text, a=0.0)
+    assert block.step(1.0, a=0.5)["y"] == (1.0, 130)
+    r = block.step(1.0, a=3e38)
+    assert r["y"] == (1.0, 0) and r["z"] == (0.0, GOOD)
+    r = block.step(1.0, a=-5.0)  # Y not assigned
+    assert r["y"] == (1.0, 130) and r["z"] == (130.0, GOOD)
+    r = block.step(1.0, a=2.0)
+    assert r["y"] == (4.0, 130)
+    # a later finite assignment in the same scan stores (not held any more)
+    again = make(expression="'^/Y' := '^/A' * 2; '^/Y' := 7; '^/Z' := '^/Y.ST';", a=0.0)
+    assert again.step(1.0, a=3e38)["y"] == (7.0, GOOD)
+    assert again.step(1.0, a=3e38)["z"] == (GOOD, GOOD)
+    # float64 precision: 6e38 is a double, stored
+    double = make(expression=text, a=0.0, precision="float64")
+    assert double.step(1.0, a=3e38)["y"] == (6e38, 130)
+
+
+def test_issue_11_an_input_beyond_float32_reads_bad_status(make: Make) -> None:
+    # issue 11 point 1: in float32 precision 1e39 reads as inf (spec 6.1 [A]) and its .ST as
+    # Bad (0); a Bad status that arrives keeps its substatus; in float64 it is a usable value
+    text = "'^/S' := '^/A.ST'; '^/V' := '^/A' > 1;"
+    block = make(expression=text, a=0.0)
+    assert block.step(1.0, a=1e39)["s"].value == 0.0
+    assert block.step(1.0, a=1e39)["v"] == (1.0, GOOD)  # inf > 1 (IEEE)
+    assert block.step(1.0, a=(1e39, OOS))["s"].value == OOS
+    assert block.step(1.0, a=3e38)["s"].value == GOOD
+    double = make(expression=text, a=0.0, precision="float64")
+    assert double.step(1.0, a=1e39)["s"].value == GOOD
+
+
+def test_issue_11_point_8_outputs_show_their_initial_values_before_the_first_scan(
+        make: Make) -> None:
+    # issue 11 point 8: before the first scan an output shows its initial value (float32 as
+    # stored), Good, not 0
+    block = make(expression="'^/N' := '^/N' + '^/A';", n=10.1, a=1.0)
+    assert block.outputs()["n"] == (f32(10.1), GOOD)
+    block.step(1.0)
+    block.reset()
+    assert block.outputs()["n"] == (f32(10.1), GOOD)
+    seed = make(signal_out=40.0, kicker_delt=-0.3, precision="float64")
+    assert seed.outputs()["signal_out"] == (40.0, GOOD)
+    assert seed.outputs()["kicker_delt"] == (-0.3, GOOD)
+
+
+@pytest.mark.parametrize("name", ["n", "a"])
+def test_initial_values_beyond_float32_are_refused(name: str) -> None:
+    # spec 6.1 [A]: a float32 module parameter cannot hold 1e39 (it would read as inf)
+    with pytest.raises(ParameterError, match=rf"parameter '{name}' = 1e\+39 is out of range"):
+        loopworks.create_block("deltav.calc", expression="'^/N' := '^/A';",
+                               **{"n": 0.0, "a": 0.0, name: 1e39})
+    block = loopworks.create_block("deltav.calc", expression="'^/N' := '^/A';",
+                                   precision="float64", **{"n": 0.0, "a": 0.0, name: 1e39})
+    assert block.outputs()["n"].value == (1e39 if name == "n" else 0.0)
+    assert block.step(1.0)["n"].value == (0.0 if name == "n" else 1e39)
 
 
 def test_status_fields_of_a_custom_text(make: Make) -> None:
@@ -242,6 +353,7 @@ def test_ports_follow_the_expression() -> None:
     block = loopworks.create_block("deltav.calc", expression="'^/Q' := 2 * '^/P';", p=1.5)
     assert [p.name for p in block.INPUTS] == ["p"]
     assert [p.name for p in block.OUTPUTS] == ["q"]
+    assert not block.INPUTS[0].status and block.OUTPUTS[0].status  # every output can be Bad
     assert block.step(1.0)["q"].value == 3.0  # the initial value is the input's default
     assert block.step(1.0, p=4.0)["q"].value == 8.0
     # the class keeps the seed's declarations (for the reference page)
@@ -328,10 +440,16 @@ def random_params(rng: np.random.Generator) -> dict[str, float]:
     }
 
 
-def random_rows(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
+EXTREMES = np.array([NAN, INF, -INF, 1e308, -1e308, 3.5e38, -3.5e38, 3e38, -3e38, 5e-324])
+
+
+def random_rows(rng: np.random.Generator, n: int, extreme: float = 0.0) -> dict[str,
+                                                                              np.ndarray]:
     """Inputs for n scans: PV around SP (often inside the band, sometimes exactly at SP),
     COMP_START and INITIALIZE mostly 0/1, finite DITHER_OUT (the native block's NaN = internal
-    dither has no counterpart in the text), occasional NaN/inf, random SIGNAL_IN statuses."""
+    dither has no counterpart in the text), occasional NaN/inf, random SIGNAL_IN statuses. With
+    ``extreme`` > 0 every input is, with that probability, one of NaN, ±inf, ±1e308, beyond or
+    near the float32 range, or subnormal (DITHER_OUT: anything but NaN)."""
     sp = np.where(rng.random(n) < 0.9, 50.0, rng.uniform(0.0, 100.0, n))
     pv = sp + rng.normal(0.0, 1.0, n) * rng.choice([0.3, 1.0, 10.0], n)
     at_sp = rng.random(n) < 0.05
@@ -342,18 +460,21 @@ def random_rows(rng: np.random.Generator, n: int) -> dict[str, np.ndarray]:
     signal_in[rng.random(n) < 0.01] = NAN
     signal_in[rng.random(n) < 0.005] = -INF
     comp = rng.choice([0.0, 1.0, 1.0, 1.0, 1.0, 0.5, NAN], n)
-    init = rng.choice([0.0, 0.0, 1.0, 1.0000001, NAN], n)
+    init = rng.choice([0.0, 0.0, 1.0, 1.0, 1.0000001, NAN], n)
     amp = rng.choice([0.3, 0.25, 1.7], n)
     dither = np.where(rng.random(n) < 0.8, amp * rng.choice([-1.0, 1.0], n),
                       rng.uniform(-3.0, 3.0, n))
+    rows = {"signal_in": signal_in, "sp": sp, "pv": pv, "comp_start": comp, "initialize": init,
+            "dither_out": dither}
+    for name, column in rows.items():
+        hit = rng.random(n) < extreme
+        pool = EXTREMES[1:] if name == "dither_out" else EXTREMES
+        column[hit] = rng.choice(pool, int(hit.sum()))
     status = rng.choice([GOOD, GOOD, 0, OOS, 0x40, 0x47, 0xC0, 130, 255], n)
-    return {"signal_in": signal_in, "sp": sp, "pv": pv, "comp_start": comp, "initialize": init,
-            "dither_out": dither, "signal_in.ST": status}
+    return rows | {"signal_in.ST": status}
 
 
-def run_kernel(block: Block, rows: dict[str, np.ndarray], jit: bool) -> tuple[np.ndarray,
-                                                                            np.ndarray]:
-    """Run the rows through the block's kernel (the replay path); outputs by port order."""
+def _arrays(block: Block, rows: dict[str, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     n = len(rows["pv"])
     U = np.empty((n, len(block.INPUTS)))
     US = np.full((n, len(block.INPUTS)), GOOD, dtype=np.int64)
@@ -361,9 +482,38 @@ def run_kernel(block: Block, rows: dict[str, np.ndarray], jit: bool) -> tuple[np
         U[:, i] = rows.get(port.name, port.default)
         if port.name + ".ST" in rows:
             US[:, i] = rows[port.name + ".ST"]
+    return U, US
+
+
+def run_kernel(block: Block, rows: dict[str, np.ndarray], jit: bool) -> tuple[np.ndarray,
+                                                                            np.ndarray]:
+    """Run the rows through the block's kernel (the replay path); outputs by port order."""
+    U, US = _arrays(block, rows)
+    n = len(U)
     Y = np.empty((n, len(block.OUTPUTS)))
     YS = np.empty((n, len(block.OUTPUTS)), dtype=np.int64)
+    Y[0], YS[0] = block.y, block.ys
     run_rows(type(block).kernel, np.ones(n), block.p, block.x, U, US, Y, YS, jit=jit)
+    return Y, YS
+
+
+def run_alone(block: Block, rows: dict[str, np.ndarray], jit: bool) -> tuple[np.ndarray,
+                                                                           np.ndarray]:
+    """The same rows through the bare kernel, without the numeric guard's undo-and-rerun
+    (issue 11 point 1: kernels are sound by themselves): the kernel sees the statuses the
+    guard shows it (a non-finite value is Bad), and every scan must leave every state finite
+    and every output finite or Bad. Works on copies: ``block`` is not changed."""
+    kernel = compiled(type(block).kernel) if jit else type(block).kernel
+    U, US = _arrays(block, rows)
+    x, y, ys = block.x.copy(), block.y.copy(), block.ys.copy()
+    Y = np.empty((len(U), len(y)))
+    YS = np.empty((len(U), len(y)), dtype=np.int64)
+    with np.errstate(all="ignore"):
+        for k in range(len(U)):
+            kernel(1.0, block.p, x, U[k], _marked_np(U[k], US[k]), y, ys)
+            assert np.isfinite(x).all(), (k, dict(zip(block.STATES, x, strict=True)))
+            assert (np.isfinite(y) | (ys & 0xC0 == 0)).all(), (k, y, ys)
+            Y[k], YS[k] = y, ys
     return Y, YS
 
 
@@ -386,22 +536,63 @@ def assert_identical(a: Block, ya: tuple[np.ndarray, np.ndarray], b: Block,
 @pytest.mark.parametrize(("precision", "deferred"), OPTIONS)
 def test_seed_text_equals_native_stick_slip_bit_for_bit(precision: str, deferred: bool) -> None:
     """The seed's 28 lines run as text give exactly the outputs of deltav.stick_slip
-    (deltav_common interface; spec 6.1-6.3), on 200,000 random scans per option setting."""
+    (deltav_common interface; spec 6.1-6.3), on 200,000 random scans per option setting, a
+    quarter of them with extreme inputs (NaN, ±inf, ±1e308, beyond float32: issue 11 point 1,
+    the same rule in both). Both kernels are sound by themselves: on the extreme sequence they
+    give the same outputs without the numeric guard."""
     rng = np.random.default_rng(2024 + 2 * OPTIONS.index((precision, deferred)))
-    for _ in range(4):
+    single = precision == "float32"
+    for extreme in (0.0, 0.0, 0.0, 0.05):
         params = random_params(rng)
         opts = {"precision": precision, "deferred_param_reads": deferred}
         native = loopworks.create_block(NATIVE, **params, **opts)
         text = loopworks.create_block("deltav.calc", **params, **opts)
-        rows = random_rows(rng, 50_000)
+        rows = random_rows(rng, 50_000, extreme)
+        alone = (run_alone(text, rows, jit=True), run_alone(native, rows, jit=True)) \
+            if extreme else None
         got = run_kernel(text, rows, jit=True)
         assert_identical(text, got, native, run_kernel(native, rows, jit=True))
+        if alone is not None:
+            assert_identical(text, got, text, alone[0])
+            assert_identical(native, alone[1], text, got)
         # every branch ran: kicks both ways, dither, pass-through
         kick = got[0][:, text._out_index["kicker_delt"]]
         dither = got[0][:, text._out_index["dither_delt"]]
         if params["resolution"] + params["deadband"] > 0.0:
             assert (kick > 0).any() and (kick < 0).any() and (dither != 0).any()
-        assert (got[0][:, text._out_index["signal_out"]] == rows["signal_in"]).any()
+        with np.errstate(over="ignore"):
+            stored = rows["signal_in"].astype(np.float32).astype(float) if single else \
+                rows["signal_in"]
+        assert (got[0][:, text._out_index["signal_out"]] == stored).any()
+        # issue 11 point 1: non-finite values came in, none came out (held outputs are Bad)
+        assert np.isfinite(got[0]).all()
+        assert (got[1][:, text._out_index["signal_out"]] == 0).any()
+
+
+@pytest.mark.parametrize(("precision", "deferred"), OPTIONS)
+def test_seed_text_equals_native_with_parameters_near_the_float32_limit(
+        precision: str, deferred: bool) -> None:
+    """Parameters near the float32 maximum make lines 2, 3, 8, 16, 20, 23 and 26 overflow the
+    float32 store (spec 6.1 [A]): the text and the native block hold the same parameters, Bad,
+    bit for bit, and stay sound without the guard (issue 11 point 1)."""
+    rng = np.random.default_rng(99 + OPTIONS.index((precision, deferred)))
+    for _ in range(3):
+        params = random_params(rng) | {
+            "resolution": float(rng.choice([3e38, 1e38, 0.5])),
+            "deadband": float(rng.choice([3e38, 0.2])),
+            "process_gain": float(rng.choice([1e30, 2.0])),
+            "cntrl_action": float(rng.choice([-1.0, 3e38])),
+            "dither_factor": float(rng.choice([1.0, 2.5])),
+        }
+        opts = {"precision": precision, "deferred_param_reads": deferred}
+        native = loopworks.create_block(NATIVE, **params, **opts)
+        text = loopworks.create_block("deltav.calc", **params, **opts)
+        rows = random_rows(rng, 20_000, 0.05)
+        alone = run_alone(text, rows, jit=True)
+        got = run_kernel(text, rows, jit=True)
+        assert_identical(text, got, native, run_kernel(native, rows, jit=True))
+        assert_identical(text, got, text, alone)
+        assert np.isfinite(got[0]).all()
 
 
 @pytest.mark.parametrize(("precision", "deferred"), OPTIONS)
@@ -520,7 +711,7 @@ def test_replay_cli_with_an_expression_parameter(tmp_path: Path) -> None:
                                       "expression='^/Y' := '^/A' * '^/A' + '^/K';", "-p", "a=0",
                                       "-p", "k=0.5"])
     assert result.exit_code == 0, result.output
-    assert result.stdout.splitlines() == ["t,y", "0.0,1.5", "1.0,16.5"]
+    assert result.stdout.splitlines() == ["t,y,y.ST", "0.0,1.5,128", "1.0,16.5,128"]
     bad = CliRunner().invoke(app, ["replay", "deltav.calc", str(path), "-p",
                                    "expression='^/Y' := ('^/A';", "-p", "a=0"])
     assert bad.exit_code == 2

@@ -13,6 +13,7 @@ from typing import Any
 import pytest
 
 import loopworks
+from loopworks.blocks.status import Signal
 from loopworks.errors import LoopworksError, ParameterError
 from loopworks.vendors.deltav.expression import (
     OP_ADD,
@@ -36,12 +37,22 @@ SEED_FILE = (Path(__file__).resolve().parents[3].parent / "shared" / "seeds"
 FLT_MAX = 3.402823466e38  # DeltaV's x/0, printed with 10 digits: the float32 maximum
 
 
-def value(expr: str, jit: bool = False, **inputs: float) -> float:
-    """``expr`` evaluated once: the value stored by ``'^/Y' := expr`` in float64 precision.
+def result(expr: str, jit: bool = False, **inputs: float) -> Signal:
+    """``expr`` evaluated once: Y after ``'^/Y' := expr`` in float64 precision (Y starts at 0).
     The inputs named in ``inputs`` are declared (initial value 0) and given for the scan."""
     block = loopworks.create_block("deltav.calc", jit=jit, precision="float64",
                                    expression=f"'^/Y' := {expr};", **dict.fromkeys(inputs, 0.0))
-    return block.step(1.0, **inputs)["y"].value
+    return block.step(1.0, **inputs)["y"]
+
+
+def value(expr: str, jit: bool = False, **inputs: float) -> float:
+    """The value ``expr`` stores in Y; it must be a Good result."""
+    out = result(expr, jit, **inputs)
+    assert out.status == 128, (expr, out)
+    return out.value
+
+
+HELD = Signal(0.0, 0)  # issue 11 point 1: a non-finite result is not stored; Y holds 0, Bad
 
 
 def error(text: str, **params: Any) -> str:
@@ -173,18 +184,29 @@ def test_seed_line_5_condition() -> None:
     assert value(expr, i=1.0000001, k=1.0) == 0.0
 
 
-def test_nan_follows_ieee() -> None:
+def test_nan_follows_ieee_within_a_statement() -> None:
     # NaN: comparisons false, != true, arithmetic propagates; NaN is non-zero, so true
     nan = math.nan
-    assert math.isnan(value("'^/A' + 1", a=nan))
     for op in ("=", "<", ">", "<=", ">="):
         assert value(f"'^/A' {op} 1", a=nan) == 0.0
     assert value("'^/A' != '^/A'", a=nan) == 1.0
     assert value("'^/A' AND 1", a=nan) == 1.0
     assert value("NOT '^/A'", a=nan) == 0.0
+    assert value("('^/A' + 1) != ('^/A' + 1)", a=nan) == 1.0  # the sum is NaN
+    assert value("'^/A' * 0 > -1", a=math.inf) == 0.0  # inf·0 = NaN
     block = loopworks.create_block(
         "deltav.calc", expression="IF '^/A' THEN '^/Y' := 1 ELSE '^/Y' := 2 END_IF", a=0.0)
     assert block.step(1.0, a=nan)["y"].value == 1.0
+
+
+def test_issue_11_a_non_finite_result_is_not_stored() -> None:
+    # issue 11 point 1 (this test pinned "NaN + 1 gives NaN" with Good status before): a NaN
+    # or infinite result is not stored; Y keeps its value (0) with status Bad
+    nan = math.nan
+    assert result("'^/A' + 1", a=nan) == HELD
+    assert result("'^/A' - '^/A'", a=math.inf) == HELD
+    assert result("'^/A' * 10", a=1e308) == HELD  # 1e309 overflows float64
+    assert result("'^/A'", a=-math.inf) == HELD
 
 
 @pytest.mark.parametrize("jit", [False, True], ids=["interpreted", "compiled"])
@@ -196,24 +218,32 @@ def test_division_by_zero_gives_deltavs_float32_maximum(jit: bool) -> None:
     assert value("0 / 0", jit) == pytest.approx(FLT_MAX, rel=1e-9)
     assert value("1 / -0", jit) == pytest.approx(FLT_MAX, rel=1e-9)
     assert value("'^/A' / 0", jit, a=math.inf) == pytest.approx(FLT_MAX, rel=1e-9)
-    assert math.isnan(value("'^/A' / 0", jit, a=math.nan))  # [A]: NaN stays NaN
     assert value("1 / 4", jit) == 0.25
+    # [A]: NaN / 0 stays NaN, so the result is not stored (issue 11 point 1: Y holds, Bad)
+    assert result("'^/A' / 0", jit, a=math.nan) == HELD
 
 
 @pytest.mark.parametrize("jit", [False, True], ids=["interpreted", "compiled"])
 def test_division_by_zero_ieee_option(jit: bool) -> None:
-    def ieee(expr: str, **inputs: float) -> float:
+    def ieee(expr: str, **inputs: float) -> Signal:
         block = loopworks.create_block("deltav.calc", jit=jit, precision="float64",
                                        divide_by_zero="ieee", expression=f"'^/Y' := {expr};",
                                        **dict.fromkeys(inputs, 0.0))
-        return block.step(1.0, **inputs)["y"].value
+        return block.step(1.0, **inputs)["y"]
 
-    assert ieee("1 / 0") == math.inf
-    assert ieee("-1 / 0") == -math.inf
-    assert ieee("1 / -0") == -math.inf
-    assert ieee("-1 / -0") == math.inf
-    assert math.isnan(ieee("0 / 0"))
-    assert math.isnan(ieee("'^/A' / 0", a=math.nan))
+    # IEEE 754 inside the statement: 1/0 = +inf, -1/0 = -inf, 1/-0 = -inf, -1/-0 = +inf,
+    # 0/0 = NaN (the signs shown by comparisons, whose results are finite)
+    assert ieee("1 / 0 > 1e308") == (1.0, 128)
+    assert ieee("-1 / 0 < -1e308") == (1.0, 128)
+    assert ieee("1 / -0 < -1e308") == (1.0, 128)
+    assert ieee("-1 / -0 > 1e308") == (1.0, 128)
+    assert ieee("0 / 0 = 0 / 0") == (0.0, 128)  # NaN != NaN; deltav: FLT_MAX = FLT_MAX
+    assert value("0 / 0 = 0 / 0") == 1.0
+    # issue 11 point 1 (this test pinned Y = ±inf / NaN before): an infinite or NaN result
+    # is not stored; Y holds 0, Bad
+    for expr in ("1 / 0", "-1 / 0", "0 / 0"):
+        assert ieee(expr) == HELD, expr
+    assert ieee("'^/A' / 0", a=math.nan) == HELD
 
 
 def test_elsif_chain_takes_the_first_true_branch() -> None:
@@ -252,6 +282,43 @@ def test_compiled_program_of_an_assignment_and_an_if() -> None:
 def test_deep_nesting_is_refused() -> None:
     text = "'^/Y' := " + "(1 + " * 70 + "1" + ")" * 70
     assert "nested too deeply" in error(text)
+    # every nesting construct, at the level past the limit (32), not as a RecursionError: the
+    # 33rd '(' of "'^/Y' := ((..." is at column 9 + 33, the 33rd '- ' at 9 + 2·32 + 1, the 33rd
+    # 'NOT ' at 9 + 4·32 + 1, the 33rd IF on line 33
+    assert "line 1, column 42: the expression is nested too deeply (more than 32 levels" in \
+        error("'^/Y' := " + "(" * 40 + "1" + ")" * 40)
+    assert "line 1, column 74: the expression is nested too deeply" in \
+        error("'^/Y' := " + "- " * 40 + "1")
+    assert "line 1, column 138: the expression is nested too deeply" in \
+        error("'^/Y' := " + "NOT " * 40 + "1")
+    assert "line 33, column 1: the expression is nested too deeply" in \
+        error("IF 1 THEN\n" * 40 + "'^/Y' := 1" + " END_IF" * 40)
+    # 32 levels are fine
+    assert value("(" * 32 + "1" + ")" * 32) == 1.0
+    assert value("- " * 32 + "1") == 1.0
+
+
+def test_a_long_chain_of_operators_compiles_without_recursion() -> None:
+    # 1 + 1 + ... parses left to right as one deep tree; compiling it must not recurse once
+    # per operator (Python's recursion limit is 1000)
+    assert value(" + ".join(["1"] * 5000)) == 5000.0
+    assert value(" * ".join(["'^/A'"] * 3000), a=1.0) == 1.0
+    prog = parse("'^/Y' := " + " - ".join([f"'^/A{i}'" for i in range(2000)]))
+    assert prog.names[:3] == ["y", "a0", "a1"] and len(prog.names) == 2001
+
+
+def test_a_literal_beyond_float64_is_refused() -> None:
+    # float("1e999") is inf: a literal must be a finite number
+    assert "line 1, column 14: number '1e999' is out of range" in error("'^/Y' := 1 + 1e999")
+    assert value("1e308") == 1e308
+
+
+@pytest.mark.parametrize("name", ["KIND", "self"])
+def test_names_of_constructor_arguments_are_reserved(name: str) -> None:
+    # 'kind' and 'self' would collide with create_block(kind, ...) and the constructor
+    assert f"line 1, column 10: module parameter '^/{name}' has the name of a deltav.calc " \
+        "parameter or a reserved name" in error(f"'^/Y' := '^/{name}';")
+    assert "a reserved name" in error(f"'^/{name}' := 1;")
 
 
 # -- errors --------------------------------------------------------------------------------------

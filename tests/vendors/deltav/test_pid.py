@@ -19,14 +19,25 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
 from typer.testing import CliRunner
 
 import loopworks
 from loopworks.blocks.block import Block
 from loopworks.cli import app
 from loopworks.errors import ParameterError
-from loopworks.vendors.deltav.pid import series_to_standard
+from loopworks.vendors.deltav.pid import MODE_ACTUAL as MODE_ACTUAL_I
+from loopworks.vendors.deltav.pid import MODE_TARGET as MODE_TARGET_I
+from loopworks.vendors.deltav.pid import (
+    OUT_EU0,
+    OUT_EU_PER_PCT,
+    OUT_HI,
+    OUT_LO,
+    deltav_pid_kernel,
+    series_to_standard,
+)
 from tests.csvfiles import write_csv
+from tests.properties.strategies import Case, cases
 
 NAN = math.nan
 INF = math.inf
@@ -792,3 +803,184 @@ def test_docstring_python_example_runs() -> None:
     assert [round(r["out"].value, 6) for r in got] == [60.0, 61.0, 62.0, 62.0, 62.0, 62.0,
                                                        55.439, 55.439, 55.439]
     assert [r["out"].status for r in got] == [128, 128, 130, 130, 130, 130, 128, 128, 128]
+
+
+# ----------------------------------------------------------------------------------------------
+# Non-finite and overflowing inputs, start-up output: issue 11 points 1 and 8
+# ----------------------------------------------------------------------------------------------
+F32_MAX = 3.4028234663852886e38  # the largest IEEE single (a DeltaV float parameter, spec 4.1)
+BROKEN = [NAN, INF, -INF, 1e308, -1e308, 3.5e38]  # none fits a float32
+
+
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+@pytest.mark.parametrize("value", BROKEN)
+def test_broken_in_is_bad_in_man_held_and_recovers(make: Make, precision: str,
+                                                   value: float) -> None:
+    """issue 11 point 1, spec 4.5/4.6: an IN that is not finite or does not fit a DeltaV
+    float32 is Bad IN: actual Man, OUT held (finite, Good constant: the Man status), PV Bad
+    holding 45; good again -> Auto from the held OUT: 55 + 0.1·5 (the same numbers as
+    test_bad_in_drops_the_actual_mode_to_man_and_recovers_bumplessly)."""
+    b = make(gain=1.0, reset=10.0, precision=precision)
+    steady(b)
+    assert run(b, mode="AUTO", pv=45.0)["out"][0] == 55.0
+    for _ in range(3):
+        bad = run(b, pv=value)
+        assert (bad["mode_target"][0], bad["mode_actual"][0]) == (AUTO, MAN)
+        assert bad["out"] == (55.0, GOOD_CONST)
+        assert bad["filtered_pv"] == (45.0, BAD)
+        assert all(math.isfinite(v) for v in b.x)
+    back = run(b, pv=45.0)
+    assert back["mode_actual"][0] == AUTO
+    assert back["out"] == (pytest.approx(55.5, abs=1e-5), GOOD)
+
+
+def test_in_within_the_float32_range_is_a_value(make: Make) -> None:
+    """issue 11 point 1: 3e38 fits a float32 (max 3.4028235e38): a Good IN, used; reverse
+    action with PV far above SP drives OUT to OUT_LO_LIM (0 %, low limited)."""
+    b = make(gain=1.0, reset=10.0)
+    steady(b)
+    r = run(b, mode="AUTO", pv=3e38)
+    assert r["mode_actual"][0] == AUTO
+    assert r["filtered_pv"] == (float(np.float32(3e38)), GOOD)
+    assert r["out"] == (0.0, GOOD_LOW)
+    assert run(b, pv=-F32_MAX)["out"] == (100.0, GOOD_HIGH)
+
+
+@pytest.mark.parametrize("value", BROKEN)
+def test_broken_operator_writes_write_nothing(make: Make, value: float) -> None:
+    """issue 11 point 1 + the operator-write rule (module docstring): a write that is not
+    finite or does not fit a float32 writes nothing, and the next good value is a write even
+    if it equals the last one (the input had no value in between). GAIN 1, RESET 10, e = 5 %:
+    Man 30 (R = 25); Auto: R = 25 + 0.1·(30 - 25), OUT = 5 + 25.5 = 30.5; MAN with broken
+    SP and OUT writes: SP 50 and OUT 30.5 held; man_out = 30 again: OUT 30."""
+    b = make(gain=1.0, reset=10.0, **F64)
+    steady(b, out=30.0, sp=50.0, pv=45.0)
+    assert run(b, mode="AUTO")["out"][0] == 30.5
+    held = run(b, mode="MAN", sp=value, man_out=value)
+    assert (held["working_sp"][0], held["out"][0], held["mode_target"][0]) == (50.0, 30.5, MAN)
+    assert all(math.isfinite(v) for v in b.x)
+    assert run(b, man_out=30.0)["out"][0] == 30.0
+    assert run(b, sp=40.0)["working_sp"][0] == 40.0
+
+
+@pytest.mark.parametrize("value", BROKEN)
+def test_broken_cas_in_sheds_to_auto_and_recovers(make: Make, value: float) -> None:
+    """issue 11 point 1, spec 4.5/4.6: CAS_IN not finite or beyond float32 is unusable: target
+    Cas sheds to Auto with BKCAL_OUT IR (as a Bad CAS_IN); a good CAS_IN again -> Cas."""
+    b = make(initial_out=50.0, **F64)
+    assert run(b, mode="CAS", cas_in=(60.0, GOOD_C), pv=50.0)["working_sp"][0] == 60.0
+    r = run(b, cas_in=(value, GOOD_C))
+    assert (r["mode_target"][0], r["mode_actual"][0]) == (CAS, AUTO)
+    assert r["bkcal_out"] == (60.0, GOOD_C_IR)
+    assert r["working_sp"][0] == 60.0
+    back = run(b, cas_in=(62.0, GOOD_C))
+    assert (back["mode_actual"][0], back["working_sp"][0]) == (CAS, 62.0)
+
+
+@pytest.mark.parametrize("value", [INF, -INF, 1e308, -1e308, 3.5e38])
+def test_broken_bkcal_in_is_bad_iman_holds_and_recovers(make: Make, value: float) -> None:
+    """issue 11 point 1, spec 4.5: a BKCAL_IN value that is infinite or beyond float32 is a
+    Bad BKCAL_IN: IMan with no value to follow, OUT held; Good cascade again -> Auto."""
+    b = make(gain=1.0, reset=10.0, **F64)
+    steady(b, out=50.0, sp=50.0, pv=45.0)
+    assert run(b, mode="AUTO", bkcal_in=(42.0, GOOD_C_NI))["out"] == (42.0, GOOD_C_CONST)
+    bad = run(b, bkcal_in=(value, GOOD_C))
+    assert (bad["mode_actual"][0], bad["out"][0]) == (IMAN, 42.0)
+    back = run(b, bkcal_in=(42.0, GOOD_C))
+    # IMan: R = 42 - 5 = 37; Auto: R = 37 + 0.1·(42 - 37) = 37.5, OUT = 5 + 37.5
+    assert back["mode_actual"][0] == AUTO
+    assert back["out"] == (pytest.approx(42.5, abs=1e-12), GOOD_C)
+
+
+def test_unconnected_bkcal_in_is_not_a_bad_bkcal_in(make: Make) -> None:
+    """issue 11 point 1 ("not given" inputs keep their meaning): BKCAL_IN's default, NaN, is
+    an unconnected BKCAL_IN, also when it arrives Bad non-specific or Bad not connected (0x08):
+    the block computes (Auto, OUT.ST Good non-cascade), not IMan. A NaN with another Bad
+    substatus (downstream out of service, 0x1C) is a Bad BKCAL_IN: IMan."""
+    for status in (GOOD, BAD, 0x08):
+        b = make(initial_out=50.0, **F64)
+        r = run(b, sp=50.0, pv=50.0, bkcal_in=(NAN, status))
+        assert (r["mode_actual"][0], r["out"]) == (AUTO, (50.0, GOOD))
+    oos = make(initial_out=50.0, **F64)
+    assert run(oos, sp=50.0, pv=50.0, bkcal_in=(NAN, BAD_OOS))["mode_actual"][0] == IMAN
+
+
+@pytest.mark.parametrize("value", BROKEN)
+def test_broken_ff_trk_val_and_trk_in_d(make: Make, value: float) -> None:
+    """issue 11 point 1: FF_VAL broken -> the last FF contribution holds (as NaN/Bad FF_VAL,
+    module docstring); TRK_VAL broken in LO -> OUT holds; TRK_IN_D broken -> no tracking."""
+    b = make(ff_gain=0.5, track_enable=True, **F64)
+    assert run(b, sp=50.0, pv=50.0, ff_val=20.0)["ff_term"][0] == 10.0
+    assert run(b, ff_val=value)["ff_term"][0] == 10.0
+    lo = run(b, trk_in_d=1.0, trk_val=70.0)
+    assert (lo["mode_actual"][0], lo["out"][0]) == (LO, 70.0)
+    assert run(b, trk_val=value)["out"] == (70.0, GOOD_CONST)
+    assert run(b, trk_in_d=value)["mode_actual"][0] == AUTO
+
+
+def test_state_is_finite_from_construction(make: Make) -> None:
+    """issue 11 point 1: no NaN sentinels in the state (flags + finite values instead), before
+    the first scan and after scans whose inputs are all "not given" (NaN)."""
+    b = make()
+    assert all(math.isfinite(v) for v in b.x)
+    for _ in range(3):
+        b.step(1.0, pv=NAN, sp=NAN, man_out=NAN, cas_in=NAN, bkcal_in=NAN, ff_val=NAN,
+               trk_val=NAN, trk_in_d=NAN)
+        assert all(math.isfinite(v) for v in b.x)
+        assert all(math.isfinite(v) for v in b.y)
+
+
+def test_initial_outputs_are_the_start_values(make: Make) -> None:
+    """issue 11 point 8: before its first scan the block publishes OUT = initial_out (module
+    docstring "Start"), not 0: OUT_SCALE 0..200 EU, initial_out 80 EU; BKCAL_OUT and the
+    working SP = the initial SP (0 limited to SP_LO_LIM 20); mode Man (the initial target);
+    R = OUT% = 40."""
+    b = make(initial_out=80.0, out_scale_eu_100=200.0, sp_lo_lim=20.0)
+    out = b.outputs()
+    assert out["out"] == (80.0, GOOD)
+    assert out["bkcal_out"].value == out["working_sp"].value == 20.0
+    assert (out["mode_actual"].value, out["mode_target"].value) == (MAN, MAN)
+    assert out["r_term"].value == 40.0
+    assert make().outputs()["out"].value == 0.0  # default initial_out: OUT_SCALE 0 %
+    b.step(1.0, sp=20.0, pv=20.0)
+    b.reset()
+    assert b.outputs()["out"].value == 80.0
+
+
+def test_a_block_earlier_in_the_order_reads_the_start_output() -> None:
+    """issue 11 point 8: in a module whose order runs the valve before the PID, the valve's
+    first scan reads initial_out (35 %), not 0."""
+    from loopworks.sim.module import Module
+
+    m = Module({"valve": loopworks.create_block("valve.choudhury"),
+                "pid": loopworks.create_block("deltav.pid", initial_out=35.0)},
+               wires={"valve.op": "pid.out", "pid.pv": "valve.position"}, order=["valve", "pid"])
+    result = m.run(2.0, 1.0)
+    assert result["valve.op"][0] == 35.0
+
+
+@settings(max_examples=60, deadline=None)
+@given(case=cases("deltav.pid"))
+def test_kernel_is_sound_by_itself_and_out_within_limits(case: Case) -> None:
+    """issue 11 point 1: the kernel alone (not the guard's undo-and-rerun) leaves every state
+    finite and every output finite on random parameters and inputs with NaN, ±inf, ±1e308,
+    float32 overflows and every status (statuses shown as the guard shows them: a non-finite
+    value Bad). Spec 4.4/4.5: OUT within OUT_LO_LIM..OUT_HI_LIM in Auto and Cas, and in Man
+    unless "No OUT limits in Manual" with target Man."""
+    b = loopworks.create_block("deltav.pid", jit=False, **case.params)
+    single = b.params["precision"] == "float32"
+    lo = b.p[OUT_EU0] + b.p[OUT_LO] * b.p[OUT_EU_PER_PCT]
+    hi = b.p[OUT_EU0] + b.p[OUT_HI] * b.p[OUT_EU_PER_PCT]
+    if single:
+        lo, hi = float(np.float32(lo)), float(np.float32(hi))
+    free_man = bool(b.params["no_out_limits_manual"])
+    for k, (dt, inputs) in enumerate(zip(case.dts, case.inputs, strict=True)):
+        b.set_inputs(inputs)
+        shown = np.where(~np.isfinite(b.u) & ((b.us & 0xC0) != 0), 0, b.us)
+        deltav_pid_kernel(dt, b.p, b.x, b.u, shown, b.y, b.ys)
+        where = f"scan {k}, params {case.params}, inputs {inputs}"
+        assert np.isfinite(b.x).all(), where
+        assert np.isfinite(b.y).all(), where
+        actual, target = b.y[MODE_ACTUAL_I], b.y[MODE_TARGET_I]
+        if actual in (AUTO, CAS) or (actual == MAN and not (free_man and target == MAN)):
+            assert lo <= b.y[0] <= hi, where

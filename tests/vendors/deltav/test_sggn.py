@@ -23,6 +23,7 @@ from typer.testing import CliRunner
 import loopworks
 from loopworks import Module, create_block
 from loopworks.blocks.block import Block
+from loopworks.blocks.kernel import _marked_np
 from loopworks.cli import app
 from loopworks.errors import ParameterError
 from loopworks.sim.scenario import parse_scenario
@@ -115,14 +116,58 @@ def test_position_follows_elapsed_time_with_variable_dt(make: Make) -> None:
 # The amplitude input (spec 6.5: amplitude = DITHER_AMP of the previous scan)
 # ----------------------------------------------------------------------------------------------
 def test_extreme_values_do_not_raise(make: Make) -> None:
-    """A period so short that dt/period overflows restarts the cycle (out = +A); an infinite
-    amplitude input gives ±inf for the square wave and inf·0 = NaN for a sine at 0."""
+    """A period so short that dt/period overflows restarts the cycle (out = +A)."""
     b = make(period=1e-310)
     assert wave(b, 3) == [1.0, 1.0, 1.0]
+
+
+@pytest.mark.parametrize("value", [math.inf, -math.inf, 1e308, -1e308, 3.5e38])
+def test_issue_11_unusable_amplitude_keeps_the_last_one_and_is_bad(make: Make,
+                                                                  value: float) -> None:
+    """issue 11 point 1 (this test pinned out = ±inf, and inf·0 = NaN for a sine, before):
+    an amplitude input that is ±inf or beyond float32 (a DeltaV parameter) is Bad input: the
+    wave goes on with the last usable amplitude and out is Bad (0); the next usable amplitude
+    is Good again. Square, period 2 s: +A, -A, +A, ..."""
     b = make(amplitude=1.0)
-    assert wave(b, 2, amplitude=math.inf) == [math.inf, -math.inf]
-    b = make(waveform="sine")
-    assert math.isnan(wave(b, 1, amplitude=math.inf)[0])
+    got = [b.step(1.0, amplitude=a)["out"] for a in (0.25, value, value, NAN, 0.5)]
+    assert got == [(0.25, 128), (-0.25, 0), (0.25, 0), (-1.0, 128), (0.5, 128)]
+    b = make(waveform="sine", period=8.0)
+    assert b.step(1.0, amplitude=value)["out"] == (0.0, 0)  # sin(0)·(parameter 1)
+    assert np.isfinite(b.x).all()
+
+
+def test_issue_11_the_kernel_is_sound_by_itself() -> None:
+    """issue 11 point 1: the kernel alone, without the numeric guard's undo-and-rerun, leaves
+    no state and no output non-finite on random extreme amplitudes, scan times and parameters
+    at the float32 limit (out beyond float32 is Bad)."""
+    rng = np.random.default_rng(12)
+    specials = [NAN, math.inf, -math.inf, 1e308, -1e308, 3.5e38, 3.4e38, -3.4e38, 0.0]
+    for params in ({}, {"waveform": "sine", "period": 1e-300}, {"waveform": "triangle",
+                   "amplitude": 3.4e38, "bias": 3.4e38, "phase": 359.0}):
+        b = loopworks.create_block("deltav.sggn", jit=False, **params)
+        for _ in range(2000):
+            b.u[0] = float(rng.choice(specials)) if rng.random() < 0.5 else \
+                float(rng.uniform(-10, 10))
+            b.us[0] = int(rng.choice([128, 0, 0x1C]))
+            dt = float(rng.choice([1e-300, 0.1, 1.0, 1e300]))
+            with np.errstate(all="ignore"):
+                b.kernel(dt, b.p, b.x, b.u, _marked_np(b.u, b.us), b.y, b.ys)
+            assert np.isfinite(b.x).all() and np.isfinite(b.y).all()
+            if abs(b.y[0]) >= 3.4028235677973366e38:
+                assert b.ys[0] == 0
+
+
+def test_issue_11_point_8_initial_output_is_the_first_scans_value(make: Make) -> None:
+    """issue 11 point 8: before the first scan out shows bias + A·wave(phase) for the
+    amplitude parameter (not 0): square +A, sine at 90° (a cosine) +A, triangle at 0° the
+    bias; the first scan gives the same."""
+    for params, start in (({"amplitude": 0.3, "bias": 50.0}, 50.3),
+                          ({"waveform": "sine", "amplitude": 2.0, "phase": 90.0}, 2.0),
+                          ({"waveform": "triangle", "amplitude": 2.0, "bias": 1.0}, 1.0),
+                          ({"amplitude": 0.5, "phase": 180.0}, -0.5)):
+        b = make(**params)
+        assert b.outputs()["out"] == (pytest.approx(start), 128), params
+        assert b.step(1.0)["out"].value == pytest.approx(start), params
 
 
 def test_amplitude_input_overrides_the_parameter_and_nan_restores_it(make: Make) -> None:
@@ -182,7 +227,8 @@ comp_start = 1.0
 # ----------------------------------------------------------------------------------------------
 @pytest.mark.parametrize(("name", "value"), [
     ("period", 0.0), ("period", -1.0), ("period", math.inf), ("phase", 360.0), ("phase", -1.0),
-    ("waveform", "sawtooth"), ("amplitude", math.inf), ("bias", NAN)])
+    ("waveform", "sawtooth"), ("amplitude", math.inf), ("bias", NAN),
+    ("amplitude", 1e39), ("bias", -3.5e38)])  # a DeltaV parameter is a float32
 def test_bad_parameters_name_the_parameter(name: str, value: Any) -> None:
     with pytest.raises(ParameterError, match=name):
         loopworks.create_block("deltav.sggn", **{name: value})

@@ -40,36 +40,65 @@ in the seed's module, whose parameter table (seed 000, spec 6.2: SIGNAL_IN, SP, 
 RESOLUTION, PROCESS_GAIN (2), CNTRL_ACTION (-1), VALVE_ACTION (1), DITHER_AMP, KICKER_OUT,
 NOISE_BAND, KICKER_DELT, DITHER_DELT, DITHER_OUT, COMP_START, INITIALIZE, KICK_START and the
 three factors (1); defaults 0 unless marked) declares those names with the seed's defaults.
-Any other name the expression **reads** must be assigned somewhere in the expression, or be
+In float32 precision an initial value must round to a finite float32 (below about 3.4e38 in
+magnitude), as a stored value must. Any other name the expression **reads** must be assigned
+somewhere in the expression, or be
 declared by giving it an initial value, as a DeltaV module parameter must exist before an
 expression can refer to it. Reading anything else is an error that names the line, the column
 and the name, so a misspelt ``'^/SIGNL_IN'`` is caught at construction instead of reading 0 for
 ever. An initial value for a name the expression does not reference is a ParameterError that
 lists the names it references (RESET_TIME is in the seed's table but not in its expression, so
 it is no parameter here). No module parameter may be called like an option of the block
-(``expression``, ``precision``, ...) or ``jit``, ``t``, ``dt``.
+(``expression``, ``precision``, ...) or ``jit``, ``t``, ``dt``, ``kind``, ``self``.
+
+Before the first scan every output shows its initial value, Good (what a block earlier in the
+module order reads from it).
 
 In a scenario file every key of the block's table is a parameter (``split_table``), so
 ``sp = 50.0`` there is SP's initial value, which is what an unwired input then keeps.
 
 Status (``.ST``, spec 6.1: "the status, an integer"): reading ``'^/NAME.ST'`` of an input gives
-its status byte (Good non-cascade, 128, unless given: ``step(..., signal_in=(40.0, 0x1C))``);
-assigning ``'^/NAME.ST'`` sets the status of output NAME. An output whose .ST the expression
-never assigns is Good non-cascade (128); an assigned status holds until assigned again. A value
-assigned to .ST is made a byte: truncated toward zero and limited to 0..255, NaN gives 0 (Bad)
-[A: the vendor text does not say]. Inputs whose .ST is read and outputs whose .ST is assigned
-are the ports listed with a status (a replay CSV takes ``NAME.ST`` columns for them).
+its status byte (Good non-cascade, 128, unless given: ``step(..., signal_in=(40.0, 0x1C))``;
+Bad, 0, while its value is not finite, below); assigning ``'^/NAME.ST'`` sets the status of
+output NAME. An output whose .ST the expression never assigns is Good non-cascade (128); an
+assigned status holds until assigned again. A value assigned to .ST is made a byte: truncated
+toward zero and limited to 0..255, NaN gives 0 (Bad) [A: the vendor text does not say]. Every
+output carries a status (it can be Bad, below); inputs whose .ST is read are the inputs listed
+with a status (a replay CSV takes ``NAME.ST`` columns for them).
 
 Execution (spec 6.1)
 --------------------
 
 Once per scan the statements run top to bottom. Values are floats (float64 arithmetic); a
-comparison gives 1 or 0; AND/OR/NOT and IF take any non-zero value as true. NaN follows IEEE
-754: arithmetic propagates it, ``= < > <= >=`` with a NaN are false (so 0), ``!=`` is true, and a
-NaN condition counts as true (non-zero). Division by zero gives ±3.402823466e+38 as DeltaV
-documents (first operand < 0: minus; otherwise plus) [V: DeltaV Books Online, Expressions >
-Syntax rules > Operators, deltav-books-online.dev.platform-apps.io/gen_config/html/
-r_operators.html; not in the spec]; NaN/0 stays NaN [A]. The kernel never raises.
+comparison gives 1 or 0; AND/OR/NOT and IF take any non-zero value as true. Within a statement
+NaN and ±inf follow IEEE 754: arithmetic propagates them, ``= < > <= >=`` with a NaN are false
+(so 0), ``!=`` is true, and a NaN condition counts as true (non-zero). Division by zero gives
+±3.402823466e+38 as DeltaV documents (first operand < 0: minus; otherwise plus) [V: DeltaV
+Books Online, Expressions > Syntax rules > Operators, deltav-books-online.dev.platform-apps.io/
+gen_config/html/r_operators.html; not in the spec]; NaN/0 stays NaN [A]. The kernel never
+raises.
+
+Non-finite values (issue 11 point 1; the reading of the DeltaV rule that a CALC writes the
+Bad status on an output it cannot compute [A]):
+
+* an input whose value is NaN or ±inf, or beyond the float32 range in float32 precision
+  (``1e308`` reads as ±inf there), is Bad input: the expression reads its value as it is (IEEE,
+  above) and its .ST as Bad (0), unless its status is Bad already (then its substatus is kept).
+  So the seed's line 28 passes a Bad status on: a NaN SIGNAL_IN arriving Good gives a Bad
+  SIGNAL_OUT;
+* an assignment whose result is not finite (after the float32 rounding of the store in that
+  precision: a result beyond the float32 range is one) does not store it: the module parameter
+  keeps its last value and is **held** for the rest of the scan: its status is Bad (0; a Bad
+  .ST the expression assigned keeps its substatus) whatever Good .ST the expression assigns,
+  and reading its .ST gives that Bad status, unless a later assignment of the scan stores a
+  finite value. A later scan that does not assign it shows its .ST again, with the last value
+  stored, as for any parameter a scan leaves alone (the seed's held KICKER_DELT).
+
+So no output is ever non-finite, no state is ever non-finite, and the block recovers as soon
+as its inputs are good again. In the seed: a NaN or infinite SIGNAL_IN holds SIGNAL_OUT at its
+last value, Bad; an infinite PV is above the trigger (line 15 kicks, SIGNAL_OUT stays Good); an
+infinite DITHER_OUT holds DITHER_DELT at its last value, Bad, while SIGNAL_OUT adds the held
+value and keeps SIGNAL_IN's status.
 
 With ``precision = "float32"`` (default) a module parameter holds a 32-bit float: every value
 the expression assigns is rounded to float32 as it is stored, and every module parameter the
@@ -90,7 +119,8 @@ The kernel is a small stack machine: the text is compiled (at construction) into
 program of (opcode, argument) pairs stored in the coefficient array ``p`` after a header
 (``PRECISION, DEFERRED, DIV_IEEE, N_OUT, STACK, CODE_LEN``), and each scan interprets it on a
 value stack sized for the program. Jumps implement IF/ELSIF/ELSE. Outputs live in the state
-array (values, then statuses), so they persist between scans and resume from ``state_dict``.
+array (values, then statuses), so they persist between scans and resume from
+``state_dict``.
 One compiled kernel serves every text (a compiled block steps through the kernel's standard
 entry point rather than a wrapper specialised to its array sizes, so a new text costs no numba
 compilation); the interpreted and compiled runs are bit-identical.
@@ -104,7 +134,8 @@ Options for the spec's [A]/[?] points
   compensator uses direct ``'^/'`` paths) or ``true`` (reads see the value at the start of the
   scan).
 * ``divide_by_zero``: ``deltav`` (default: ±3.402823466e+38 as the DeltaV operator reference
-  states; not in the spec) or ``ieee`` (±inf, NaN for 0/0).
+  states; not in the spec) or ``ieee`` (±inf, NaN for 0/0: a result that is then assigned
+  holds its parameter, Bad, as any non-finite result does).
 
 The band factors of the native ``deltav.stick_slip`` (``upper_band_factor`` 0.5,
 ``lower_band_factor`` 1.0, spec 6.4 [A]) are no options here: they are the literals of seed
@@ -208,6 +239,7 @@ import numpy as np
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port, validate
+from loopworks.blocks.primitives import finite
 from loopworks.blocks.registry import register
 from loopworks.errors import ParameterError
 from loopworks.vendors.deltav.expression import (
@@ -265,6 +297,28 @@ def to_float32(v: float) -> float:
 
 
 @primitive
+def input_status(value: float, status: int) -> int:
+    """The status the expression reads for an input whose value reads as ``value`` (after the
+    float32 rounding in that precision): a value that is not finite (NaN, ±inf, or beyond the
+    float32 range in float32 precision) is Bad input, status 0, unless its status is Bad
+    already (then it keeps its substatus)."""
+    if not finite(value) and (status & 0xC0) != 0:
+        return 0
+    return status
+
+
+@primitive
+def shown_status(status: float, held: float) -> int:
+    """The status of a written module parameter: its .ST, or Bad (0) when ``held`` (its
+    assignment in this scan was not finite, so it kept its value); a Bad .ST keeps its
+    substatus."""
+    st = int(status)
+    if held != 0.0 and (st & 0xC0) != 0:
+        return 0
+    return st
+
+
+@primitive
 def status_byte(v: float) -> float:
     """A value assigned to a .ST field as a status byte: truncated, limited to 0..255; NaN
     and values <= 0 give 0 (Bad)."""
@@ -299,13 +353,16 @@ def calc_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntA
     """One scan: run the compiled expression (module docstring) on a value stack.
 
     x holds the values of the written module parameters, then their statuses; ``cur`` is
-    their working copy during the scan. Immediate reads see ``cur``; deferred reads see x, the
-    values at the start of the scan."""
+    their working copy during the scan, ``held`` marks those whose assignment in this scan was
+    not finite. Immediate reads see ``cur``; deferred reads see x, the values at the start of
+    the scan. A value is stored only when it is finite (module docstring, "Non-finite
+    values")."""
     n = int(p[N_OUT])
     f32 = p[PRECISION] != 0.0
     deferred = p[DEFERRED] != 0.0
     ieee = p[DIV_IEEE] != 0.0
     cur = x[:2 * n].copy()
+    held = np.zeros(n)
     stack = np.empty(int(p[STACK]))
     top = 0
     pc = 0
@@ -317,19 +374,35 @@ def calc_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntA
         if op == OP_CONST:
             stack[top] = arg
             top += 1
-        elif op == OP_INPUT:  # an input is a module parameter written by someone else
-            stack[top] = to_float32(u[int(arg)]) if f32 else u[int(arg)]
+        elif op == OP_INPUT or op == OP_INPUT_ST:  # a module parameter written by someone else
+            i = int(arg)
+            v = float(u[i])
+            if f32:
+                v = to_float32(v)
+            stack[top] = v if op == OP_INPUT else float(input_status(v, int(us[i])))
             top += 1
-        elif op == OP_INPUT_ST:
-            stack[top] = float(us[int(arg)])
-            top += 1
-        elif op == OP_LOAD or op == OP_LOAD_ST:
-            k = int(arg) if op == OP_LOAD else n + int(arg)
+        elif op == OP_LOAD:
+            k = int(arg)
             stack[top] = x[k] if deferred else cur[k]
             top += 1
-        elif op == OP_STORE:
+        elif op == OP_LOAD_ST:
+            k = int(arg)
+            if deferred:
+                stack[top] = x[n + k]
+            else:
+                stack[top] = float(shown_status(cur[n + k], held[k]))
+            top += 1
+        elif op == OP_STORE:  # a non-finite result is not stored: the value holds, Bad
             top -= 1
-            cur[int(arg)] = to_float32(stack[top]) if f32 else stack[top]
+            k = int(arg)
+            v = float(stack[top])
+            if f32:
+                v = to_float32(v)
+            if finite(v):
+                cur[k] = v
+                held[k] = 0.0
+            else:
+                held[k] = 1.0
         elif op == OP_STORE_ST:
             top -= 1
             cur[n + int(arg)] = status_byte(stack[top])
@@ -377,7 +450,7 @@ def calc_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntA
         x[k] = cur[k]
     for k in range(n):
         y[k] = cur[k]
-        ys[k] = int(status_byte(cur[n + k]))
+        ys[k] = shown_status(cur[n + k], held[k])
 
 
 # The seed's module parameter table (seed 000: "Parameter / Default" and the labels; spec 6.2):
@@ -416,7 +489,8 @@ OPTIONS: tuple[Param, ...] = (
     Param("divide_by_zero", "deltav", "", "x/0: deltav gives ±3.402823466e+38 (DeltaV operator "
           "reference), ieee gives ±inf or NaN", "choice", choices=("deltav", "ieee")),
 )
-_RESERVED = frozenset({p.name for p in OPTIONS} | {"jit", "t", "dt"})
+# "kind" and "self" would collide with create_block's and the constructor's own arguments
+_RESERVED = frozenset({p.name for p in OPTIONS} | {"jit", "t", "dt", "kind", "self"})
 
 
 class _Layout:
@@ -450,9 +524,8 @@ class _Layout:
             value = values[name]
             default = 0.0 if value is None else float(value)
             unit, label = labels[name]
-            if name in prog.written:
-                outputs.append(Port(name, default, unit, label,
-                                    status=name in prog.status_written))
+            if name in prog.written:  # every output can be Bad (a non-finite result)
+                outputs.append(Port(name, default, unit, label, status=True))
             else:
                 inputs.append(Port(name, default, unit, label, status=name in prog.status_read))
         self.inputs = tuple(inputs)
@@ -527,6 +600,14 @@ class Calc(Block):
 
     def coefficients(self) -> list[float]:
         prm = self.params
+        if prm["precision"] == "float32":
+            for port in (*self.INPUTS, *self.OUTPUTS):
+                if abs(port.default) >= FLOAT32_OVERFLOW:
+                    raise ParameterError(
+                        f"{self.kind}: parameter '{port.name}' = {port.default:g} is out of "
+                        f"range: a float32 module parameter allows (-{FLOAT32_OVERFLOW:g}, "
+                        f"{FLOAT32_OVERFLOW:g}), i.e. values that round to a finite float32 "
+                        "(precision = float32, spec 6.1)")
         code = self._layout.compiled
         return [1.0 if prm["precision"] == "float32" else 0.0,
                 1.0 if prm["deferred_param_reads"] else 0.0,
@@ -542,6 +623,11 @@ class Calc(Block):
         if f32:
             values = [to_float32(v) for v in values]
         return values + [GOOD_NC] * len(self.OUTPUTS)
+
+    def initial_outputs(self) -> list[float]:
+        """Before the first scan every output shows its initial value (issue 11 point 8: what
+        a block earlier in the module order reads), Good non-cascade."""
+        return [float(v) for v in self.x[:len(self.OUTPUTS)]]
 
     @classmethod
     def split_table(cls, table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -28,15 +28,17 @@ Operators, from the tightest binding to the loosest (left to right within a leve
     AND
     OR
 
-Numbers are decimal literals (``0.5``, ``.5``, ``2``, ``3.4e38``); ``TRUE`` and ``FALSE`` are 1
-and 0. Keywords may be written in any letter case; parameter names too (``'^/pv'`` is PV).
+Numbers are decimal literals (``0.5``, ``.5``, ``2``, ``3.4e38``; one beyond the float64 range,
+``1e999``, is an error); ``TRUE`` and ``FALSE`` are 1 and 0. Keywords may be written in any
+letter case; parameter names too (``'^/pv'`` is PV).
 
 Values (spec 6.1): every value is a float. A comparison gives 1 or 0; AND, OR and NOT take any
 non-zero value as true and give 1 or 0 (DeltaV "Operators" page: "the logical AND operator
 produces the value 1 if both operands are 1 (non-zero)"), and an IF takes any non-zero
 condition as true. NaN follows IEEE 754: arithmetic propagates it, ``= < > <= >=`` are false,
 ``!=`` is true (it is NOT ``=``), and NaN counts as non-zero, so as true, in AND, OR, NOT and IF
-(the C rule ``x != 0``).
+(the C rule ``x != 0``). That is within a statement: a result that is not finite is never
+stored (the assigned parameter holds its value, Bad; ``deltav.calc``, "Non-finite values").
 
 Division by zero (DeltaV "Operators" page, under ``/``): a first operand < 0 gives
 -3.402823466e+38 and a first operand >= 0 gives +3.402823466e+38 (the float32 maximum); NaN
@@ -50,11 +52,16 @@ OUT1, temporary variables, named states), functions, and the operators ``**``, `
 
 Errors are :class:`ExpressionError` (a :class:`~loopworks.errors.ParameterError`) whose message
 names the line and column and what was expected, e.g.
-``expression, line 15, column 23: expected ')' but found ';'``.
+``expression, line 15, column 23: expected ')' but found ';'``. Whatever the text, the parser
+gives a program or such an error, never another exception (a fuzz test pins it): parentheses,
+unary operators and IFs nested more than 32 deep, and a program needing a value stack deeper
+than 64, are refused as "nested too deeply"; a long chain of operators (``1 + 1 + ... + 1``) is
+compiled without recursion, at any length.
 """
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 
@@ -87,6 +94,8 @@ OP_JUMP_IF_FALSE = 23  # pop; if it is 0, continue at code index arg
 
 MAX_STACK = 64
 """Deepest value stack a program may need (far beyond the seed's 5)."""
+MAX_NESTING = 32
+"""Deepest nesting of parentheses, unary operators and IF statements (the seed nests 3)."""
 
 SEED_EXPRESSION = """\
 (* COMPUTE DITHER AND KICK AMPLITUDES *)
@@ -212,6 +221,9 @@ def tokenize(text: str) -> list[Token]:
             if after < n and (text[after].isalnum() or text[after] in "_."):
                 raise ExpressionError(ln, col, f"malformed number "
                                                f"'{text[i:after + 1]}'")
+            if not math.isfinite(float(m.group())):
+                raise ExpressionError(ln, col, f"number '{m.group()}' is out of range: a "
+                                               "literal must be a finite float64 (below 1.8e308)")
             tokens.append(Token("number", m.group(), ln, col))
             i = after
             continue
@@ -351,6 +363,16 @@ class _Parser:
     def __init__(self, tokens: list[Token]) -> None:
         self.tokens = tokens
         self.i = 0
+        self.depth = 0  # nesting of parentheses, unary operators and IFs
+
+    def enter(self, tok: Token) -> None:
+        """One level deeper (each level is a few Python frames): refuse more than
+        MAX_NESTING."""
+        self.depth += 1
+        if self.depth > MAX_NESTING:
+            raise ExpressionError(tok.line, tok.column, f"the expression is nested too deeply "
+                                  f"(more than {MAX_NESTING} levels of parentheses, unary "
+                                  "operators and IFs)")
 
     def peek(self) -> Token:
         return self.tokens[self.i]
@@ -414,6 +436,7 @@ class _Parser:
 
     def if_statement(self) -> If:
         start = self.advance()
+        self.enter(start)
         branches: list[tuple[Expr, tuple[Statement, ...]]] = []
         orelse: tuple[Statement, ...] = ()
         while True:
@@ -432,6 +455,7 @@ class _Parser:
             if not self.is_word("END_IF", "ENDIF"):
                 raise self.fail(f"'END_IF' (or 'ENDIF') to close the IF of line {start.line}")
             self.advance()
+            self.depth -= 1
             return If(tuple(branches), orelse, start.line, start.column)
 
     # expressions, loosest first
@@ -481,8 +505,11 @@ class _Parser:
         tok = self.peek()
         if self.is_op("-", "+", "!") or self.is_word("NOT"):
             self.advance()
+            self.enter(tok)
             op = "NOT" if tok.text in ("!", "NOT") else tok.text
-            return Unary(op, self.unary(), tok.line, tok.column)
+            operand = self.unary()
+            self.depth -= 1
+            return Unary(op, operand, tok.line, tok.column)
         return self.primary()
 
     def primary(self) -> Expr:
@@ -496,9 +523,10 @@ class _Parser:
             self.advance()
             return Num(1.0 if tok.text == "TRUE" else 0.0, tok.line, tok.column)
         if self.is_op("("):
-            self.advance()
+            self.enter(self.advance())
             inner = self.expr()
             self.expect_op(")")
+            self.depth -= 1
             return inner
         raise self.fail("an operand (a number, a '^/NAME' reference or '(')")
 
@@ -543,6 +571,8 @@ def _collect(prog: Program, statements: tuple[Statement, ...]) -> None:
             prog.names.append(ref.name)
 
     def read(e: Expr) -> None:
+        spine = _left_spine(e)  # a long chain a + b + c ... without deep recursion
+        e = spine[-1].left if spine else e
         if isinstance(e, Ref):
             note(e)
             prog.read_refs.setdefault(e.name, e)
@@ -550,9 +580,8 @@ def _collect(prog: Program, statements: tuple[Statement, ...]) -> None:
                 prog.status_read.add(e.name)
         elif isinstance(e, Unary):
             read(e.operand)
-        elif isinstance(e, Binary):
-            read(e.left)
-            read(e.right)
+        for b in reversed(spine):
+            read(b.right)
 
     def walk(body: tuple[Statement, ...]) -> None:
         for s in body:
@@ -570,6 +599,17 @@ def _collect(prog: Program, statements: tuple[Statement, ...]) -> None:
                 walk(s.orelse)
 
     walk(statements)
+
+
+def _left_spine(e: Expr) -> list[Binary]:
+    """The binary operators down the left side of ``e``, outermost first: a chain
+    ``a + b + c`` parses as ``(a + b) + c``, as deep as it is long, so walking it by recursion
+    would overflow Python's stack for a long chain."""
+    spine: list[Binary] = []
+    while isinstance(e, Binary):
+        spine.append(e)
+        e = e.left
+    return spine
 
 
 # -- 3. the flat program -------------------------------------------------------------------------
@@ -603,28 +643,33 @@ def compile_program(prog: Program, inputs: dict[str, int], outputs: dict[str, in
         deepest = max(deepest, depth)
         return len(code) - 2
 
-    def expr(e: Expr) -> None:
-        if isinstance(e, Num):
-            emit(OP_CONST, e.value, 1)
-        elif isinstance(e, Ref):
-            st = e.field == "st"
-            if e.name in outputs:
-                emit(OP_LOAD_ST if st else OP_LOAD, outputs[e.name], 1)
-            else:
-                emit(OP_INPUT_ST if st else OP_INPUT, inputs[e.name], 1)
-        elif isinstance(e, Unary):
-            expr(e.operand)
-            if e.op == "-":
-                emit(OP_NEG)
-            elif e.op == "NOT":
-                emit(OP_NOT)
-        else:
-            expr(e.left)
-            expr(e.right)
-            emit(_BINARY_OPS[e.op], 0.0, -1)
+    def check(e: Expr) -> None:
         if deepest > MAX_STACK:
             raise ExpressionError(e.line, e.column, f"the expression is nested too deeply "
                                   f"(it needs a value stack deeper than {MAX_STACK})")
+
+    def expr(e: Expr) -> None:
+        spine = _left_spine(e)  # left operand first, then each right operand and operator
+        leaf = spine[-1].left if spine else e
+        if isinstance(leaf, Num):
+            emit(OP_CONST, leaf.value, 1)
+        elif isinstance(leaf, Ref):
+            st = leaf.field == "st"
+            if leaf.name in outputs:
+                emit(OP_LOAD_ST if st else OP_LOAD, outputs[leaf.name], 1)
+            else:
+                emit(OP_INPUT_ST if st else OP_INPUT, inputs[leaf.name], 1)
+        elif isinstance(leaf, Unary):
+            expr(leaf.operand)
+            if leaf.op == "-":
+                emit(OP_NEG)
+            elif leaf.op == "NOT":
+                emit(OP_NOT)
+        check(leaf)
+        for b in reversed(spine):
+            expr(b.right)
+            emit(_BINARY_OPS[b.op], 0.0, -1)
+            check(b)
 
     def block(body: tuple[Statement, ...]) -> None:
         for s in body:

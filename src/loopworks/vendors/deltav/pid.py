@@ -95,42 +95,58 @@ the scan before had been a Man scan with those values.
 
 Operator writes. ``sp``, ``man_out`` and ``mode`` are the operator's writes to the SP, OUT and
 MODE.TARGET parameters: a value is written when it differs from the value the input had on the
-scan before (the inputs latch, as a DCS parameter does); NaN writes nothing. A repeated value
-therefore writes nothing, so what the block itself sets is kept: the SP set by Cas or by SP-PV
-tracking, the output held on Auto -> Man, and the target set to Man by "Target to Manual if Bad
-IN" (to return, give another mode and then AUTO). SP writes are rejected in Cas, OUT writes
+scan before (the inputs latch, as a DCS parameter does). A repeated value therefore writes
+nothing, so what the block itself sets is kept: the SP set by Cas or by SP-PV tracking, the
+output held on Auto -> Man, and the target set to Man by "Target to Manual if Bad IN" (to
+return, give another mode and then AUTO). A value that is not storable (below) writes nothing,
+and the next storable value is a write even if it equals the last one (the input had no value
+in between). SP writes are rejected in Cas, OUT writes
 outside Man and OOS. The first scan writes whatever the inputs hold.
 
 Start. The block starts with OUT = ``initial_out`` (default the OUT_SCALE 0 % value) and R
 back-initialised at the first scan, as if it had been in Man there: the first Auto scan gives
 OUT_1 = initial_out + a·Pe_1. To start from a steady state (spec 4.8 DV1/DV2: OUT = R = 50 %,
 e = 0), run one scan with SP = PV (in MAN with ``man_out`` = 50, or in AUTO with
-``initial_out`` = 50), then step the error.
+``initial_out`` = 50), then step the error. Before the first scan the block already publishes
+its start values (what a block earlier in a module's order reads from it): OUT =
+``initial_out``, BKCAL_OUT = working SP = the initial SP (0 limited to SP_LO_LIM..SP_HI_LIM),
+mode Man (the target until the first scan writes ``mode``), R = OUT%, and 0 for the PV (IN's
+default), P, D and FF; their status is the project's start status, Good non-cascade.
 
 Status (spec 4.6; FF encoding, ``loopworks.blocks.status``)
 ----------------------------------------------------------
 
-* IN: NaN/inf or Bad = Bad; Uncertain = Bad unless ``use_uncertain_as_good``. Bad IN makes
-  the actual mode Man (``target_to_man_if_bad_in``: the target too, so the loop stays in Man
-  after IN recovers). ``filtered_pv`` carries IN.ST (Bad non-specific for a NaN IN) and holds
-  its last value while IN has no usable value (Bad or NaN).
+* Storable values. All analogue values are 32-bit floats [A] (spec 4.1): an input value that
+  is NaN, infinite or beyond the float32 range (abs > 3.4028235e38, e.g. 1e308: a DeltaV float
+  parameter cannot hold it) is Bad input, whatever status it arrives with, with either
+  ``precision`` (float64 changes the rounding, not the parameter range).
+* IN: not storable, or Bad = Bad; Uncertain = Bad unless ``use_uncertain_as_good``. Bad IN
+  makes the actual mode Man (``target_to_man_if_bad_in``: the target too, so the loop stays
+  in Man after IN recovers). ``filtered_pv`` carries IN.ST (Bad non-specific for a value that
+  is not storable) and holds its last value while IN has no usable value.
 * OUT.ST quality: Good cascade when BKCAL_IN comes from a cascade partner (any BKCAL_IN status
-  except Good non-cascade: an AO or a secondary PID), else Good non-cascade (an unconnected
-  BKCAL_IN reads 128, the project default). In Auto/Cas the limit bits come from the BKCAL_HYS
-  hysteresis (set at OUT_HI_LIM/OUT_LO_LIM, released when OUT% is BKCAL_HYS % away), and an
-  Uncertain IN used as Good degrades OUT.ST to Uncertain (0x40). Man, LO and IMan give the
-  constant bits (3); IMan answering an IR request gives Good cascade IA (0xC7). OOS: 0x1C.
-  ``ifs_if_bad_in`` / ``ifs_if_bad_cas_in`` (CAS_IN unusable while the target is Cas) give
-  Good cascade IFS (0xE0) with the same limit bits.
+  except Good non-cascade: an AO or a secondary PID), else Good non-cascade. BKCAL_IN's
+  default, NaN, means not connected: a NaN that arrives Good (every non-finite input is
+  seen as Bad non-specific), Bad non-specific or Bad not connected (0x08) is no
+  BKCAL_IN at all (no IMan, Good non-cascade); a NaN with another Bad substatus, and an
+  infinite or unstorable value with any status, is a Bad BKCAL_IN (IMan, OUT held). In
+  Auto/Cas the limit bits come from the BKCAL_HYS hysteresis (set at OUT_HI_LIM/OUT_LO_LIM,
+  released when OUT% is BKCAL_HYS % away), and an Uncertain IN used as Good degrades OUT.ST
+  to Uncertain (0x40). Man, LO and IMan give the constant bits (3); IMan answering an IR
+  request gives Good cascade IA (0xC7). OOS: 0x1C. ``ifs_if_bad_in`` / ``ifs_if_bad_cas_in``
+  (CAS_IN unusable while the target is Cas) give Good cascade IFS (0xE0) with the same limit
+  bits.
 * BKCAL_OUT.ST: Good cascade (0xC0) in Cas, LO (0xD8) in LO, IR (0xC8) while the target is Cas
   but the actual mode is not, NI (0xCC) otherwise, each with the hysteresis limit bits of OUT;
   Bad: out of service in OOS. A primary ``deltav.pid`` wired to it goes to IMan on IR/NI/LO.
-* FF_VAL NaN or Bad: the last usable FF contribution is held. CAS_IN, BKCAL_IN and TRK_VAL
-  are usable when finite and not Bad.
+* FF_VAL not storable or Bad: the last usable FF contribution is held. CAS_IN, BKCAL_IN,
+  TRK_VAL and TRK_IN_D are usable when storable and not Bad (CAS_IN unusable: Cas sheds to
+  Auto; TRK_VAL unusable in LO: OUT holds; TRK_IN_D unusable: no tracking).
 
-Inputs are saturated at ±1e15 (EU and %), far beyond any real signal, so that no value the
-block is given can overflow its arithmetic (GAIN and FF_GAIN are bounded to 1e6 for the same
-reason); the block never raises at run time.
+Percent values (SP%, PV%, FF%, BKCAL_IN%, an operator OUT) saturate at ±1e15 % of span, far
+beyond any real signal, so that no storable input can overflow the arithmetic (GAIN and FF_GAIN
+are bounded to 1e6 for the same reason): every state and every output stays finite, and the
+block never raises at run time.
 
 Options for the spec's [A]/[?] points
 -------------------------------------
@@ -228,6 +244,7 @@ from loopworks.blocks.registry import register
 from loopworks.blocks.status import (
     BAD,
     BAD_NON_SPECIFIC,
+    BAD_NOT_CONNECTED,
     BAD_OUT_OF_SERVICE,
     CONSTANT,
     GOOD_C_FSA,
@@ -271,9 +288,10 @@ OOS, IMAN, LO, MAN, AUTO, CAS = 0.0, 1.0, 2.0, 3.0, 4.0, 5.0
  FF_TERM) = range(10)
 # State (x)
 (S_TARGET, S_MODE_SEEN, S_SP_PARAM, S_SP_SEEN, S_MAN_SEEN, S_SP_RAMP, S_SP_FILT, S_PV, S_PV_OK,
- S_OUT, S_R, S_P, S_PE, S_D, S_DSIG, S_FF, S_FF_HOLD, S_LIM, S_INIT, S_FIRST) = range(20)
+ S_OUT, S_R, S_P, S_PE, S_D, S_DSIG, S_FF, S_FF_HOLD, S_LIM, S_INIT, S_FIRST, S_MODE_SEEN_OK,
+ S_SP_SEEN_OK, S_MAN_SEEN_OK) = range(23)
 
-SIGNAL_LIMIT = 1e15  # EU and % signals saturate here: an overflow guard, not a vendor limit
+SIGNAL_LIMIT = 1e15  # % signals saturate here: an overflow guard, not a vendor limit
 GAIN_LIMIT = 1e6
 FLOAT32_MAX = float(np.finfo(np.float32).max)
 
@@ -297,6 +315,25 @@ def rnd(x: float, single: bool) -> float:
     if single:
         return float(np.float32(x))
     return x
+
+
+@primitive
+def storable(v: float) -> bool:
+    """True when ``v`` fits a DeltaV float parameter: finite and ``abs(v) <= 3.4028235e38``,
+    the float32 range (spec 4.1 [A]). Any other input value is Bad input."""
+    return finite(v) and abs(v) <= FLOAT32_MAX
+
+
+@primitive
+def written(x: FloatArray, seen: int, seen_ok: int, v: float) -> bool:
+    """True when the input value ``v`` is an operator write: storable, and different from the
+    input's value on the scan before (``x[seen]``) or the input had none then (``x[seen_ok]``
+    = 0). Records ``v`` as the value seen."""
+    write = storable(v) and (x[seen_ok] == 0.0 or v != x[seen])
+    x[seen_ok] = 1.0 if storable(v) else 0.0
+    if storable(v):
+        x[seen] = v
+    return write
 
 
 @primitive
@@ -349,54 +386,58 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     # -- input qualities (spec 4.5, 4.6) ------------------------------------------------------
     v_in = u[PV]
     q_in = us[PV] & 0xC0
-    in_finite = finite(v_in)
+    in_finite = storable(v_in)  # NaN, inf or beyond float32: Bad IN
     in_bad = (not in_finite or q_in == BAD
               or (q_in == UNCERTAIN and p[UNCERTAIN_AS_GOOD] == 0.0))
     in_uncertain = q_in == UNCERTAIN and not in_bad
     sample = in_finite and q_in != BAD  # a value the PV filter takes
     if in_finite:
-        v_in = rnd(clamp(v_in, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+        v_in = rnd(v_in, single)
     fresh = False
     if sample and x[S_PV_OK] == 0.0:  # the PV filter starts at the first usable IN
         x[S_PV] = v_in
         x[S_PV_OK] = 1.0
         fresh = True
     cas = u[CAS_IN]
-    cas_ok = finite(cas) and (us[CAS_IN] & 0xC0) != BAD
+    cas_ok = storable(cas) and (us[CAS_IN] & 0xC0) != BAD
     if cas_ok:
-        cas = rnd(clamp(cas, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+        cas = rnd(cas, single)
         if p[OBEY_SP_LIMITS] != 0.0:
             cas = clamp(cas, p[SP_LO], p[SP_HI])
+    bk = u[BKCAL_IN]
     st_bk = us[BKCAL_IN]
+    if math.isnan(bk) and (st_bk == BAD_NON_SPECIFIC or st_bk == BAD_NOT_CONNECTED):
+        st_bk = GOOD_NC  # no value, no status: BKCAL_IN is not connected (its default)
+    elif not storable(bk):
+        st_bk = BAD_NON_SPECIFIC  # inf or beyond float32 (or NaN with a status): Bad
     q_bk = st_bk & 0xC0
     sub_bk = st_bk & 0xFC
-    bk_ok = finite(u[BKCAL_IN]) and q_bk != BAD
+    bk_ok = storable(bk) and q_bk != BAD
     bk_pct = 0.0
     if bk_ok:
-        bk_pct = rnd(to_pct(rnd(clamp(u[BKCAL_IN], -SIGNAL_LIMIT, SIGNAL_LIMIT), single),
-                            p[OUT_EU0], p[OUT_K]), single)
+        bk_pct = rnd(to_pct(rnd(bk, single), p[OUT_EU0], p[OUT_K]), single)
     downstream_not_cas = (q_bk == BAD or sub_bk == GOOD_C_IR or sub_bk == GOOD_C_NI
                           or sub_bk == GOOD_C_LO or sub_bk == GOOD_C_FSA)
     trk = u[TRK_VAL]
-    trk_ok = finite(trk) and (us[TRK_VAL] & 0xC0) != BAD
+    trk_ok = storable(trk) and (us[TRK_VAL] & 0xC0) != BAD
     # -- step 8 (a pure function of the inputs, needed earlier by the re-initialisation) ------
     ff_val = u[FF_VAL]
-    if finite(ff_val) and (us[FF_VAL] & 0xC0) != BAD:
-        ff_val = rnd(clamp(ff_val, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+    if storable(ff_val) and (us[FF_VAL] & 0xC0) != BAD:
+        ff_val = rnd(ff_val, single)
         if p[FF_ORDER] == SCALE_THEN_GAIN:
             ff = p[FF_GAIN] * to_pct(ff_val, p[FF_EU0], p[FF_K])
         else:
             ff = to_pct(p[FF_GAIN] * ff_val, p[FF_EU0], p[FF_K])
         ff = rnd(clamp(ff, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
         x[S_FF_HOLD] = ff
-    else:  # NaN or Bad FF_VAL: the last usable contribution holds
+    else:  # NaN, inf, beyond float32 or Bad FF_VAL: the last usable contribution holds
         ff = x[S_FF_HOLD]
     # -- step 1: target and actual mode ---------------------------------------------------------
     m = u[MODE]
-    if finite(m) and m != x[S_MODE_SEEN]:  # an operator write of MODE.TARGET
-        x[S_MODE_SEEN] = m
-        if m == OOS or m == MAN or m == AUTO or m == CAS:
-            x[S_TARGET] = m
+    # an operator write of MODE.TARGET (always recorded: ``written`` comes first)
+    if written(x, S_MODE_SEEN, S_MODE_SEEN_OK, m) and (m == OOS or m == MAN or m == AUTO
+                                                        or m == CAS):
+        x[S_TARGET] = m
     if in_bad and p[TARGET_TO_MAN] != 0.0 and x[S_TARGET] != OOS:
         x[S_TARGET] = MAN
     ifs_cas = p[IFS_IF_BAD_CAS_IN] != 0.0 and x[S_TARGET] == CAS and not cas_ok
@@ -404,7 +445,7 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
         x[S_TARGET] = AUTO
     target = x[S_TARGET]
     trk_d = u[TRK_IN_D]
-    tracking = (p[TRACK_ENABLE] != 0.0 and finite(trk_d) and trk_d > 0.5
+    tracking = (p[TRACK_ENABLE] != 0.0 and storable(trk_d) and trk_d > 0.5
                 and (us[TRK_IN_D] & 0xC0) != BAD
                 and (target != MAN or p[TRACK_IN_MANUAL] != 0.0))
     if target == OOS:
@@ -422,9 +463,8 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     computing = actual == AUTO or actual == CAS
     # -- step 2: setpoint -------------------------------------------------------------------------
     sp_in = u[SP]
-    if finite(sp_in) and sp_in != x[S_SP_SEEN] and actual != CAS:  # an operator SP write
+    if written(x, S_SP_SEEN, S_SP_SEEN_OK, sp_in) and actual != CAS:  # an operator write
         x[S_SP_PARAM] = rnd(clamp(sp_in, p[SP_LO], p[SP_HI]), single)
-    x[S_SP_SEEN] = sp_in
     tracked = False
     if actual == CAS:
         x[S_SP_PARAM] = cas
@@ -525,21 +565,19 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
             r = rnd(r, single)
     # -- step 9: output ----------------------------------------------------------------------------
     man = u[MAN_OUT]
-    man_write = finite(man) and man != x[S_MAN_SEEN]
-    x[S_MAN_SEEN] = man
+    man_write = written(x, S_MAN_SEEN, S_MAN_SEEN_OK, man)
     if computing:
         out_pct = clamp(rnd(pterm + dterm + r + ff, single), lo, hi)
     elif actual == MAN or actual == OOS:  # -- step 10: overrides
         out_pct = out_prev
         if man_write:
-            out_pct = to_pct(rnd(clamp(man, -SIGNAL_LIMIT, SIGNAL_LIMIT), single),
-                             p[OUT_EU0], p[OUT_K])
+            out_pct = to_pct(rnd(man, single), p[OUT_EU0], p[OUT_K])
         if actual == MAN and not (p[NO_OUT_LIMITS_MAN] != 0.0 and target == MAN):
             out_pct = clamp(out_pct, lo, hi)
     elif actual == LO:
         out_pct = out_prev
         if trk_ok:
-            trk = rnd(clamp(trk, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
+            trk = rnd(trk, single)
             out_pct = clamp(to_pct(trk, p[TRK_EU0], p[TRK_K]), lo, hi)
     else:  # IMan: OUT follows the downstream block
         out_pct = out_prev
@@ -767,8 +805,8 @@ class DeltaVPID(Block):
         Port("filtered_pv", 0.0, "EU", "PV: IN after PV_FTIME; status follows IN", status=True),
         Port("working_sp", 0.0, "EU", "working SP after limits, ramp and SP_FTIME"),
         Port("mode_actual", 0.0, "", "MODE.ACTUAL code: OOS 0, IMAN 1, LO 2, MAN 3, AUTO 4, "
-             "CAS 5"),
-        Port("mode_target", 0.0, "", "MODE.TARGET code (same codes)"),
+             "CAS 5", choices=MODES),
+        Port("mode_target", 0.0, "", "MODE.TARGET code (same codes)", choices=MODES),
         Port("p_term", 0.0, _PCT, "P contribution, % of OUT span"),
         Port("d_term", 0.0, _PCT, "D contribution, % of OUT span"),
         Port("r_term", 0.0, _PCT, "reset contribution R (external reset state), %"),
@@ -777,7 +815,7 @@ class DeltaVPID(Block):
     STATES: ClassVar[tuple[str, ...]] = (
         "target", "mode_seen", "sp_param", "sp_seen", "man_seen", "sp_ramp", "sp_filtered",
         "pv", "pv_ok", "out_pct", "r", "p", "pe", "d", "d_signal", "ff", "ff_hold",
-        "limit", "init", "first")
+        "limit", "init", "first", "mode_seen_ok", "sp_seen_ok", "man_seen_ok")
 
     def coefficients(self) -> list[float]:
         prm: dict[str, Any] = self.params
@@ -915,13 +953,9 @@ class DeltaVPID(Block):
         PV filter and the reset wait for the first usable IN (re-initialisation pending)."""
         x = [0.0] * len(self.STATES)
         x[S_TARGET] = MAN
-        x[S_MODE_SEEN] = math.nan
         x[S_SP_PARAM] = self._initial_sp
-        x[S_SP_SEEN] = math.nan
-        x[S_MAN_SEEN] = math.nan
         x[S_SP_RAMP] = self._initial_sp
         x[S_SP_FILT] = self._initial_sp
-        x[S_PV] = math.nan
         x[S_OUT] = self._initial_pct
         x[S_R] = self._initial_pct
         x[S_LIM] = 2.0 if self._initial_pct >= self.p[OUT_HI] else (
@@ -929,3 +963,16 @@ class DeltaVPID(Block):
         x[S_INIT] = 1.0
         x[S_FIRST] = 1.0
         return x
+
+    def initial_outputs(self) -> list[float]:
+        """Before the first scan (what blocks earlier in a module's order read): OUT =
+        ``initial_out``, the start value; BKCAL_OUT and the working SP = the initial SP
+        (SP_LO_LIM..SP_HI_LIM nearest 0); mode Man (the target until the first scan writes
+        ``mode``); R = OUT%; PV, P, D and FF 0 (no IN yet; IN's default is 0)."""
+        x = self.x
+        y = [0.0] * len(self.OUTPUTS)
+        y[OUT] = rnd(self.p[OUT_EU0] + x[S_OUT] * self.p[OUT_EU_PER_PCT], self.p[SINGLE] != 0.0)
+        y[BKCAL_OUT] = y[WORKING_SP] = x[S_SP_FILT]
+        y[MODE_ACTUAL] = y[MODE_TARGET] = x[S_TARGET]
+        y[R_TERM] = x[S_R]
+        return y

@@ -41,13 +41,23 @@ compensator does (spec 6.5 [A])::
 
 Because SGGN1 runs before the compensator in each scan, it reads the DITHER_AMP the
 compensator wrote in the previous scan: a one-scan lag (spec 6.1, 6.5 [D]). A negative
-amplitude inverts the wave; a NaN input selects the parameter; other values (inf included)
-are used as given (inf·0 is NaN, as in IEEE arithmetic). In a scenario table, ``amplitude``
-is the parameter (the input is reached by a wire).
+amplitude inverts the wave; a NaN input ("not given") selects the parameter. In a scenario
+table, ``amplitude`` is the parameter (the input is reached by a wire).
 
-``out`` is Good non-cascade (128). The scan time dt enters only through c; ``period``
-is in seconds. A scan longer than 1e15 periods (where the position within the cycle is lost
-in rounding) restarts the cycle at 0.
+``out`` is Good non-cascade (128). The input's status is not read (the SGGN1 amplitude is a
+parameter reference, not a connection with status). Non-finite values (issue 11 point 1): an
+amplitude input that is ±inf or beyond the float32 range of a DeltaV parameter (about 3.4e38,
+so ``1e308``) is Bad input: the wave goes on with the last usable amplitude (the parameter if
+none was given) and ``out`` is Bad (0) for that scan; the next usable amplitude restores it.
+The ``amplitude`` and ``bias`` parameters are float32 values (within ±3.4028235e38), so ``out``
+is always finite; should it leave the float32 range (bias and amplitude both near it), it is
+Bad too. The scan time dt enters only through c; ``period`` is in seconds. A scan longer than
+1e15 periods (where the position within the cycle is lost in rounding) restarts the cycle at
+0.
+
+Before the first scan (issue 11 point 8) ``out`` shows the first scan's value for the
+amplitude as given (else the parameter): bias + A·wave(phase), e.g. +A for the default square
+wave.
 
 Options for the spec's [A]/[?] points
 -------------------------------------
@@ -103,10 +113,11 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
-from loopworks.blocks.kernel import FloatArray, IntArray
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.registry import register
-from loopworks.blocks.status import GOOD_NC
+from loopworks.blocks.status import BAD, GOOD_NC
+from loopworks.vendors.deltav.calc import FLOAT32_MAX, FLOAT32_OVERFLOW
 
 # Coefficient layout (p)
 WAVEFORM, AMPLITUDE, PERIOD, BIAS, PHASE = range(5)
@@ -116,10 +127,36 @@ AMPLITUDE_IN = 0
 # Outputs (y, ys)
 OUT = 0
 # State (x)
-S_CYCLE, S_STARTED = range(2)
+S_CYCLE, S_STARTED, S_AMPLITUDE = range(3)
 
 EDGE_TOLERANCE = 1e-9  # cycles: positions this close to an edge are on it
 MAX_CYCLES = 1e15  # beyond this many cycles in one scan the position within a cycle is lost
+
+
+@primitive
+def wave(shape: float, cycle: float, phase: float) -> float:
+    """The unit wave (-1..1) at position ``cycle`` (0 <= c < 1) advanced by ``phase``
+    (cycles): s = frac(c + phase), then square, sine or triangle (module docstring)."""
+    s = cycle + phase
+    s = s - math.floor(s + EDGE_TOLERANCE)
+    if s < 0.0:
+        s = 0.0
+    if shape == SQUARE:
+        return 1.0 if s < 0.5 - EDGE_TOLERANCE else -1.0
+    if shape == SINE:
+        return math.sin(2.0 * math.pi * s)
+    if s <= 0.25:
+        return 4.0 * s
+    if s <= 0.75:
+        return 2.0 - 4.0 * s
+    return 4.0 * s - 4.0
+
+
+@primitive
+def usable(amplitude: float) -> bool:
+    """True when an amplitude input is a value a DeltaV (float32) parameter can hold: finite
+    and within the float32 range. NaN is not an amplitude at all ("not given")."""
+    return abs(amplitude) < FLOAT32_OVERFLOW
 
 
 def sggn_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
@@ -136,26 +173,17 @@ def sggn_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntA
         if cycle < EDGE_TOLERANCE:  # within the tolerance of a whole cycle: the cycle start
             cycle = 0.0
     x[S_CYCLE] = cycle
-    s = cycle + p[PHASE]
-    s = s - math.floor(s + EDGE_TOLERANCE)
-    if s < 0.0:
-        s = 0.0
     amplitude = float(u[AMPLITUDE_IN])
-    if math.isnan(amplitude):
+    status = GOOD_NC
+    if math.isnan(amplitude):  # not given: the parameter
         amplitude = float(p[AMPLITUDE])
-    shape = p[WAVEFORM]
-    if shape == SQUARE:
-        wave = 1.0 if s < 0.5 - EDGE_TOLERANCE else -1.0
-    elif shape == SINE:
-        wave = math.sin(2.0 * math.pi * s)
-    elif s <= 0.25:
-        wave = 4.0 * s
-    elif s <= 0.75:
-        wave = 2.0 - 4.0 * s
-    else:
-        wave = 4.0 * s - 4.0
-    y[OUT] = float(p[BIAS]) + amplitude * wave
-    ys[OUT] = GOOD_NC
+    elif not usable(amplitude):  # ±inf or beyond float32: Bad input, the last usable one
+        amplitude = float(x[S_AMPLITUDE])
+        status = BAD
+    x[S_AMPLITUDE] = amplitude
+    out = float(p[BIAS]) + amplitude * wave(p[WAVEFORM], cycle, p[PHASE])
+    y[OUT] = out
+    ys[OUT] = status if usable(out) else BAD
 
 
 @register
@@ -171,28 +199,42 @@ class SGGN(Block):
         Param("waveform", "square", "", "wave shape; square is the dither of the seed's "
               "reading [A] (spec 6.5)", "choice", choices=("square", "sine", "triangle")),
         Param("amplitude", 1.0, "out",
-              "peak amplitude A (the amplitude input overrides it when not NaN) (spec 6.5)"),
+              "peak amplitude A (the amplitude input overrides it when not NaN); a float32 "
+              "(spec 6.5)", lo=-FLOAT32_MAX, hi=FLOAT32_MAX, lo_open=False, hi_open=False),
         Param("period", 2.0, "s",
               "period; 2·dt alternates the square wave every scan [A] (spec 6.5)", lo=0.0),
-        Param("bias", 0.0, "out", "offset added to the wave; 0 [A] (spec 6.5)"),
+        Param("bias", 0.0, "out", "offset added to the wave; 0 [A]; a float32 (spec 6.5)",
+              lo=-FLOAT32_MAX, hi=FLOAT32_MAX, lo_open=False, hi_open=False),
         Param("phase", 0.0, "deg", "phase advance; 0 starts with + [A] (spec 6.5)",
               lo=0.0, hi=360.0, lo_open=False),
     )
     INPUTS: ClassVar[tuple[Port, ...]] = (
         Port("amplitude", math.nan, "out",
-             "amplitude, e.g. wired from the compensator's dither_amp; NaN = the parameter "
-             "(spec 6.5)"),
+             "amplitude, e.g. wired from the compensator's dither_amp; NaN = the parameter; "
+             "±inf or beyond float32 = Bad: the last usable amplitude, out Bad (spec 6.5)"),
     )
     OUTPUTS: ClassVar[tuple[Port, ...]] = (
         Port("out", 0.0, "out", "bias + amplitude·wave (spec 6.5: DITHER_OUT)", status=True),
     )
-    STATES: ClassVar[tuple[str, ...]] = ("cycle", "started")
+    STATES: ClassVar[tuple[str, ...]] = ("cycle", "started", "amplitude")
 
     def coefficients(self) -> list[float]:
         prm: dict[str, Any] = self.params
         shape = {"square": SQUARE, "sine": SINE, "triangle": TRIANGLE}[prm["waveform"]]
         return [shape, float(prm["amplitude"]), float(prm["period"]), float(prm["bias"]),
                 float(prm["phase"]) / 360.0]
+
+    def initial_state(self) -> list[float]:
+        """At the cycle start, not started; the last usable amplitude is the parameter."""
+        return [0.0, 0.0, float(self.p[AMPLITUDE])]
+
+    def initial_outputs(self) -> list[float]:
+        """Before the first scan (issue 11 point 8) ``out`` is the first scan's value for the
+        amplitude as given (else the parameter): bias + A·wave(phase)."""
+        amplitude = float(self.u[AMPLITUDE_IN])
+        if not usable(amplitude):  # NaN (not given), or not a usable value
+            amplitude = float(self.x[S_AMPLITUDE])
+        return [float(self.p[BIAS]) + amplitude * wave(self.p[WAVEFORM], 0.0, self.p[PHASE])]
 
     @classmethod
     def split_table(cls, table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

@@ -49,8 +49,9 @@ Precision (``precision = "float32"``, the default; spec 6.1 [A]): a DeltaV modul
 holds a 32-bit float. So
 
 * every value assigned to a module parameter (lines 2, 3, 6, 8, 12, 16, 17, 20, 21, 23, 26) is
-  rounded once to float32 (round to nearest, ties to even; beyond the float32 range it becomes
-  ±inf) when it is stored; the expression on the right is evaluated in float64;
+  rounded once to float32 (round to nearest, ties to even; a value beyond the float32 range
+  rounds to ±inf and is not stored, see "Non-finite values") when it is stored; the expression
+  on the right is evaluated in float64;
 * every parameter and input the expression reads is the float32-rounded value: the
   parameters are rounded when the block is made (``kick_start = 1.00000001`` is then exactly
   1), the inputs when they are read in the scan (``pv = 50.3000001`` reads as 50.29999924).
@@ -86,14 +87,32 @@ Status (spec 6.3 line 28): ``signal_out`` carries the status byte of ``signal_in
 on every scan, in both branches; the compensator neither degrades nor improves it. The other
 outputs are Good non-cascade (128). Input statuses are otherwise ignored, as in the expression.
 
-NaN and inf inputs are computed as the expression computes them with IEEE floats: every
-comparison with NaN is false. So a NaN ``comp_start`` is not 0 and selects the compensation
-branch; a NaN ``initialize`` is not 1 (the noise band is computed); a NaN ``pv`` or ``sp`` fails
-both band tests and selects the dither branch (KICKER_DELT held); a NaN ``signal_in`` gives a
-NaN ``signal_out``. A NaN ``dither_out`` cannot reach line 23: it means "use the internal
-dither" (above). Infinities follow IEEE arithmetic (``pv = inf`` is the high branch; a result
-beyond the float32 range is stored as ±inf). Nothing is clamped: there is no limit on
+Non-finite values (issue 11 point 1), the rule of ``deltav.calc`` for a CALC block, so the two
+stay bit for bit equal:
+
+* an input that is NaN or ±inf, or beyond the float32 range in float32 precision (``1e308``
+  reads as ±inf), is Bad input. The expression reads its value as it is, with IEEE
+  comparisons (every comparison with NaN is false): a NaN ``comp_start`` is not 0 and selects
+  the compensation branch; a NaN ``initialize`` is not 1 (the noise band is computed); a NaN
+  ``pv`` or ``sp`` fails both band tests and selects the dither branch (KICKER_DELT held); an
+  infinite ``pv`` is above the trigger (high). A NaN ``dither_out`` cannot reach line 23: it
+  means "use the internal dither" (above). Line 28 reads SIGNAL_IN.ST as Bad (0) while
+  ``signal_in`` is not finite, unless it arrives Bad already (then its substatus is kept);
+* an assignment whose result is not finite (after the float32 rounding of the store: a sum
+  beyond the float32 range is one) is not stored: the module parameter keeps its last value
+  and is **held**, its output Bad (0; SIGNAL_OUT keeps SIGNAL_IN's status if that is Bad) for
+  that scan. A later scan that does not assign it (KICKER_DELT inside the band) shows it Good
+  with the last value stored, as the expression holds it. So a NaN ``signal_in`` holds
+  ``signal_out`` at its last value, Bad; an infinite ``dither_out`` holds ``dither_delt``, Bad,
+  while ``signal_out`` adds the held dither and keeps ``signal_in``'s status.
+
+No output and no state is ever non-finite, and the block recovers as soon as its inputs are
+good again. Nothing is clamped: there is no limit on
 ``signal_out`` (spec 6.3 line 26), and the block never raises on a value.
+
+Before the first scan (issue 11 point 8) ``signal_out`` passes ``signal_in`` through (no kick,
+no dither yet) and the other outputs show the seed's defaults, 0 (spec 6.2), which is what
+SGGN1 reads as DITHER_AMP at the first scan (spec 6.5).
 
 Options for the spec's [A]/[?] points
 -------------------------------------
@@ -157,7 +176,8 @@ Replay (``loopworks replay deltav.stick_slip comp.csv -p resolution=0.5 -p deadb
     3,40,50,49.5,0,0.3,128
 
 gives ``signal_out`` 39.7, 39.7 (kick -0.3), 40.0 (kick held, dither +0.3), 40.0
-(pass-through) and ``signal_out.ST`` 128, 128, 28, 128.
+(pass-through) and ``signal_out.ST`` 128, 128, 28, 128 (every output has a ``.ST`` column;
+the others are 128 here).
 """
 
 from __future__ import annotations
@@ -165,14 +185,16 @@ from __future__ import annotations
 import math
 from typing import Any, ClassVar
 
-import numpy as np
-
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.params import Param, Port
+from loopworks.blocks.primitives import finite
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import GOOD_NC
 from loopworks.errors import ParameterError
+from loopworks.vendors.deltav.calc import FLOAT32_OVERFLOW as F32_OVERFLOW
+from loopworks.vendors.deltav.calc import input_status, shown_status
+from loopworks.vendors.deltav.calc import to_float32 as f32
 
 # Coefficient layout (p): the module parameters (as stored), then the options
 (RES, DB, PG, CA, VA, DF, KF, NF, KS, RESET, UPPER, LOWER, DEFERRED, SINGLE, HALF) = range(15)
@@ -180,34 +202,33 @@ from loopworks.errors import ParameterError
 SIGNAL_IN, SP, PV, COMP_START, INITIALIZE, DITHER_OUT = range(6)
 # Outputs (y, ys)
 SIGNAL_OUT, DITHER_AMP, KICKER_OUT, NOISE_BAND, KICKER_DELT, DITHER_DELT = range(6)
-# State (x): the module parameters the expression writes, and the internal dither's scan counter
-S_DA, S_KO, S_NB, S_KD, S_DD, S_COUNT = range(6)
-
-# 2**128 - 2**103: the float32 rounding of a double at or beyond this magnitude is ±inf
-# (FLT_MAX plus half an ulp; the tie rounds to even, i.e. up to 2**128 = inf).
-F32_OVERFLOW = 3.4028235677973366e38
-
-
-@primitive
-def f32(value: float) -> float:
-    """``value`` rounded to the nearest float32 (ties to even), as a float: what a DeltaV module
-    parameter holds after ``value`` is written to it. Beyond the float32 range: ±inf; NaN stays
-    NaN. The cast is IEEE in both numpy and numba, so interpreted and compiled runs agree."""
-    if value >= F32_OVERFLOW:
-        return math.inf
-    if value <= -F32_OVERFLOW:
-        return -math.inf
-    return float(np.float32(value))
+# State (x): the module parameters the expression writes, the internal dither's scan counter
+S_DA, S_KO, S_NB, S_KD, S_DD, S_COUNT, S_SO = range(7)
 
 
 @primitive
 def stored(value: float, single: float) -> float:
     """The value a module parameter holds after ``value`` is written: float32-rounded when
-    ``single`` (precision float32), else unchanged. Reads of inputs use it too: an input is a
-    module parameter written by someone else."""
+    ``single`` (precision float32; beyond the float32 range ±inf), else unchanged. Reads of
+    inputs use it too: an input is a module parameter written by someone else."""
     if single != 0.0:
         return f32(value)
     return value
+
+
+@primitive
+def keep(new: float, old: float) -> float:
+    """The value a module parameter holds after an assignment of ``new``: ``new`` when it is
+    finite, else ``old`` (a non-finite result is not stored; the parameter is held, Bad)."""
+    if finite(new):
+        return new
+    return old
+
+
+@primitive
+def held(new: float) -> float:
+    """The held flag of this scan after an assignment of ``new``: 1 when it was not finite."""
+    return 0.0 if finite(new) else 1.0
 
 
 def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
@@ -215,7 +236,10 @@ def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     """One module scan: SGGN1 (internal dither), then the seed's lines 2-28 in order.
 
     Every array element is read once into a local Python float (``float()`` costs nothing
-    compiled, and keeps the interpreted run in plain IEEE floats, without numpy warnings)."""
+    compiled, and keeps the interpreted run in plain IEEE floats, without numpy warnings).
+    Each assignment is ``value = keep(v, old)``, ``flag = held(v)``: a non-finite result keeps
+    the old value and marks the parameter held (Bad) for this scan, exactly as ``deltav.calc``
+    stores."""
     single = p[SINGLE]
     deferred = p[DEFERRED] != 0.0
     # the tuning parameters, as stored (float32-rounded by coefficients() in float32 precision)
@@ -230,6 +254,9 @@ def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     nb0 = float(x[S_NB])
     kicker_delt = float(x[S_KD])
     dither_delt = float(x[S_DD])
+    signal_out = float(x[S_SO])
+    held_kd = 0.0  # KICKER_DELT, DITHER_DELT: assigned in some branches only
+    held_dd = 0.0
     # -- SGGN1 (#3) before the CALC (#4): DITHER_OUT, spec 6.5 ---------------------------------
     count = float(x[S_COUNT])
     positive = count < p[HALF]
@@ -245,17 +272,23 @@ def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     else:
         dither = -da0
     # -- line 2, line 3 -------------------------------------------------------------------------
-    da = stored((resolution + 0.5 * deadband) * float(p[DF]) * 0.5, single)
-    ko = stored((resolution + 0.5 * deadband) * float(p[KF]) * 0.5, single)
+    v = stored((resolution + 0.5 * deadband) * float(p[DF]) * 0.5, single)
+    da = keep(v, da0)
+    held_da = held(v)
+    v = stored((resolution + 0.5 * deadband) * float(p[KF]) * 0.5, single)
+    ko = keep(v, ko0)
+    held_ko = held(v)
     # -- lines 5-9: NOISE_BAND ------------------------------------------------------------------
     if stored(float(u[INITIALIZE]), single) == 1.0 and p[KS] == 1.0:
-        nb = 0.0
+        v = 0.0
     else:
-        nb = stored((da0 if deferred else da) * process_gain * float(p[NF]), single)
+        v = stored((da0 if deferred else da) * process_gain * float(p[NF]), single)
+    nb = keep(v, nb0)
+    held_nb = held(v)
     # -- lines 11-27 ------------------------------------------------------------------------------
     signal_in = stored(float(u[SIGNAL_IN]), single)
     if stored(float(u[COMP_START]), single) == 0.0:
-        signal_out = signal_in  # line 12: pass-through; KICKER_DELT, DITHER_DELT untouched
+        v = signal_in  # line 12: pass-through; KICKER_DELT, DITHER_DELT untouched
     else:
         pv = stored(float(u[PV]), single)
         sp = stored(float(u[SP]), single)
@@ -264,35 +297,48 @@ def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
         kd_read = kicker_delt  # line 26 reads these: the start-of-scan values when deferred
         dd_read = dither_delt
         if pv > (sp + band * float(p[UPPER])):  # lines 15-17: high
-            kicker_delt = stored(kicker * action * valve, single)
+            v = stored(kicker * action * valve, single)
+            kicker_delt = keep(v, kicker_delt)
+            held_kd = held(v)
             dither_delt = 0.0
+            held_dd = 0.0
         elif pv < (sp - band * float(p[LOWER])):  # lines 19-21: low
-            kicker_delt = stored(-kicker * action * valve, single)
+            v = stored(-kicker * action * valve, single)
+            kicker_delt = keep(v, kicker_delt)
+            held_kd = held(v)
             dither_delt = 0.0
+            held_dd = 0.0
         else:  # line 23: inside the band, KICKER_DELT held
-            dither_delt = stored(dither * action * valve, single)
+            v = stored(dither * action * valve, single)
+            dither_delt = keep(v, dither_delt)
+            held_dd = held(v)
         if not deferred:
             kd_read = kicker_delt
             dd_read = dither_delt
-        signal_out = stored(signal_in + kd_read + dd_read, single)  # line 26, no clamp
-    # -- store; line 28 and the outputs ----------------------------------------------------------
+        v = stored(signal_in + kd_read + dd_read, single)  # line 26, no clamp
+    signal_out = keep(v, signal_out)
+    held_so = held(v)
+    # -- line 28: SIGNAL_OUT.ST := SIGNAL_IN.ST (Bad while SIGNAL_IN is not finite) ------------
+    status = input_status(signal_in, int(us[SIGNAL_IN]))
+    # -- store and the outputs --------------------------------------------------------------------
     x[S_DA] = da
     x[S_KO] = ko
     x[S_NB] = nb
     x[S_KD] = kicker_delt
     x[S_DD] = dither_delt
+    x[S_SO] = signal_out
     y[SIGNAL_OUT] = signal_out
-    ys[SIGNAL_OUT] = us[SIGNAL_IN]
     y[DITHER_AMP] = da
     y[KICKER_OUT] = ko
     y[NOISE_BAND] = nb
     y[KICKER_DELT] = kicker_delt
     y[DITHER_DELT] = dither_delt
-    ys[DITHER_AMP] = GOOD_NC
-    ys[KICKER_OUT] = GOOD_NC
-    ys[NOISE_BAND] = GOOD_NC
-    ys[KICKER_DELT] = GOOD_NC
-    ys[DITHER_DELT] = GOOD_NC
+    ys[SIGNAL_OUT] = shown_status(status, held_so)
+    ys[DITHER_AMP] = shown_status(GOOD_NC, held_da)
+    ys[KICKER_OUT] = shown_status(GOOD_NC, held_ko)
+    ys[NOISE_BAND] = shown_status(GOOD_NC, held_nb)
+    ys[KICKER_DELT] = shown_status(GOOD_NC, held_kd)
+    ys[DITHER_DELT] = shown_status(GOOD_NC, held_dd)
 
 
 _PCT = "%"
@@ -362,16 +408,22 @@ class StickSlip(Block):
         Port("signal_out", 0.0, _PCT,
              "SIGNAL_OUT, 'AO CAS_IN (%)': signal_in + kick + dither, no clamp; status = "
              "signal_in's (spec 6.3 lines 26, 28)", status=True),
-        Port("dither_amp", 0.0, _PCT, "DITHER_AMP: dither amplitude (spec 6.3 line 2)"),
-        Port("kicker_out", 0.0, _PCT, "KICKER_OUT: kick amplitude (spec 6.3 line 3)"),
-        Port("noise_band", 0.0, "% of PV", "NOISE_BAND: PV noise band (spec 6.3 lines 5-9)"),
+        Port("dither_amp", 0.0, _PCT, "DITHER_AMP: dither amplitude (spec 6.3 line 2)",
+             status=True),
+        Port("kicker_out", 0.0, _PCT, "KICKER_OUT: kick amplitude (spec 6.3 line 3)",
+             status=True),
+        Port("noise_band", 0.0, "% of PV", "NOISE_BAND: PV noise band (spec 6.3 lines 5-9)",
+             status=True),
         Port("kicker_delt", 0.0, _PCT,
-             "KICKER_DELT: kick applied; held inside the band (spec 6.3 lines 16, 20)"),
+             "KICKER_DELT: kick applied; held inside the band (spec 6.3 lines 16, 20)",
+             status=True),
         Port("dither_delt", 0.0, _PCT,
-             "DITHER_DELT: dither applied; 0 while kicking (spec 6.3 lines 17, 21, 23)"),
+             "DITHER_DELT: dither applied; 0 while kicking (spec 6.3 lines 17, 21, 23)",
+             status=True),
     )
     STATES: ClassVar[tuple[str, ...]] = (
-        "dither_amp", "kicker_out", "noise_band", "kicker_delt", "dither_delt", "dither_count")
+        "dither_amp", "kicker_out", "noise_band", "kicker_delt", "dither_delt", "dither_count",
+        "signal_out")
 
     def coefficients(self) -> list[float]:
         prm: dict[str, Any] = self.params
@@ -391,3 +443,16 @@ class StickSlip(Block):
         coeffs[SINGLE] = 1.0 if single else 0.0
         coeffs[HALF] = float(prm["dither_half_period"])
         return coeffs
+
+    def initial_state(self) -> list[float]:
+        """The written module parameters at the seed's defaults (spec 6.2: all 0); the
+        internal dither at its first scan."""
+        return [0.0] * len(self.STATES)
+
+    def initial_outputs(self) -> list[float]:
+        """Before the first scan (issue 11 point 8): SIGNAL_OUT passes SIGNAL_IN through (no
+        kick, no dither yet), the other outputs show the seed's defaults (0; SGGN1 reads
+        DITHER_AMP 0 at the first scan, spec 6.5)."""
+        signal_in = stored(float(self.u[SIGNAL_IN]), self.p[SINGLE])
+        start = signal_in if finite(signal_in) else float(self.x[S_SO])
+        return [start, *(float(self.x[i]) for i in (S_DA, S_KO, S_NB, S_KD, S_DD))]

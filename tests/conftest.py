@@ -1,0 +1,20 @@
+"""Test-suite settings: the Hypothesis profiles of the property tests.
+
+``default`` keeps the normal suite fast; ``slow`` (``HYPOTHESIS_PROFILE=slow``) runs at least
+10,000 examples per property per kind, for a one-off deep run."""
+
+from __future__ import annotations
+
+import os
+
+from hypothesis import HealthCheck, settings
+
+settings.register_profile(
+    "default", max_examples=int(os.environ.get("LOOPWORKS_EXAMPLES", "100")), deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much,
+                           HealthCheck.data_too_large])
+settings.register_profile(
+    "slow", max_examples=10_000, deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much,
+                           HealthCheck.data_too_large])
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))

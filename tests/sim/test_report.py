@@ -1,0 +1,166 @@
+"""The simulate report (issue 11): the variants overlaid with the scored window shaded, the
+stiction signature, a headline per variant, units and definitions, and strict JSON."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import matplotlib
+import numpy as np
+import pytest
+
+from loopworks.sim import report
+from loopworks.sim.metrics import METRICS, markdown
+from loopworks.sim.result import SimResult
+
+matplotlib.use("Agg")
+
+DT = 0.5
+WINDOW = (200.0, 400.0)
+
+
+def loop_result(pv_amp: float, stem_rate: float, dither: float) -> SimResult:
+    """A pid -> comp -> valve loop written out by hand: PV = 50 ± pv_amp alternating each
+    scan, the stem ramping at stem_rate % per scan, the valve command the stem plus a dither
+    of ±dither (or the stem itself without one)."""
+    t = np.arange(0.0, 400.0 + DT / 2, DT)
+    k = np.arange(len(t))
+    sign = (-1.0) ** k
+    position = 50.0 + stem_rate * k
+    command = position + dither * sign if dither else position.copy()
+    out = position.copy()
+    values = {"pid.sp": np.full(len(t), 50.0), "pid.pv": 50.0 + pv_amp * sign,
+              "pid.out": out, "comp.signal_in": out, "comp.signal_out": command,
+              "valve.op": command, "valve.position": position}
+    return SimResult(t=t, values=values, status={n: np.full(len(t), 128) for n in values},
+                     kinds={"pid": "pid", "comp": "compensator.constant_reinforcement",
+                            "valve": "valve.resolution"},
+                     wires={"comp.signal_in": "pid.out", "valve.op": "comp.signal_out"})
+
+
+def two_variants() -> dict[str, SimResult]:
+    # over the window (401 scans, 400 moves): PV std 2 -> 1 (-50 %), stem travel
+    # 0.01·400 = 4 -> 0.015·400 = 6 (+50 %), command travel 4 -> 400·2·0.055 = 44 (+1000 %)
+    return {"off": loop_result(2.0, 0.01, 0.0), "on": loop_result(1.0, 0.015, 0.055)}
+
+
+def strict_json(path: Path) -> Any:
+    """Parse as RFC 8259 JSON: NaN, Infinity and -Infinity are not JSON."""
+    def refuse(name: str) -> None:
+        raise ValueError(f"{path.name}: {name} is not JSON")
+    return json.loads(path.read_text(encoding="utf-8"), parse_constant=refuse)
+
+
+def write(tmp_path: Path, results: dict[str, SimResult],
+          window: tuple[float, float] | None = WINDOW,
+          autotune: dict[str, Any] | None = None) -> dict[str, dict[str, float]]:
+    metrics = {v: r.metrics(window=window) for v, r in results.items()}
+    report.write_report(tmp_path, "test loop", "[simulation]\n", results, metrics,
+                        autotune, window=window)
+    return metrics
+
+
+def test_metrics_include_the_valve_command() -> None:
+    """The table's valve-command rows are the valve's op input as wired (the compensated
+    signal), not the controller output."""
+    m = two_variants()["on"].metrics(window=WINDOW)
+    assert m["valve-command travel"] == pytest.approx(400 * 0.11)
+    assert m["valve-command reversals"] == 399.0
+    assert m["valve travel"] == pytest.approx(400 * 0.015)
+    assert m["output travel"] == pytest.approx(400 * 0.015)
+
+
+def test_headline_against_the_first_variant(tmp_path: Path) -> None:
+    write(tmp_path, two_variants())
+    page = (tmp_path / "report.html").read_text(encoding="utf-8")
+    assert "<b>on</b> against off: PV std -50 %, stem travel +50 %, " \
+           "valve-command travel +1000 %" in page
+
+
+def test_headline_with_a_zero_base_is_na() -> None:
+    """A change against 0 travel has no percentage: n/a, not inf or a division error."""
+    base = {"PV std": 1.0, "valve travel": 0.0, "valve-command travel": math.nan}
+    other = {"PV std": 1.5, "valve travel": 3.0, "valve-command travel": 7.0}
+    assert report.headline(base, other) == \
+        "PV std +50 %, stem travel n/a, valve-command travel n/a"
+    # no valve: the controller output's travel is the cost
+    assert report.headline({"PV std": 2.0, "output travel": 4.0},
+                           {"PV std": 1.0, "output travel": 5.0}) == \
+        "PV std -50 %, output travel +25 %"
+
+
+def test_table_has_units_and_every_metric_is_defined(tmp_path: Path) -> None:
+    write(tmp_path, two_variants())
+    page = (tmp_path / "report.html").read_text(encoding="utf-8")
+    assert '<a href="metrics.md">' in page
+    assert (tmp_path / "metrics.md").read_text(encoding="utf-8") == markdown()
+    row = re.search(r'<tr><th><a href="#(m-[^"]+)">valve-command travel</a></th>'
+                    r"<td class=u>([^<]+)</td><td>([^<]+)</td><td>([^<]+)</td></tr>", page)
+    assert row is not None
+    assert row.group(2) == "% of span"
+    assert float(row.group(3)) == pytest.approx(4.0) and float(row.group(4)) == 44.0
+    linked = set(re.findall(r'<a href="#(m-[^"]+)">', page))
+    defined = set(re.findall(r'<tr id="(m-[^"]+)">', page))
+    assert linked and linked <= defined
+    assert len(defined) == len(METRICS)
+    # a figure the data cannot support: no setpoint step in the window
+    assert re.search(r">settling time s \(2 %\)</a></th><td class=u>s</td><td>n/a</td>", page)
+
+
+def test_every_json_file_is_strict_json(tmp_path: Path) -> None:
+    """issue 11 point 5: a non-finite figure is null, never NaN or Infinity."""
+    results = {"base": loop_result(2.0, 0.01, 0.0)}
+    metrics = {"base": {"IAE": math.inf, "PV std": math.nan, "valve travel": 3.0}}
+    autotune = {"loop": "pid", "outcome": "converged", "ku": math.inf,
+                "pu": np.float64(math.nan), "cycles": [{"amplitude": -math.inf}, 1.5],
+                "n": np.int64(3)}
+    report.write_report(tmp_path, "t", "", results, metrics, autotune, window=WINDOW)
+    assert strict_json(tmp_path / "metrics.json") == {
+        "base": {"IAE": None, "PV std": None, "valve travel": 3.0}}
+    assert strict_json(tmp_path / "autotune.json") == {
+        "loop": "pid", "outcome": "converged", "ku": None, "pu": None,
+        "cycles": [{"amplitude": None}, 1.5], "n": 3}
+
+
+def test_json_text_refuses_nothing_and_writes_no_constant() -> None:
+    text = report.json_text({"a": [math.nan, (math.inf, 1.0)], "b": np.array([2.0, -np.inf])})
+    assert "NaN" not in text and "Infinity" not in text
+    assert json.loads(text) == {"a": [None, [None, 1.0]], "b": [2.0, None]}
+
+
+def window_pixels(png: Path) -> int:
+    """How many pixels have the scored window's shading colour."""
+    import matplotlib.image
+
+    rgb = (matplotlib.image.imread(png)[:, :, :3] * 255).round().astype(int)
+    shade = np.array([int(report._WINDOW_COLOUR[i:i + 2], 16) for i in (1, 3, 5)])
+    return int(np.sum(np.all(rgb == shade, axis=2)))
+
+
+def test_figures_are_written_and_the_window_is_shaded(tmp_path: Path) -> None:
+    write(tmp_path / "scored", two_variants())
+    write(tmp_path / "whole", two_variants(), window=None)
+    for name in ("overview.png", "signature.png", "off.png", "on.png"):
+        assert (tmp_path / "scored" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert (tmp_path / "whole" / name).exists()
+    page = (tmp_path / "scored" / "report.html").read_text(encoding="utf-8")
+    assert 'src="overview.png"' in page and 'src="signature.png"' in page
+    assert window_pixels(tmp_path / "scored" / "overview.png") > 10_000
+    assert window_pixels(tmp_path / "scored" / "off.png") > 10_000
+    assert window_pixels(tmp_path / "whole" / "overview.png") == 0
+
+
+def test_zoom_is_centred_on_the_largest_command_move() -> None:
+    t = np.arange(0.0, 3600.0 + DT / 2, DT)
+    command = 50.0 + 0.1 * (-1.0) ** np.arange(len(t))
+    command[t >= 2500.0] += 2.0   # a kick at 2500 s
+    command[t >= 1000.0] += 9.0   # larger, but before the window
+    assert report.zoom_span(t, (1800.0, 3600.0), command) == (2450.0, 2550.0)
+    command[t >= 3590.0] += 5.0   # largest in the window, near its end: the zoom stays inside
+    assert report.zoom_span(t, (1800.0, 3600.0), command) == (3500.0, 3600.0)
+    assert report.zoom_span(t, (1800.0, 3600.0), None) == (2650.0, 2750.0)
+    assert report.zoom_span(t, (100.0, 150.0), command) == (100.0, 150.0)
