@@ -326,7 +326,12 @@ def tune(
     given = {"amplitude": amplitude, "hysteresis": hysteresis, "start": start,
              "bias_ratio": bias_ratio, "offset": offset}
     relay.update({k: v for k, v in given.items() if v is not None})
-    options = {k: float(v) for k, v in _pairs(option, "--option").items()}
+    options: dict[str, float] = {}
+    for k, v in _pairs(option, "--option").items():
+        try:
+            options[k] = float(v)
+        except ValueError:
+            _fail(f"--option {k}={v!r}: expected a number (s)")
     try:
         report = tune_loop(module, loop, sc.dt, rule=rule, controller=controller.upper(),
                            options=options, biased=not symmetric, **relay)

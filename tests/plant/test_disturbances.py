@@ -73,6 +73,9 @@ def test_non_finite_u_passes_on_as_bad(make: Make) -> None:
     r = big.step(1.0, u=1e308)
     assert r["y"].value == math.inf and r["y"].status == 0x00 and r["d"] == (1e308, GOOD)
     assert big.step(1.0, u=-1e308)["y"] == (0.0, GOOD)
+    bare = create_block(KIND, jit=False, bias=1e308)  # the kernel itself, without the guard
+    kernel_scan(bare, 1.0, u=1e308)
+    assert unsound(bare) == [] and bare.ys[0] == 0x00
 
 
 def test_unwired_u_makes_y_the_disturbance(make: Make) -> None:

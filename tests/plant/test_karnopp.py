@@ -466,7 +466,7 @@ def test_extreme_ops_leave_no_non_finite_value(make: Make) -> None:
     state finite, also for the bare kernel without the guard."""
     v = make(tau_ip=0.05)
     bare = loopworks.create_block("valve.karnopp", jit=False, tau_ip=0.05)
-    for op in (50.0, *EXTREMES, 50.0):
+    for op in (*EXTREMES, 50.0, *EXTREMES):
         r = v.step(0.1, op=op)
         kernel_scan(bare, 0.1, op=op)
         assert unsound(bare) == []

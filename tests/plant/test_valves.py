@@ -583,13 +583,14 @@ def test_start_value_is_the_first_scan_for_the_latched_op(
 @pytest.mark.parametrize("kind", [*STICTION, "valve.backlash", "valve.resolution",
                                   "valve.quantiser"])
 def test_extreme_ops_leave_no_non_finite_value(make: Make, kind: str) -> None:
-    """Issue 11 point 1: NaN, ±inf, ±1e308 and ±3.5e38 into op. A finite op is clipped to
-    0..100 % (spec 1.2 step 1) and used; a non-finite one is Bad input (bad_op = hold): the
-    position holds, Bad. Every output stays in 0..100 %, every state finite, and the bare
-    kernel (no guard) is sound by itself."""
-    b = make(kind, y0=50.0)
-    bare = loopworks.create_block(kind, jit=False, y0=50.0)
-    for op in (*EXTREMES, 50.0):
+    """Issue 11 point 1: NaN, ±inf, ±1e308 and ±3.5e38 into op, from the first scan on (no
+    y0: the first good op initialises the valve). A finite op is clipped to 0..100 % (spec 1.2
+    step 1) and used; a non-finite one is Bad input (bad_op = hold): the position holds, Bad.
+    Every output stays in 0..100 %, every state finite (no NaN "not started" marker), and the
+    bare kernel (no guard) is sound by itself."""
+    b = make(kind)
+    bare = loopworks.create_block(kind, jit=False)
+    for op in (*EXTREMES, 50.0, *EXTREMES):
         r = b.step(1.0, op=op)
         kernel_scan(bare, 1.0, op=op)
         assert unsound(bare) == []

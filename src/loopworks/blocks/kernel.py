@@ -143,25 +143,23 @@ def _marked_loop(u: FloatArray, us: IntArray) -> IntArray:
 
 def _guarded_template(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                       y: FloatArray, ys: IntArray) -> None:
-    """One scan of KERNEL under the numeric contract (see :func:`guarded_scan`)."""
+    """One scan of KERNEL under the numeric contract (see :func:`guarded_scan`). The kernel is
+    called from one place only, so compiled it is inlined once."""
     usk = MARKED(u, us)  # type: ignore[name-defined] # noqa: F821
     x0 = x.copy()
     y0 = y.copy()
     ys0 = ys.copy()
-    KERNEL(dt, p, x, u, usk, y, ys)  # type: ignore[name-defined] # noqa: F821
-    if SOUND(x, y, ys):  # type: ignore[name-defined] # noqa: F821
-        return
-    # the arithmetic overflowed: this scan's inputs are not usable, so run it as Bad input
-    x[:] = x0
-    y[:] = y0
-    ys[:] = ys0
-    KERNEL(dt, p, x, u, np.zeros_like(us), y, ys)  # type: ignore[name-defined] # noqa: F821
-    if SOUND(x, y, ys):  # type: ignore[name-defined] # noqa: F821
-        return
-    # the kind has no answer for Bad input: hold everything, outputs Bad
-    x[:] = x0
-    y[:] = y0
-    ys[:] = 0
+    for attempt in range(2):
+        KERNEL(dt, p, x, u, usk, y, ys)  # type: ignore[name-defined] # noqa: F821
+        if SOUND(x, y, ys):  # type: ignore[name-defined] # noqa: F821
+            return
+        # undo the scan; the arithmetic overflowed, so its inputs are not usable: run it again
+        # as Bad input
+        x[:] = x0
+        y[:] = y0
+        ys[:] = ys0
+        usk = np.zeros_like(us)
+    ys[:] = 0  # the kind has no answer for Bad input: everything held, outputs Bad
 
 
 def _make_guarded(kernel: Any, sound: Any, marked: Any) -> Any:
