@@ -149,7 +149,7 @@ def _guarded_template(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     x0 = x.copy()
     y0 = y.copy()
     ys0 = ys.copy()
-    for attempt in range(2):
+    for _attempt in range(2):
         KERNEL(dt, p, x, u, usk, y, ys)  # type: ignore[name-defined] # noqa: F821
         if SOUND(x, y, ys):  # type: ignore[name-defined] # noqa: F821
             return
