@@ -753,3 +753,10 @@ def test_docstring_lists_every_option() -> None:
                  "load_clock_at_start", "on_parameter_error", "bad_input",
                  "deadband_subtract", "prime_derivative"):
         assert f"``{name}``" in section, name
+
+
+@pytest.mark.parametrize("kind", ["ge.pid_ind", "ge.pid_isa"])
+def test_a_subnormal_integral_resolution_is_a_parameter_error(kind: str) -> None:
+    """Found by the slow property profile: 1/5e-324 overflowed inside the check (issue 11)."""
+    with pytest.raises(ParameterError, match="integral_resolution"):
+        loopworks.create_block(kind, integral_resolution=5e-324)

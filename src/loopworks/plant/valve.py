@@ -704,7 +704,9 @@ def publish_start(block: Block) -> None:
         return
     y = np.zeros(len(block.y))
     ys = np.full(len(block.ys), BAD_NON_SPECIFIC, dtype=np.int64)
-    type(block).kernel(1.0, block.p, block.x.copy(), block.u.copy(), block.us.copy(), y, ys)
+    with np.errstate(all="ignore"):  # interpreted, as the guard runs it: overflow to inf is
+        # handled by the kernel (a clamp, a finiteness check), numpy need not warn
+        type(block).kernel(1.0, block.p, block.x.copy(), block.u.copy(), block.us.copy(), y, ys)
     block.y[:] = y
     block.ys[:] = ys
 

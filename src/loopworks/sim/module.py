@@ -246,7 +246,12 @@ class Module:
                              f"{article} {what}, not both")
 
     def reset(self) -> None:
-        """Every block to its initial state, constant inputs applied, time to 0."""
+        """Every block to its initial state, constant inputs applied, time to 0.
+
+        Then the start is settled: twice over the run order, each wired input is copied from
+        its source and a block that derives its published start from its inputs (a
+        ``publish_start`` method: sensors, loads, valves) publishes it again, so no block reads
+        a placeholder 0 from a source that runs later in the order (issue 11 point 8)."""
         for name in self.order:
             block = self.blocks[name]
             block.reset()
@@ -254,6 +259,16 @@ class Module:
                 block.set_inputs(self.constants[name])
             if self._links[name]:
                 block._all_good = False  # the scan writes its input statuses
+        for _ in range(2):  # twice: a source later in the order settles too
+            for name in self.order:
+                block = self.blocks[name]
+                for i, src, j in self._links[name]:
+                    block.u[i] = src.y[j]
+                    block.us[i] = src.ys[j]
+                publish = getattr(block, "publish_start", None)
+                if publish is not None:
+                    block._release_last()
+                    publish()
         self.t = 0.0
         self.k = 0
         self._next_event = 0

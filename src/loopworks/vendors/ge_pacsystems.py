@@ -713,8 +713,9 @@ class GEPIDBlock(Block):
         base = 1e9 if self.IS_ISA and not isa_staged else 1e7
         unit_mul = 1.0
         if res > 0.0:
-            units = float(round(1.0 / res))
-            if abs(units * res - 1.0) > 1e-9:
+            inverse = 1.0 / res
+            units = float(round(inverse)) if math.isfinite(inverse) else math.inf
+            if not math.isfinite(units) or abs(units * res - 1.0) > 1e-9:
                 raise self._fail(f"parameter 'integral_resolution' = {res:g} is not allowed: "
                                  "it must be 0 or 1/n for a whole n (e.g. 0.001)")
             unit_div = base / units
