@@ -1,7 +1,9 @@
 """Test-suite settings: the Hypothesis profiles of the property tests.
 
-``default`` keeps the normal suite fast; ``slow`` (``HYPOTHESIS_PROFILE=slow``) runs at least
-10,000 examples per property per kind, for a one-off deep run."""
+``default`` keeps the normal suite fast; it draws new examples on every run, except under CI
+(``CI`` set, as ``.ci/run`` does), where it is derandomised so the same commit always runs the
+same examples and a landing cannot hinge on a lucky draw. ``slow`` (``HYPOTHESIS_PROFILE=slow``)
+runs at least 10,000 examples per property per kind, for a one-off deep run."""
 
 from __future__ import annotations
 
@@ -11,6 +13,7 @@ from hypothesis import HealthCheck, settings
 
 settings.register_profile(
     "default", max_examples=int(os.environ.get("LOOPWORKS_EXAMPLES", "100")), deadline=None,
+    derandomize=bool(os.environ.get("CI")), print_blob=True,
     suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much,
                            HealthCheck.data_too_large])
 settings.register_profile(

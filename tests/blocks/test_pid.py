@@ -80,7 +80,7 @@ class ReferencePID:
 
         P_k = s·kp·(b·SP_k - PV_k)
         D_k = (Tf·D_{k-1} + s·kd·(d_k - d_{k-1})) / (Tf + dt),  d = c·SP - PV
-        ΔI_k = s·ki·dt·(SP_k - PV_k)  [+ dt/Tt·(u_{k-1} - v_{k-1}) with back-calculation]
+        ΔI_k = s·ki·dt·(SP_k - PV_k)  [+ min(dt/Tt, 1)·(u_{k-1} - v_{k-1}) with back-calculation]
         positional: I_k = I_{k-1} + ΔI_k;  v_k = P_k + I_k + D_k + ff_k + bias
         velocity:   v_k = A_{k-1} + ΔP + ΔI + ΔD + Δff;  A_k = u_k (clamping) or v_k (none)
         u_k = ratelimit(clamp(v_k, lo, hi), u_{k-1}, rate·dt)   (no rate limit on scan 0)
@@ -117,7 +117,7 @@ class ReferencePID:
         dterm = (self.tf * self.d_filt + s * self.kd * (d - self.d_prev)) / (self.tf + dt)
         di = s * self.ki * dt * (sp - pv)
         if self.aw == "back_calculation":
-            di += dt / self.tt * (self.u - self.v)
+            di += min(dt / self.tt, 1.0) * (self.u - self.v)
         if self.velocity:
             v = (self.acc + (p - self.p_prev) + di + (dterm - self.dout_prev)
                  + (ff - self.ff_prev))
@@ -484,6 +484,30 @@ def test_back_calculation_by_hand(make: Make) -> None:
     # setpoint 35: P = -10, I = 14.6875 - 1.25 + 0.5·(30 - 34.6875)
     i9 = 14.6875 - 1.25 + 0.5 * (30.0 - 34.6875)
     assert terms(blk, 1.0, sp=35.0)[0::2] == (approx(-10.0 + i9), approx(i9), GOOD)
+
+
+def test_back_calculation_gain_is_capped_at_one(make: Make) -> None:
+    """dt > Tt: forward Euler of dI/dt = (u - v)/Tt would overshoot (gain dt/Tt = 4 here, and
+    diverge beyond 2); the tracking gain is capped at 1, so v is realigned to u in one scan.
+    K 2, Ti 8, Tt 0.25, dt 1, out_hi 30, e = 10: P = 20, ki·dt·e = 2.5."""
+    blk = make(k=2.0, ti=8.0, antiwindup="back_calculation", tt=0.25, out_hi=30.0,
+               out_lo=-100.0)
+    seq = [terms(blk, 1.0, sp=50.0, pv=40.0) for _ in range(7)]
+    # I 2.5 .. 10 (u = v), then 12.5 (v 32.5), then 12.5 + 2.5 + 1·(30 - 32.5) = 12.5 for good
+    i_hand = [2.5, 5.0, 7.5, 10.0, 12.5, 12.5, 12.5]
+    assert [r[2] for r in seq] == [approx(i) for i in i_hand]
+    assert [r[0] for r in seq] == [approx(min(20.0 + i, 30.0)) for i in i_hand]
+
+
+def test_back_calculation_tiny_tt_keeps_a_transfer_bumpless(make: Make) -> None:
+    """Regression (found by the property test of tracking -> AUTO): tt = 6e-56 s made
+    dt/Tt = 1.6e55, so the rounding residue of u - v after the bumpless re-initialisation
+    (about 1e-17) became an output jump to the rate limit. PD only (ki 0), b 0, kd 0.2."""
+    blk = make(form="parallel", kp=1.5, ki=0.0, kd=0.2, tf=0.05, b=0.0, rate_limit=20.0,
+               antiwindup="back_calculation", tt=6.175991220068118e-56)
+    blk.step(1.0, track=1.0, track_value=0.0, pv=0.0)
+    outs = [blk.step(1.0, track=0.0, sp=1.0, pv=1.0, ff=0.01)["out"].value for _ in range(5)]
+    assert outs == [approx(0.0)] * 5
 
 
 @pytest.mark.parametrize(("params", "tt"), [

@@ -18,7 +18,7 @@ Discretisation, per scan of length dt (k = this scan):
     D_k = (Tf·D_{k-1} + s·kd·(d_k - d_{k-1})) / (Tf + dt),   d = c·SP - PV   (backward Euler)
     ΔI_k = s·ki·dt·(SP_k - PV_k)                                               (backward Euler)
 
-positional:  I_k = I_{k-1} + ΔI_k [+ dt/Tt·(u_{k-1} - v_{k-1}) with back-calculation]
+positional:  I_k = I_{k-1} + ΔI_k [+ min(dt/Tt, 1)·(u_{k-1} - v_{k-1}) with back-calculation]
              v_k = P_k + I_k + D_k + ff_k + bias
 velocity:    v_k = A_{k-1} + (P_k - P_{k-1}) + ΔI_k + (D_k - D_{k-1}) + (ff_k - ff_{k-1}),
              A_k = u_k (clamping: the accumulator is the limited output) or v_k (none)
@@ -35,7 +35,9 @@ Anti-windup (positional): ``clamping`` integrates conditionally: ΔI is cut so t
 pass the effective limit in the direction ΔI moves (and is zero when v is already beyond it),
 so the output reaches its limit and the integral stops there (Åström & Hägglund 2006,
 sec. 3.5, conditional integration); ``back_calculation`` adds the tracking term with time
-constant Tt (``tt``; default sqrt(Ti·Td) when Td > 0, else Ti, same source); ``none``
+constant Tt (``tt``; default sqrt(Ti·Td) when Td > 0, else Ti, same source; the tracking gain
+dt/Tt is capped at 1, because forward Euler of dI/dt = (u - v)/Tt overshoots for dt > Tt and
+diverges for dt > 2·Tt, where a rounding residue of u - v would grow without bound); ``none``
 integrates regardless. The velocity algorithm supports ``clamping`` (its accumulator is the
 limited output) and ``none`` (its accumulator is v, which can wind up).
 
@@ -184,7 +186,9 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
             if not gap and abs(e) >= p[IDB]:  # inside the integral dead band I is frozen
                 di = p[KI] * dt * e
                 if p[AW] == AW_BACK_CALCULATION:
-                    di += dt * p[TT_INV] * (u_prev - v_prev)
+                    # forward Euler of dI/dt = (u - v)/Tt overshoots for dt > Tt and diverges
+                    # for dt > 2·Tt: the gain is capped at 1 (v realigned to u in one scan)
+                    di += min(dt * p[TT_INV], 1.0) * (u_prev - v_prev)
             if velocity:
                 base = acc + (pterm - p_prev) + (dterm - dout_prev) + (ff - ff_prev)
             else:
