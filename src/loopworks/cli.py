@@ -428,8 +428,16 @@ def read_params_file(path: Path, kind: str) -> dict[str, Any]:
     return table
 
 
+def _announce(message: str) -> None:
+    typer.echo(message, err=True)
+
+
 def main() -> None:
-    """Entry point of the ``loopworks`` console script."""
+    """Entry point of the ``loopworks`` console script. A compilation that the plan cache
+    could not spare is announced on one line of stderr (blocks.plan)."""
+    from loopworks.blocks import plan
+
+    plan.announce = _announce
     app()
 
 

@@ -38,6 +38,7 @@ def ignorant_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: 
 class Summing(Block):
     kind = "test.summing"
     kernel = staticmethod(summing_kernel)
+    SOUND_KERNEL = False  # overflows on purpose: the full guard is what is tested here
     INPUTS: ClassVar[tuple[Port, ...]] = (Port("a", 0.0, status=True), Port("b", 0.0,
                                                                               status=True))
     OUTPUTS: ClassVar[tuple[Port, ...]] = (Port("y", 0.0, status=True),)

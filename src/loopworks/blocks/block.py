@@ -29,7 +29,7 @@ from loopworks.blocks.kernel import (
     guarded_entry,
     guarded_scan,
     jit_enabled,
-    packed_entry,
+    step_entry,
 )
 from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.status import Signal
@@ -92,6 +92,12 @@ class Block:
     #: single-step wrapper is specialised to the sizes, so such kinds step through the kernel's
     #: standard entry point instead of compiling a wrapper per instance.
     FIXED_LAYOUT: ClassVar[bool] = True
+    #: True when the kernel keeps the numeric contract by itself (no scan leaves a state, or
+    #: an output whose status is not Bad, non-finite once non-finite inputs are shown to it
+    #: as Bad): the guard then only marks those inputs, and skips the copy of the state that
+    #: its undo needs every scan. The property test "the kernel alone is sound" checks every
+    #: kind that declares it; a kind that is not sound by itself sets False (full guard).
+    SOUND_KERNEL: ClassVar[bool] = True
 
     @staticmethod
     def kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
@@ -111,33 +117,48 @@ class Block:
         self._out_index = {port.name: i for i, port in enumerate(self.OUTPUTS)}
         n_p, n_x, n_u, n_y = len(self.p), len(self.STATES), len(self.INPUTS), len(self.OUTPUTS)
         # One float buffer [p | x | u | y] and one int buffer [us | ys]; the named arrays are
-        # views into them, so the compiled step unboxes two arrays instead of six.
+        # views into them (a module moves them into its plan's buffers, see adopt()).
         self._F: FloatArray = np.zeros(n_p + n_x + n_u + n_y)
         self._S: IntArray = np.zeros(n_u + n_y, dtype=np.int64)
         self._F[:n_p] = self.p
-        self.p = self._F[:n_p]
-        self.x: FloatArray = self._F[n_p:n_p + n_x]
-        self.u: FloatArray = self._F[n_p + n_x:n_p + n_x + n_u]
-        self.y: FloatArray = self._F[n_p + n_x + n_u:]
-        self.us: IntArray = self._S[:n_u]
-        self.ys: IntArray = self._S[n_u:]
-        kernel = type(self).kernel
-        # every scan runs under the numeric contract (kernel.guarded_scan)
-        self._run: Kernel
-        if self.jit and self.FIXED_LAYOUT:
-            self._packed: Any = packed_entry(kernel, n_p, n_x, n_u, n_y)
-            self._run = self._run_packed
-        else:  # interpreted, or a layout that varies per instance: through the 7-array entry
-            self._run = guarded_entry(kernel) if self.jit else guarded_scan(kernel, False)
-            self._packed = self._packed_interpreted
+        self._bind()
+        # every scan runs under the numeric contract (kernel.guarded_scan), through entries
+        # bound on the first scan (a block that only runs inside a module's plan needs none)
+        self._run: Kernel = self._run_first
+        self._packed: Any = self._packed_first
+        self._all_good = True  # every input status is Good NC (128): the fast path skips them
+        self._last: Outputs | None = None  # the newest step() result, read from the buffers
+        self.reset()
+
+    def _bind(self) -> None:
+        """Name the views of the buffers: p, x, u, y in ``_F``; us, ys in ``_S``."""
+        n_p, n_x, n_u = len(self.p), len(self.STATES), len(self.INPUTS)
+        F, S = self._F, self._S
+        self.p = F[:n_p]
+        self.x: FloatArray = F[n_p:n_p + n_x]
+        self.u: FloatArray = F[n_p + n_x:n_p + n_x + n_u]
+        self.y: FloatArray = F[n_p + n_x + n_u:]
+        self.us: IntArray = S[:n_u]
+        self.ys: IntArray = S[n_u:]
         # memoryviews on the same buffers: item access from Python is several times cheaper
         self._um: Any = memoryview(cast(Any, self.u))
         self._usm: Any = memoryview(cast(Any, self.us))
         self._ym: Any = memoryview(cast(Any, self.y))
         self._ysm: Any = memoryview(cast(Any, self.ys))
-        self._all_good = True  # every input status is Good NC (128): the fast path skips them
-        self._last: Outputs | None = None  # the newest step() result, read from the buffers
-        self.reset()
+
+    def adopt(self, F: FloatArray, S: IntArray) -> None:
+        """Move the block's buffers into ``F`` and ``S``, views of a plan's flat buffers of
+        this block's sizes: everything the block holds is copied there, and from now on its
+        arrays (p, x, u, y, us, ys) are views of them, so a compiled plan and the block's
+        own methods (step, state, set_params, load_state) work on the same numbers."""
+        if F.shape != self._F.shape or S.shape != self._S.shape:
+            raise ValueError(f"{self.kind}: adopt() needs buffers of {self._F.shape[0]} floats "
+                             f"and {self._S.shape[0]} ints")
+        self._release_last()
+        F[:] = self._F
+        S[:] = self._S
+        self._F, self._S = F, S
+        self._bind()
 
     # -- to be provided by subclasses -------------------------------------------------------
     def coefficients(self) -> list[float]:
@@ -154,6 +175,29 @@ class Block:
         return [0.0] * len(self.OUTPUTS)
 
     # -- the block API ------------------------------------------------------------------------
+    def _bind_entries(self) -> None:
+        """The scan entries: a one-block plan's compiled step (cached on disk, blocks.plan),
+        the 7-array compiled entry for layouts that vary per instance, or the interpreter."""
+        kernel = type(self).kernel
+        full = not self.SOUND_KERNEL
+        if self.jit and self.FIXED_LAYOUT:
+            self._packed = step_entry(kernel, len(self.p), len(self.x), len(self.u),
+                                      len(self.y), full)
+            self._run = self._run_packed
+        else:
+            self._run = (guarded_entry(kernel, full) if self.jit
+                         else guarded_scan(kernel, False, full))
+            self._packed = self._packed_interpreted
+
+    def _run_first(self, dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                   y: FloatArray, ys: IntArray) -> None:
+        self._bind_entries()
+        self._run(dt, p, x, u, us, y, ys)
+
+    def _packed_first(self, dt: float, F: FloatArray, S: IntArray) -> None:
+        self._bind_entries()
+        self._packed(dt, F, S)
+
     def _packed_interpreted(self, dt: float, F: FloatArray, S: IntArray) -> None:
         self._run(dt, self.p, self.x, self.u, self.us, self.y, self.ys)
 

@@ -149,7 +149,7 @@ then puts its output back on the valve with a bump. To make the release bumpless
 controller track the compensator: for the generic ``pid``, wire ``"pid.track" = "comp.phase"``
 (phase ≥ 1 tracks) and ``"pid.track_value" = "comp.op_out"``.
 
-Options for the spec's [A]/[?] points
+Options for the spec's [L]/[I] points
 -------------------------------------
 
 The compensator sections are [L] (papers not in the corpus) plus the spec's own [I]
@@ -303,8 +303,9 @@ class Knocker(Block):
     kernel = staticmethod(knocker_kernel)
 
     PARAMS: ClassVar[tuple[Param, ...]] = (
-        Param("amplitude", 1.5, _PCT, "pulse amplitude a (spec 2.4; default: best row of "
-              "spec 2.8)", lo=0.0, lo_open=False),
+        Param("amplitude", 1.5, _PCT, "pulse amplitude a: a pulse adds ±a to op_in, in "
+              "the direction op_in moved (spec 2.4; default: best row of spec 2.8)", lo=0.0,
+              lo_open=False),
         Param("pulse_width", 0.2, "s", "pulse width τ; at least one scan (spec 2.4)",
               lo=0.0),
         Param("interval", 1.0, "s", "time h_k between pulse starts, > pulse_width (spec 2.4)",

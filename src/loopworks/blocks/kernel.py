@@ -84,25 +84,6 @@ def compiled(kernel: Any, inline: bool = False) -> Any:
     return fn
 
 
-SIGNATURE = ("none(float64, float64[::1], float64[::1], float64[::1], int64[::1], float64[::1], "
-             "int64[::1])")
-
-
-def entry_point(kernel: Any) -> Any:
-    """The compiled kernel's direct entry for C-contiguous arrays of the standard signature.
-
-    Calling it skips numba's argument-type dispatch (about half the cost of a single step from
-    Python). Only for arrays a block owns: float64/int64, one-dimensional, C-contiguous.
-    """
-    fn = _entries.get(kernel)
-    if fn is None:
-        disp = compiled(kernel)
-        disp.compile(SIGNATURE)
-        fn = disp.overloads[disp.signatures[-1]].entry_point
-        _entries[kernel] = fn
-    return fn
-
-
 _entries: dict[Any, Any] = {}
 
 
@@ -162,8 +143,20 @@ def _guarded_template(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     ys[:] = 0  # the kind has no answer for Bad input: everything held, outputs Bad
 
 
-def _make_guarded(kernel: Any, sound: Any, marked: Any) -> Any:
-    return types.FunctionType(_guarded_template.__code__,
+def _marking_template(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                      y: FloatArray, ys: IntArray) -> None:
+    """One scan of KERNEL, a kernel sound by itself (``Block.SOUND_KERNEL``): only the
+    guard's first step, non-finite inputs shown as Bad."""
+    KERNEL(dt, p, x, u, MARKED(u, us), y, ys)  # type: ignore[name-defined] # noqa: F821
+
+
+def guard_template(full: bool) -> Any:
+    """The guard's source function: the full guard, or the marking-only one."""
+    return _guarded_template if full else _marking_template
+
+
+def _make_guarded(kernel: Any, sound: Any, marked: Any, full: bool) -> Any:
+    return types.FunctionType(guard_template(full).__code__,
                               {"KERNEL": kernel, "SOUND": sound, "MARKED": marked, "np": np},
                               f"guarded_{kernel.__name__}")
 
@@ -180,7 +173,18 @@ def _quiet(scan: Any) -> Any:
     return quiet_scan
 
 
-def guarded_scan(kernel: Any, jit: bool) -> Any:
+def guard_helpers() -> tuple[Any, Any]:
+    """The compiled (inlined) soundness check and input marking the guards call."""
+    helpers = _compiled.get("guard helpers")
+    if helpers is None:
+        import numba
+
+        helpers = _compiled["guard helpers"] = tuple(
+            numba.njit(inline="always", nogil=True)(f) for f in (_sound_loop, _marked_loop))
+    return helpers
+
+
+def guarded_scan(kernel: Any, jit: bool, full: bool = True) -> Any:
     """``kernel`` wrapped in the numeric contract every kind keeps (same signature):
 
     1. an input value that is NaN or infinite is Bad input: the kernel sees its status as Bad
@@ -194,85 +198,63 @@ def guarded_scan(kernel: Any, jit: bool) -> Any:
     So no output is non-finite unless its status is Bad, and no state is ever left non-finite:
     the block recovers as soon as its inputs are good again. Kinds whose vendor defines more
     (float32 storage, 16-bit words) check that in their kernel; this is the floor under all.
-    Compiled, the kernel is inlined into the guard.
+    ``full=False`` is step 1 only, for a kernel that keeps steps 2-3 by itself
+    (``Block.SOUND_KERNEL``, shown by the property tests): no state copy per scan.
+    Compiled, the kernel is inlined into the guard, and the guard into the generated plan that
+    calls it (:mod:`loopworks.blocks.plan`), which is what is cached on disk.
     """
     if not jit:
-        fn = _guarded_py.get(kernel)
+        fn = _guarded_py.get((kernel, full))
         if fn is None:
-            fn = _guarded_py[kernel] = _quiet(_make_guarded(kernel, _sound_np, _marked_np))
+            fn = _guarded_py[(kernel, full)] = _quiet(
+                _make_guarded(kernel, _sound_np, _marked_np, full))
         return fn
-    key = ("guarded", kernel)
+    key = ("guarded", kernel, full)
     fn = _compiled.get(key)
     if fn is None:
         import numba
 
-        helpers = _compiled.get("guard helpers")
-        if helpers is None:
-            helpers = _compiled["guard helpers"] = tuple(
-                numba.njit(inline="always", nogil=True)(f) for f in (_sound_loop, _marked_loop))
-        fn = numba.njit(inline="always", nogil=True)(
-            _make_guarded(compiled(kernel, inline=True), *helpers))
-        _compiled[key] = fn
+        fn = _compiled[key] = numba.njit(inline="always", nogil=True)(
+            _make_guarded(compiled(kernel, inline=True), *guard_helpers(), full))
     return fn
 
 
-def guarded_entry(kernel: Any) -> Any:
+def guarded_entry(kernel: Any, full: bool = True) -> Any:
     """The compiled guarded scan's direct entry for a block's own C-contiguous arrays (the
-    standard signature), skipping numba's argument-type dispatch."""
-    key = ("guarded_entry", kernel)
+    standard signature), skipping numba's argument-type dispatch; cached on disk, one
+    function for every array size."""
+    key = ("guarded_entry", kernel, full)
     fn = _entries.get(key)
     if fn is None:
-        import numba
+        from loopworks.blocks import plan
 
-        disp: Any = numba.njit(nogil=True)(_call_template(guarded_scan(kernel, True)))
-        disp.compile(SIGNATURE)
-        fn = disp.overloads[disp.signatures[-1]].entry_point
-        _entries[key] = fn
+        slots = plan.layout([(kernel, 0, 0, 0, 0, full)])
+        fn = _entries[key] = plan.entry_point(slots, "call", plan.CALL_SIGNATURE)
     return fn
 
 
-def _call_template_body(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
-                        y: FloatArray, ys: IntArray) -> None:
-    GUARDED(dt, p, x, u, us, y, ys)  # type: ignore[name-defined] # noqa: F821
-
-
-def _call_template(guarded: Any) -> Any:
-    return types.FunctionType(_call_template_body.__code__, {"GUARDED": guarded},
-                              "guarded_entry")
-
-
-def _packed_template(dt: float, F: FloatArray, S: IntArray) -> None:
-    GUARDED(dt, F[:A], F[A:B], F[B:C], S[:NU], F[C:D], S[NU:NUY])  # type: ignore[name-defined] # noqa: F821
-
-
-def packed_entry(kernel: Any, n_p: int, n_x: int, n_u: int, n_y: int) -> Any:
+def step_entry(kernel: Any, n_p: int, n_x: int, n_u: int, n_y: int, full: bool = True) -> Any:
     """A compiled ``step(dt, F, S)`` over one float buffer F = [p | x | u | y] and one int
-    buffer S = [us | ys], calling ``kernel`` (guarded, :func:`guarded_scan`) on views of them.
+    buffer S = [us | ys]: a one-block plan (:mod:`loopworks.blocks.plan`), cached on disk.
 
     Two arrays to unbox instead of six make a single step from Python markedly cheaper. The
-    sizes are compile-time constants of the wrapper, so each (kernel, sizes) compiles once.
-    """
-    key = (kernel, n_p, n_x, n_u, n_y)
+    sizes are literals of the generated function, so each (kernel, sizes) compiles once per
+    machine."""
+    key = (kernel, n_p, n_x, n_u, n_y, full)
     fn = _entries.get(key)
     if fn is None:
-        import numba
+        from loopworks.blocks import plan
 
-        consts = {"GUARDED": guarded_scan(kernel, True), "A": n_p, "B": n_p + n_x,
-                  "C": n_p + n_x + n_u, "D": n_p + n_x + n_u + n_y, "NU": n_u, "NUY": n_u + n_y}
-        wrapper = types.FunctionType(_packed_template.__code__, consts,
-                                     f"packed_{kernel.__name__}")
-        disp: Any = numba.njit(nogil=True)(wrapper)
-        disp.compile("none(float64, float64[::1], int64[::1])")
-        fn = disp.overloads[disp.signatures[-1]].entry_point
-        _entries[key] = fn
+        slots = plan.layout([(kernel, n_p, n_x, n_u, n_y, full)])
+        fn = _entries[key] = plan.entry_point(slots, "step", plan.STEP_SIGNATURE)
     return fn
 
 
 def _run_rows(kernel: Kernel, dts: FloatArray, p: FloatArray, x: FloatArray, U: FloatArray,
-              US: IntArray, Y: FloatArray, YS: IntArray) -> None:
+              US: IntArray, Y: FloatArray, YS: IntArray, full: bool) -> None:
     """Step a kernel over rows: row k of U/US are the inputs of scan k, Y/YS receive outputs.
     Row 0 of Y/YS holds the outputs before the first scan; each row starts from the last."""
-    scan = guarded_scan(kernel, False)
+    scan = guarded_scan(kernel, False, full)
     for k in range(dts.shape[0]):
         if k > 0:
             Y[k] = Y[k - 1]
@@ -280,31 +262,22 @@ def _run_rows(kernel: Kernel, dts: FloatArray, p: FloatArray, x: FloatArray, U: 
         scan(dts[k], p, x, U[k], US[k], Y[k], YS[k])
 
 
-_row_runners: dict[Any, Callable[..., None]] = {}
-
-
 def run_rows(kernel: Kernel, dts: FloatArray, p: FloatArray, x: FloatArray, U: FloatArray,
-             US: IntArray, Y: FloatArray, YS: IntArray, jit: bool = True) -> None:
-    """Run ``kernel`` over many scans at once (replay chunks). Compiled when ``jit``. The caller
-    puts the outputs before the first scan in row 0 of Y/YS."""
+             US: IntArray, Y: FloatArray, YS: IntArray, jit: bool = True,
+             full: bool = True) -> None:
+    """Run ``kernel`` over many scans at once (replay chunks). Compiled when ``jit``, as a
+    one-block plan's ``rows`` (cached on disk). The caller puts the outputs before the first
+    scan in row 0 of Y/YS; ``x`` is updated in place. ``full``: see :func:`guarded_scan`."""
     if not jit:
-        _run_rows(kernel, dts, p, x, U, US, Y, YS)
+        _run_rows(kernel, dts, p, x, U, US, Y, YS, full)
         return
-    runner: Any = _row_runners.get(kernel)
-    if runner is None:
-        import numba
+    from loopworks.blocks import plan
 
-        inner = guarded_scan(kernel, True)
-
-        @numba.njit(nogil=True)
-        def runner_fn(dts: FloatArray, p: FloatArray, x: FloatArray, U: FloatArray, US: IntArray,
-                      Y: FloatArray, YS: IntArray) -> None:
-            for k in range(dts.shape[0]):
-                if k > 0:
-                    Y[k] = Y[k - 1]
-                    YS[k] = YS[k - 1]
-                inner(dts[k], p, x, U[k], US[k], Y[k], YS[k])
-
-        runner = runner_fn
-        _row_runners[kernel] = runner
-    runner(dts, p, x, U, US, Y, YS)
+    n_p, n_x, n_u, n_y = p.shape[0], x.shape[0], U.shape[1], Y.shape[1]
+    (slot,) = plan.layout([(kernel, n_p, n_x, n_u, n_y, full)])
+    F = np.concatenate([p, x, np.zeros(n_u), Y[0]])
+    S = np.concatenate([np.zeros(n_u, dtype=np.int64), YS[0]])
+    rows = plan.entry([slot], "rows", plan.ROWS_SIGNATURE)
+    rows(np.ascontiguousarray(dts, dtype=np.float64), F, S, np.ascontiguousarray(U),
+         np.ascontiguousarray(US), Y, YS)
+    x[:] = F[slot.x0:slot.u0]

@@ -321,6 +321,8 @@ class PID(Block):
               "safe_out", "choice", choices=("hold", "safe")),
         Param("safe_out", None, "out", "output when bad_pv = safe (in out_lo..out_hi)",
               default_text="out_lo"),
+        Param("bumpless_retune", True, "", "set_params between computing scans (a new "
+              "tuning in AUTO/CAS) moves the integral so the output does not jump", "bool"),
     )
     INPUTS: ClassVar[tuple[Port, ...]] = (
         Port("sp", 0.0, "pv", "setpoint (AUTO)", status=True),
@@ -342,6 +344,32 @@ class PID(Block):
     STATES: ClassVar[tuple[str, ...]] = (
         "i", "d", "d_prev", "u_prev", "v_prev", "acc", "p_prev", "d_out_prev", "ff_prev",
         "first", "init")
+
+    def set_params(self, **changes: Any) -> None:
+        """Change parameters between scans (see :meth:`Block.set_params`). With
+        ``bumpless_retune`` (default) and the controller computing (AUTO/CAS, not about to
+        re-initialise), a change of the proportional term's coefficients (kp, b, action) does
+        not bump the output: at the latched SP and PV,
+
+            P_old = s_old·kp_old·(b_old·SP - PV),  P_new = s_new·kp_new·(b_new·SP - PV)
+            positional: I += P_old - P_new;  velocity: P_{k-1} += P_new - P_old
+
+        (the correction of DiscretePIDs.jl ``set_K!``; Åström & Hägglund 2006, sec. 3.5,
+        bumpless parameter changes). The integral and derivative gains act on increments, so
+        their changes need no correction."""
+        old = self.p.copy()
+        super().set_params(**changes)
+        if not self.params["bumpless_retune"] or self.x[S_INIT] != 0.0 or self.x[S_FIRST] != 0.0:
+            return
+        mode = self.u[MODE]
+        if mode not in (AUTO, CAS):
+            return
+        sp, pv = self.u[CAS_SP if mode == CAS else SP], self.u[PV]
+        p_old = old[SIGN] * old[KP] * (old[B] * sp - pv)
+        p_new = self.p[SIGN] * self.p[KP] * (self.p[B] * sp - pv)
+        if math.isfinite(p_old) and math.isfinite(p_new):
+            self.x[S_I] += p_old - p_new
+            self.x[S_PPREV] += p_new - p_old
 
     def gains(self) -> tuple[float, float, float]:
         """(kp, ki, kd) of the equivalent parallel form."""

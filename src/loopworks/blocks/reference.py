@@ -1,12 +1,21 @@
 """A block kind's reference, generated from its declarations: for ``loopworks blocks KIND``
-and for the pages in ``docs/blocks/`` (``loopworks blocks KIND --markdown``)."""
+and for the pages in ``docs/blocks/`` (``loopworks blocks KIND --markdown``).
+
+The pages cite the project's specifications ("spec 4.4", "plant-and-tuning 2.3", "R42",
+"seed 000", "[A]"), which are not shipped; :func:`citations` finds every such citation on a
+page and :func:`sources_section` explains each one from :mod:`loopworks.blocks.sources`.
+"""
 
 from __future__ import annotations
 
 import inspect
 import math
+import re
+import textwrap
+from dataclasses import dataclass, field
 from typing import Any
 
+from loopworks.blocks import sources
 from loopworks.blocks.block import Block
 
 
@@ -60,8 +69,143 @@ its state and outputs, with the outputs' status Bad. So no output is NaN or infi
 status is Bad, and the block recovers as soon as its inputs are good again."""
 
 
+# Citations -------------------------------------------------------------------------------
+#
+# A section citation starts with "spec", "spec's", "vendor-blocks" or "plant-and-tuning"
+# (optionally "spec vendor-blocks", and "section(s)"), then a chain of section numbers:
+# "spec 1.2/1.7 step 10", "spec 2.4-2.7", "spec 1.2 table, 1.8", "Spec 4.2 vs 4.7 step 7".
+# Words such as "step 10", "item 5", "lines 26, 28", "table", "[A]" qualify a number and are
+# skipped; the chain ends at anything else ("spec 1.8, S = 3" is section 1.8 only).
+
+SECTION_HEADING = "## Sources"
+
+_DOCS = "|".join(re.escape(doc) for doc in sources.DOCUMENTS)
+_LEAD = re.compile(
+    rf"\b(?:(?i:spec)(?:'s)?(?:\s+(?P<named>{_DOCS}))?|(?P<doc>{_DOCS}))(?:\.md)?(?:``)?"
+    r"(?:\s+(?:sections?|§))?\s+(?=\d)")
+_NUM = re.compile(r"(\d+)(?:\.(\d+))?(?![\d])(?!\.\d)")
+_RANGE = re.compile(r"\s*[-–]\s*")
+_QUALIFIER = re.compile(
+    r"\s+(?:(?:steps?|items?|lines?|words?|rows?|points?)\s+\d+"
+    r"(?:\s*(?:-|–|,|/|and)\s*\d+)*(?![.\d])"
+    r"|implementation\s+note|table|note|examples?|mapping|test|text|equations?|statement"
+    r"|literally|\[[^\[\]]*\]|[A-Z][A-Z0-9_]*\d+(?:/[A-Z][A-Z0-9_]*\d+)*)")
+_SEPARATOR = re.compile(r"\s*,\s*and\s+|\s*,\s*|\s*/\s*|\s+and\s+|\s+vs\.?\s+|\s+or\s+")
+_REFERENCE = re.compile(r"\bR(\d{1,2})\b(?:\s*[-–]\s*R(\d{1,2})\b)?")
+_SEED = re.compile(r"\bseed\s+(\d{3})\b")
+_BRACKET = re.compile(r"\[([^\[\]]+)\]")
+_TAG = re.compile(r"(V|D|A|\?|S|L|I)(?=$|[\s:])")
+
+
+@dataclass
+class Citations:
+    """What a page cites: sections as (document, number), references, seeds and tags."""
+
+    sections: set[tuple[str, str]] = field(default_factory=set)
+    references: set[str] = field(default_factory=set)
+    seeds: set[str] = field(default_factory=set)
+    tags: set[str] = field(default_factory=set)
+
+
+def _section_chain(text: str, pos: int) -> tuple[list[str], int]:
+    """The section numbers of the chain that starts at ``pos``, and where it ends."""
+    numbers: list[str] = []
+    while True:
+        m = _NUM.match(text, pos)
+        if not m:
+            break
+        major, minor = m.group(1), m.group(2)
+        pos = m.end()
+        r = _RANGE.match(text, pos)
+        m2 = _NUM.match(text, r.end()) if r else None
+        if r and m2 and m2.group(1) == major and minor and m2.group(2):
+            numbers += [f"{major}.{i}" for i in range(int(minor), int(m2.group(2)) + 1)]
+            pos = m2.end()
+        else:
+            numbers.append(major if minor is None else f"{major}.{minor}")
+        while q := _QUALIFIER.match(text, pos):
+            pos = q.end()
+        sep = _SEPARATOR.match(text, pos)
+        if not sep or not _NUM.match(text, sep.end()):
+            break
+        pos = sep.end()
+    return numbers, pos
+
+
+def citations(text: str, document: str) -> Citations:
+    """Every citation in ``text``; a bare "spec X.Y" is a section of ``document``."""
+    found = Citations()
+    for m in _LEAD.finditer(text):
+        doc = m.group("named") or m.group("doc") or document
+        numbers, _ = _section_chain(text, m.end())
+        found.sections.update((doc, n) for n in numbers)
+    for m in _REFERENCE.finditer(text):
+        first = int(m.group(1))
+        last = int(m.group(2)) if m.group(2) else first
+        found.references.update(f"R{i}" for i in range(first, last + 1))
+    found.seeds.update(_SEED.findall(text))
+    for m in _BRACKET.finditer(text):
+        for part in (p.strip() for p in m.group(1).split(",")):
+            if part in sources.PROJECT_TAGS:
+                found.tags.add(part)
+            elif t := _TAG.match(part):
+                found.tags.add(t.group(1))
+    return found
+
+
+def _order(number: str) -> tuple[int, ...]:
+    return tuple(int(x) for x in number.split("."))
+
+
+def unresolved(found: Citations, document: str) -> list[str]:
+    """The citations that :mod:`loopworks.blocks.sources` does not explain (should be none)."""
+    missing = [f"spec {n} ({doc})" for doc, n in sorted(found.sections)
+               if n not in sources.SECTIONS.get(doc, {})]
+    missing += [r for r in sorted(found.references) if r not in sources.REFERENCES]
+    missing += [f"seed {s}" for s in sorted(found.seeds) if s not in sources.SEEDS]
+    missing += [f"[{t}]" for t in sorted(found.tags)
+                if t not in sources.TAGS[document] and t not in sources.PROJECT_TAGS]
+    return missing
+
+
+def sources_section(found: Citations, document: str) -> str:
+    """The "Sources" section of a page: every citation in ``found`` in plain words."""
+    unknown = "(not in loopworks.blocks.sources)"
+    intro = ("The citations on this page point into the two specifications loopworks is "
+             "implemented from. They are internal documents, not shipped with loopworks, so "
+             'each citation is explained here: "spec X.Y" is section X.Y of a specification '
+             f"(of {document} unless another is named), an R number is an entry of the "
+             "reference list of vendor-blocks, a seed is a vendor excerpt the specifications "
+             "were written from, and a tag in brackets says how sure a statement is.")
+    lines = [SECTION_HEADING, "", textwrap.fill(intro, 96)]
+    docs = sorted({doc for doc, _ in found.sections} | {document},
+                  key=list(sources.DOCUMENTS).index)
+    lines += ["", "Specifications:", ""]
+    lines += [f"* {doc}: {sources.DOCUMENTS[doc]}" for doc in docs]
+    if found.sections:
+        lines += ["", "Sections cited:", ""]
+        for doc, number in sorted(found.sections,
+                                  key=lambda c: (docs.index(c[0]), _order(c[1]))):
+            title = sources.SECTIONS.get(doc, {}).get(number, unknown)
+            lines.append(f"* spec {number} ({doc}): {title}")
+    if found.references or found.seeds:
+        lines += ["", "References cited (the reference list of vendor-blocks):", ""]
+        lines += [f"* {r}: {sources.REFERENCES.get(r, unknown)}"
+                  for r in sorted(found.references, key=lambda r: int(r[1:]))]
+        lines += [f"* seed {s}: {sources.SEEDS.get(s, unknown)}" for s in sorted(found.seeds)]
+    if found.tags:
+        lines += ["", "Tags:", ""]
+        lines += [f"* [{tag}] ({document}) {meaning}"
+                  for tag, meaning in sources.TAGS[document].items() if tag in found.tags]
+        lines += [f"* [{tag}] (loopworks) {meaning}"
+                  for tag, meaning in sources.PROJECT_TAGS.items() if tag in found.tags]
+        known = {*sources.TAGS[document], *sources.PROJECT_TAGS}
+        lines += [f"* [{tag}] {unknown}" for tag in sorted(found.tags - known)]
+    return "\n".join(lines)
+
+
 def markdown(cls: type[Block]) -> str:
-    """The reference page of a block kind, in Markdown."""
+    """The reference page of a block kind, in Markdown, ending with its Sources section."""
     module_doc = inspect.getdoc(inspect.getmodule(cls)) or ""
     parts = [
         f"# `{cls.kind}`: {cls.describe()}",
@@ -89,4 +233,6 @@ def markdown(cls: type[Block]) -> str:
         NUMERIC_CONTRACT,
         "",
     ]
-    return "\n".join(parts)
+    document = sources.KIND_DOCUMENT.get(cls.kind, sources.VENDOR)
+    body = "\n".join(parts)
+    return body + "\n" + sources_section(citations(body, document), document) + "\n"

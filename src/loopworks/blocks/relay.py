@@ -5,7 +5,7 @@ off it passes the controller's output ``u_in`` through (within ``out_lo``..``out
 ``enable`` rises it takes over the loop for a relay test around the operating point and
 afterwards hands the loop back.
 
-Relay law (3.1), with u0 the output when the test starts (``u_in`` then, or the ``u0``
+Relay law (spec 3.1), with u0 the output when the test starts (``u_in`` then, or the ``u0``
 parameter when given), e the error and ε the ``hysteresis`` (half-width; total band 2ε)::
 
     e = SP - PV (action reverse) or PV - SP (action direct)
@@ -14,7 +14,7 @@ parameter when given), e the error and ε the ``hysteresis`` (half-width; total 
     out = clamp(u0 - d_down, out_lo, out_hi)  when r = -1
 
 At the start r = +1 when e ≥ 0, else -1. ``amplitude_down`` (d_down) different from
-``amplitude`` (d_up) gives the biased (asymmetric) relay of 3.3, from which the static gain
+``amplitude`` (d_up) gives the biased (asymmetric) relay of spec 3.3, from which the static gain
 follows. With ``biased_stage`` the test runs in two stages: first the symmetric relay (d_down =
 d_up) until it converges, then a second stage with ``amplitude_down``, again until it
 converges; the ``stage`` output says which (1, 2).
@@ -24,19 +24,19 @@ In the second stage the relay can also switch around a shifted point (``offset``
     e = SP + Δ - PV (reverse) or PV - SP - Δ (direct),   Δ = offset · ā1
 
 with ā1 the mean PV amplitude of the first stage's stable cycles (output ``shift`` = Δ). The
-periodic-steady-state balance of 3.3 holds for any relay centre, so the PV mean moves by about Δ
-and the output mean by Δ/K between the stages: a static gain that does not rest on the small
-asymmetry of a biased relay on a lag-dominant plant (the biased relay's mean offsets are a few
-% of d there, the size of a sticky valve's error). Since a = (4d/π)|G(jωu)| and |G(jωu)| ≤ K
+periodic-steady-state balance of spec 3.3 holds for any relay centre, so the PV mean moves by
+about Δ and the output mean by Δ/K between the stages: a static gain that does not rest on the
+small asymmetry of a biased relay on a lag-dominant plant (the biased relay's mean offsets are a
+few % of d there, the size of a sticky valve's error). Since a = (4d/π)|G(jωu)| and |G(jωu)| ≤ K
 on a low-pass plant, |Δ/K| ≤ (4/π)·|offset|·d: offset ≤ 0.5 keeps both relay levels on their
 side of the new equilibrium.
 
-Cycles and convergence (3.4). A cycle runs from one switch to r = +1 to the next. For every
+Cycles and convergence (spec 3.4). A cycle runs from one switch to r = +1 to the next. For every
 cycle the block measures its period P, its PV amplitude a (half the peak-to-peak) and its
 means of the PV and of the output (over the scans of the cycle, each held for its dt). The
 first ``discard_cycles`` cycles of a stage are ignored; the stage has converged when the last
 ``stable_cycles`` cycles agree and are stationary (the "2-3 stable cycles with ≤ 5 % spread"
-default of 3.4, tol = ``tolerance``; P̄, ā: their mean period and amplitude; d_up + d_down: the
+default of spec 3.4, tol = ``tolerance``; P̄, ā: their mean period and amplitude; d_up + d_down: the
 output's peak-to-peak)::
 
     max P - min P                   ≤ tol·P̄ + dt
@@ -53,7 +53,7 @@ means.
 A stage whose stable cycles are shorter than ``MIN_CYCLE_SCANS`` scans (reason at the
 constant) ends the test with ``phase`` 8, too fast, instead of converging.
 
-End of the test. The test ends when it has converged (``phase`` 2) or is aborted (3.4 item 7):
+End of the test. The test ends when it has converged (``phase`` 2) or is aborted (spec 3.4 item 7):
 ``timeout`` seconds since the start (3), |SP - PV| > ``max_deviation`` (4, runaway),
 ``max_cycles`` cycles in a stage without convergence (5), no relay switch for
 ``max_half_period`` seconds (6: no oscillation, e.g. a valve that never reverses), a Bad or
@@ -388,36 +388,36 @@ class Relay(Block):
 
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("amplitude", 5.0, "out", "relay amplitude d (d_up): out = u0 + d while the error "
-              "is above the band (3.1)", lo=0.0),
+              "is above the band (spec 3.1)", lo=0.0),
         Param("amplitude_down", None, "out", "d_down: out = u0 - d_down below the band; differs "
-              "from amplitude for the biased relay of 3.3", lo=0.0,
+              "from amplitude for the biased relay of spec 3.3", lo=0.0,
               default_text="amplitude"),
         Param("hysteresis", 0.0, "pv", "ε, half-width of the switching band around SP; above "
-              "the noise band, 2-3 σ of the noise (3.4)", lo=0.0, lo_open=False),
+              "the noise band, 2-3 σ of the noise (spec 3.4)", lo=0.0, lo_open=False),
         Param("action", "reverse", "", "reverse: e = SP - PV; direct: e = PV - SP", "choice",
               choices=("reverse", "direct")),
         Param("out_lo", 0.0, "out", "low limit of the relay output"),
         Param("out_hi", 100.0, "out", "high limit of the relay output (> out_lo)"),
         Param("u0", None, "out", "centre of the relay; NaN = u_in when the test starts",
               default_text="u_in at the start"),
-        Param("timeout", 3600.0, "s", "abort when the test has run this long (3.4)", lo=0.0,
+        Param("timeout", 3600.0, "s", "abort when the test has run this long (spec 3.4)", lo=0.0,
               hi=math.inf, hi_open=False),
         Param("max_deviation", math.inf, "pv", "abort when |SP - PV| exceeds this (runaway)",
               lo=0.0, hi=math.inf, hi_open=False),
         Param("max_cycles", 10, "", "abort when a stage has run this many cycles without "
-              "converging (osPID: 20 peaks, 3.4)", "int", lo=1.0, hi=1e6, lo_open=False,
+              "converging (osPID: 20 peaks, spec 3.4)", "int", lo=1.0, hi=1e6, lo_open=False,
               hi_open=False),
         Param("max_half_period", 300.0, "s", "abort when the relay has not switched for this "
-              "long: no oscillation (osPID: 5 min without a peak, 3.4)", lo=0.0, hi=math.inf,
+              "long: no oscillation (osPID: 5 min without a peak, spec 3.4)", lo=0.0, hi=math.inf,
               hi_open=False),
-        Param("discard_cycles", 1, "", "cycles ignored at the start of each stage (3.4)", "int",
-              lo=0.0, hi=1e6, lo_open=False, hi_open=False),
+        Param("discard_cycles", 1, "", "cycles ignored at the start of each stage (spec 3.4)",
+              "int", lo=0.0, hi=1e6, lo_open=False, hi_open=False),
         Param("stable_cycles", 2, "", f"cycles that must agree for convergence (≤ {N_SLOTS})",
               "int", lo=1.0, hi=float(N_SLOTS), lo_open=False, hi_open=False),
         Param("tolerance", 0.05, "", "convergence: (max - min)/mean of the periods and of the "
-              "amplitudes of those cycles (3.4: 5 %)", lo=0.0),
+              "amplitudes of those cycles (spec 3.4: 5 %)", lo=0.0),
         Param("biased_stage", False, "", "after the symmetric relay converges, run a second "
-              "stage with amplitude_down and/or the offset switching point (static gain, 3.3)",
+              "stage with amplitude_down and/or the offset switching point (static gain, spec 3.3)",
               "bool"),
         Param("offset", 0.0, "", "second stage: the relay switches around SP + Δ, Δ = offset × "
               "the first stage's PV amplitude a (signed; 0 = around SP)"),

@@ -51,11 +51,12 @@ Before its first scan the block publishes its outputs for t = 0 and the ``u`` in
 now (issue 11 point 8): y = u + d(0), d(0) (the walk is 0 then), so a block that reads ``y``
 earlier in a module's order sees the real signal, not 0.
 
-Options for the spec's [A]/[?] points
--------------------------------------
+Options for the spec's open points
+----------------------------------
 
-None: plant-and-tuning names load disturbances only as events of a scenario (sections 2.8, 3.4
-item 6); the components above are the textbook signals, each with its equation here.
+None: plant-and-tuning names load disturbances only as events of a scenario (plant-and-tuning
+3.4 item 6, 4.1, 4.2); the components above are the textbook signals, each with its equation
+here.
 
 Example
 -------

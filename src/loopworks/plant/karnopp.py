@@ -336,18 +336,22 @@ class Karnopp(Block):
     kernel = staticmethod(karnopp_kernel)
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("m", 1.6, "kg", "moving mass of stem and actuator (spec 1.6)", lo=0.0),
-        Param("k", 210490.0, "N/m", "actuator spring constant (spec 1.6)", lo=0.0,
-              lo_open=False),
-        Param("sa", 0.0445, "m²", "diaphragm area Sa (spec 1.6)", lo=0.0),
-        Param("f_init", 2550.0, "N", "spring preload F_init (spec 1.6)"),
+        Param("k", 210490.0, "N/m", "actuator spring constant: spring force k·x at stem "
+              "position x (spec 1.6)", lo=0.0, lo_open=False),
+        Param("sa", 0.0445, "m²", "diaphragm area Sa: actuator force Sa·P at pressure P "
+              "(spec 1.6)", lo=0.0),
+        Param("f_init", 2550.0, "N", "spring preload F_init: spring force at x = 0, against "
+              "Sa·P (spec 1.6)"),
         Param("x_min", 0.0, "m", "stem travel, low end (spec 1.6)"),
         Param("x_max", 0.029, "m", "stem travel, high end (> x_min; spec 1.6)"),
         Param("p_min", 41368.0, "Pa", "actuator pressure at op 0 % (spec 1.6: 41.4 kPa)",
               lo=0.0, lo_open=False),
         Param("p_max", 180000.0, "Pa", "actuator pressure at op 100 % (> p_min; spec 1.6)"),
-        Param("f_s", None, "N", "static friction Fs (spec 1.6)", lo=0.0, lo_open=False,
+        Param("f_s", None, "N", "static friction Fs: a stuck stem breaks away when the net "
+              "applied force exceeds it (spec 1.6)", lo=0.0, lo_open=False,
               default_text="780.0 (no set given)"),
-        Param("f_c", None, "N", "Coulomb friction Fc <= Fs (spec 1.6)", lo=0.0,
+        Param("f_c", None, "N", "Coulomb friction Fc <= Fs: the friction force of a sliding stem, "
+              "besides the Stribeck and viscous terms (spec 1.6)", lo=0.0,
               lo_open=False, default_text="700.0 (no set given)"),
         Param("s", None, "%", "Choudhury S instead of f_s, f_c, mapped by sj_mapping "
               "(spec 1.1, 1.7)", lo=0.0, lo_open=False, default_text="-"),
@@ -360,15 +364,18 @@ class Karnopp(Block):
         Param("sj_mapping", "force_balance", "", "S, J to forces: force_balance (spec 1.1 [I]) "
               "or valve_estimation (the estimation code's, spec 1.1 [S])", "choice",
               choices=("force_balance", "valve_estimation")),
-        Param("f_v", 125000.0, "N·s/m", "viscous friction coefficient Fv (spec 1.6)", lo=0.0,
+        Param("f_v", 125000.0, "N·s/m", "viscous friction coefficient Fv: friction Fv·v at stem "
+              "velocity v (spec 1.6)", lo=0.0,
               lo_open=False),
         Param("v_s", 5e-4, "m/s", "Stribeck velocity vs; 0 = no Stribeck term (spec 1.6)",
               lo=0.0, lo_open=False),
         Param("tau_ip", 1.0 / 0.28, "s", "I/P (positioner) first-order lag (spec 1.6: 3.57 s); "
               "0 = none", lo=0.0, lo_open=False),
-        Param("dv", 1e-6, "m/s", "Karnopp zero-velocity band DV (spec 1.6)", lo=0.0,
+        Param("dv", 1e-6, "m/s", "Karnopp zero-velocity band DV: a stem slower than this is at "
+              "rest and sticks while the net force is within Fs (spec 1.6)", lo=0.0,
               lo_open=False),
-        Param("substep", 1e-3, "s", "longest internal integration step (module docstring)",
+        Param("substep", 1e-3, "s", "longest internal integration step: a scan is cut into "
+              "ceil(dt/substep) equal substeps (see Integration below)",
               lo=0.0),
         Param("max_substeps", 100000, "", "most substeps per scan (a longer scan gets a longer "
               "substep)", "int", lo=1.0, lo_open=False, hi=1e9, hi_open=False),

@@ -9,8 +9,8 @@ scan, u_k, is held over it (zero-order hold) and the output is the plant's outpu
 the scan, y_k = y(t_k). So a controller that runs after the process in the same scan sees this
 scan's value. The discretisations are exact for such an input (Åström & Wittenmark,
 *Computer-Controlled Systems*, 3rd ed., ch. 2: sampling a continuous-time system, and sampling
-a system with time delay); plant-and-tuning 6.3 asks for exact ZOH discretisation of FOPDT,
-SOPDT and integrating plants [I].
+a system with time delay); plant-and-tuning section 6 item 3 asks for exact ZOH discretisation
+of FOPDT, SOPDT and integrating plants [I].
 
 ``process.first_order``: a first-order lag::
 
@@ -162,8 +162,8 @@ fopdt/sopdt/ipdt: ``y``; ``lag1`` (sopdt's first lag; equal to y for fopdt, 0 fo
 
 ### Options and decisions
 
-These points interpret issue 5 and plant-and-tuning 6.3 (tagged [I] there); they are not
-vendor facts. Each is named and documented:
+These points interpret issue 5 and plant-and-tuning section 6 item 3 (tagged [I] there); they
+are not vendor facts. Each is named and documented:
 
 - ``bad_input`` = ``hold_input`` | ``freeze`` (above);
 - ``delay_capacity`` = 1000 scans (above); non-multiple dead times are exact (above);
@@ -173,7 +173,7 @@ vendor facts. Each is named and documented:
 - ``max_order`` = 8: the transfer-function order the state reserves room for.
 
 Defaults are the spec's reference plants: fopdt K = 1, T = 10 s, θ = 2 s (plant-and-tuning 2.8,
-3.2, 5.1), ipdt K = 0.1 /s, θ = 2 s (3.2, 5.1).
+3.2, 5.1), ipdt K = 0.1 /s, θ = 2 s (plant-and-tuning 3.2, 5.1).
 
 ### Worked example
 

@@ -81,11 +81,12 @@ noisy value that overflows (a noise_std near the float range). Before the first 
 the PV held is the start value published before the first scan. An injected failure takes
 precedence over both.
 
-Options for the spec's [A]/[?] points
--------------------------------------
+Options for the spec's [I] points
+---------------------------------
 
-The plant-and-tuning spec names measurement noise (section 6, item 3) and the quantiser (1.5)
-without fixing how a transmitter combines them; these interpretations [I] are parameters:
+The plant-and-tuning spec names measurement noise (plant-and-tuning section 6 item 3) and the
+quantiser (plant-and-tuning 1.5) without fixing how a transmitter combines them; these
+interpretations [I] are parameters:
 
 * ``range_status`` = ``uncertain``: status of a value clamped at ``pv_lo``/``pv_hi`` (0x54 plus
   the limit bits); ``good`` gives 0x80 plus the limit bits.

@@ -1,17 +1,17 @@
 r"""Data-driven control-valve models: stiction, backlash, resolution and quantisation.
 
 Kinds (input ``op``, the controller output in % of span; output ``position``, the stem position
-in % of travel; spec = docs plant-and-tuning.md):
+in % of travel; a bare "spec" on this page is the plant-and-tuning specification, see Sources):
 
-| kind | model | spec |
+| kind | model | section |
 |---|---|---|
-| ``valve.choudhury`` | Choudhury-Shah-Thornhill two-parameter stiction (S, J) | 1.2 |
-| ``valve.kano`` | Kano et al. stiction (S, J), stop reference kept | 1.3 |
-| ``valve.he`` | He et al. two-layer stiction (fs, fd) | 1.4 |
-| ``valve.backlash`` | friction-dominated backlash of total width b | 1.5 |
-| ``valve.resolution`` | resolution limit / stick-slip with memory (r) | 1.5 |
-| ``valve.quantiser`` | memoryless quantiser of step q | 1.5 |
-| ``valve.karnopp`` | physical valve: spring-diaphragm, Karnopp friction, I/P lag (own page) | 1.6 |
+| ``valve.choudhury`` | Choudhury-Shah-Thornhill two-parameter stiction (S, J) | spec 1.2 |
+| ``valve.kano`` | Kano et al. stiction (S, J), stop reference kept | spec 1.3 |
+| ``valve.he`` | He et al. two-layer stiction (fs, fd) | spec 1.4 |
+| ``valve.backlash`` | friction-dominated backlash of total width b | spec 1.5 |
+| ``valve.resolution`` | resolution limit / stick-slip with memory (r) | spec 1.5 |
+| ``valve.quantiser`` | memoryless quantiser of step q | spec 1.5 |
+| ``valve.karnopp`` | physical: spring-diaphragm, Karnopp friction, I/P lag (own page) | spec 1.6 |
 
 Each scan takes one sample ``op`` and gives one ``position``: these are sampled (static
 hysteresis) maps, not dynamics, and they are exactly the spec's algorithms. For friction that
@@ -156,7 +156,7 @@ Options for the spec's [I] points
   d = du_prev = ±1; He u_r = ±fd, as ``sim_he()`` does for a non-zero direction; backlash
   y on the trailing edge). With ``y0`` the stem is at y0 and x_prev = y0 ± fd; without it, the
   first op is x_prev and y = op ∓ fd. Use it to avoid the extra J that a repeated first sample
-  costs (spec 1.2) and to start a describing-function run in the moving state (spec 1.9, 6).
+  costs (spec 1.2) and to start a describing-function run in the moving state (spec 1.9, 6 item 2).
 * ``resolution``/``deadband`` as an alternative to ``s``/``j`` (spec 1.7 [I] mapping).
 * ``stroke_rate`` acts on the stem after the friction model (see above) [loopworks design].
 * ``bad_op`` (see Status) [practice].
@@ -597,7 +597,8 @@ STICTION_PARAMS: tuple[Param, ...] = (
     Param("s", None, _PCT, "Choudhury S: deadband + stickband, input travel before a reversal "
           "moves the valve (spec 1.1, 1.2)", lo=0.0, lo_open=False,
           default_text="3.0 (no set given)"),
-    Param("j", None, _PCT, "Choudhury J: slip jump (spec 1.1, 1.2)", lo=0.0, lo_open=False,
+    Param("j", None, _PCT, "Choudhury J: slip jump, how far the stem jumps when it breaks "
+          "free (spec 1.1, 1.2)", lo=0.0, lo_open=False,
           default_text="1.0 (no set given)"),
     Param("resolution", None, _PCT, "practitioner's stick-slip / resolution RES = J, instead "
           "of s, j (spec 1.7)", lo=0.0, lo_open=False, default_text="-"),

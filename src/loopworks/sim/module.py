@@ -27,13 +27,14 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.params import Port
+from loopworks.blocks.plan import SCANS_SIGNATURE, Slot, entry, is_cached, layout
 from loopworks.errors import InputError, LoopworksError
 from loopworks.sim.result import SimResult
 
@@ -41,6 +42,10 @@ from loopworks.sim.result import SimResult
 RECORD_BYTES = 16
 #: the most a run may record when the available memory cannot be read (bytes)
 RECORD_CAP = 8 * 1024**3
+#: a run of at least this many block-scans (scans × blocks) compiles the module's plan when
+#: it is not cached yet; a shorter one runs block by block from Python (each block's own
+#: compiled step), which costs less than compiling the module would
+PLAN_MIN_BLOCK_SCANS = 20_000
 
 
 @dataclass(frozen=True)
@@ -158,9 +163,37 @@ class Module:
             if not math.isfinite(ev.t) or ev.t < 0.0:
                 raise InputError(f"event at t = {ev.t!r} s: t must be finite and >= 0")
         self._check_events()
+        self._lay_out()
         self.t = 0.0
         self.k = 0
         self.reset()
+
+    def _lay_out(self) -> None:
+        """The execution plan's layout: every block's buffers moved into one float and one int
+        buffer (``Block.adopt``), the wires and clocks as offsets, and the record's indices
+        (each block's inputs then outputs, in run order). Compiled on the first run."""
+        if len({id(b) for b in self.blocks.values()}) != len(self.blocks):
+            raise InputError("a block object can be in a module once: make one block per name")
+        index = {id(self.blocks[n]): k for k, n in enumerate(self.order)}
+        sizes = [(type(b).kernel, len(b.p), len(b.x), len(b.u), len(b.y), not b.SOUND_KERNEL)
+                 for b in (self.blocks[n] for n in self.order)]
+        slots = []
+        for slot, name in zip(layout(sizes), self.order, strict=True):
+            links = tuple((i, index[id(src)], j) for i, src, j in self._links[name])
+            slots.append(replace(slot, links=links, clock=self._clocks.get(name)))
+        self._slots: list[Slot] = slots
+        self._F: np.ndarray = np.zeros(slots[-1].f1 if slots else 0)
+        self._S: np.ndarray = np.zeros(slots[-1].s1 if slots else 0, dtype=np.int64)
+        for slot, name in zip(slots, self.order, strict=True):
+            self.blocks[name].adopt(self._F[slot.f0:slot.f1], self._S[slot.s0:slot.s1])
+        self._rec_f = np.array([i for sl in slots for i in range(sl.u0, sl.f1)], dtype=np.int64)
+        self._rec_s = np.array([i for sl in slots for i in range(sl.s0, sl.s1)], dtype=np.int64)
+        self._scans: Any = None
+
+    @property
+    def compiled(self) -> bool:
+        """True when runs go through the compiled plan: every block is compiled (``jit``)."""
+        return bool(self.blocks) and all(b.jit for b in self.blocks.values())
 
     def _port(self, ref: str, direction: str, what: str) -> tuple[str, str]:
         """``ref`` split into (block, port), checked; ``what`` ("wire", "constant", "event")
@@ -306,8 +339,16 @@ class Module:
         self.t = self.k * dt
 
     def run(self, duration: float, dt: float, *, reset: bool = True,
-            progress: Callable[[int, int], None] | None = None) -> SimResult:
+            progress: Callable[[int, int], None] | None = None,
+            plan: str = "auto") -> SimResult:
         """Run ``duration`` seconds in scans of ``dt``; scan k executes at t = k·dt.
+
+        ``plan``: ``"compiled"`` runs the module's generated plan (compiled once per machine,
+        then loaded from the cache, :mod:`loopworks.blocks.plan`); ``"python"`` runs block by
+        block from Python (the reference; each block interpreted or through its own compiled
+        step); ``"auto"`` (default) takes the compiled plan when every block is compiled
+        (``jit``) and the plan is cached or the run has at least ``PLAN_MIN_BLOCK_SCANS``
+        block-scans. All three give the same numbers.
 
         With ``reset=False`` the run continues from the current state (and time), so a run can
         be split, saved with :meth:`state_dict` and resumed. A run whose record (every input
@@ -321,38 +362,81 @@ class Module:
         for block in self.blocks.values():
             block._release_last()
             block.check_dt(dt)
-        names: list[str] = []
-        recs: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        t = np.empty(n)
+        RF = np.empty((n, self._rec_f.shape[0]))
+        RS = np.empty((n, self._rec_s.shape[0]), dtype=np.int64)
+        if plan not in ("auto", "compiled", "python"):
+            raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or python")
+        if plan == "compiled" and not self.compiled:
+            raise InputError("plan = 'compiled' needs every block compiled (jit); blocks "
+                             + ", ".join(n for n, b in self.blocks.items() if not b.jit)
+                             + " are interpreted")
+        if plan == "compiled" or (plan == "auto" and self.compiled and (
+                n * len(self.blocks) >= PLAN_MIN_BLOCK_SCANS
+                or is_cached(self._slots, "scans"))):
+            self._run_compiled(n, dt, t, RF, RS, progress)
+        else:
+            self._run_python(n, dt, t, RF, RS, progress)
+        values: dict[str, np.ndarray] = {}
+        status: dict[str, np.ndarray] = {}
+        col = 0
         for name in self.order:
             b = self.blocks[name]
-            names.append(name)
-            recs.append((np.empty((n, len(b.u))), np.empty((n, len(b.u)), dtype=np.int64),
-                         np.empty((n, len(b.y))), np.empty((n, len(b.y)), dtype=np.int64)))
-        t = np.empty(n)
+            for port in (*b.INPUTS, *b.OUTPUTS):
+                values[f"{name}.{port.name}"] = RF[:, col].copy()
+                status[f"{name}.{port.name}"] = RS[:, col].copy()
+                col += 1
+        return SimResult(t=t, values=values, status=status,
+                         kinds={n: self.blocks[n].kind for n in self.order},
+                         wires=dict(self.wires))
+
+    def _run_python(self, n: int, dt: float, t: np.ndarray, RF: np.ndarray, RS: np.ndarray,
+                    progress: Callable[[int, int], None] | None) -> None:
+        """The reference: one :meth:`scan` per scan from Python (interpreted blocks)."""
         every = max(1, n // 100)
         for k in range(n):
             t[k] = self.t
             self.scan(dt)
-            for name, (U, US, Y, YS) in zip(names, recs, strict=True):
-                b = self.blocks[name]
-                U[k] = b.u
-                US[k] = b.us
-                Y[k] = b.y
-                YS[k] = b.ys
+            RF[k] = self._F[self._rec_f]
+            RS[k] = self._S[self._rec_s]
             if progress is not None and (k % every == 0 or k == n - 1):
                 progress(k + 1, n)
-        values: dict[str, np.ndarray] = {}
-        status: dict[str, np.ndarray] = {}
-        for name, (U, US, Y, YS) in zip(names, recs, strict=True):
-            b = self.blocks[name]
-            for i, port in enumerate(b.INPUTS):
-                values[f"{name}.{port.name}"] = U[:, i].copy()
-                status[f"{name}.{port.name}"] = US[:, i].copy()
-            for i, port in enumerate(b.OUTPUTS):
-                values[f"{name}.{port.name}"] = Y[:, i].copy()
-                status[f"{name}.{port.name}"] = YS[:, i].copy()
-        return SimResult(t=t, values=values, status=status,
-                         kinds={n: self.blocks[n].kind for n in names}, wires=dict(self.wires))
+
+    def _next_event_scan(self, dt: float) -> int | None:
+        """The scan count at which the next pending event applies (``_apply_events``'s rule:
+        the first scan k with t_k = k·dt >= t_event - 1e-9), or None."""
+        if self._next_event >= len(self.events):
+            return None
+        te = self.events[self._next_event].t
+        k = max(self.k, math.ceil((te - 1e-9) / dt))
+        while k > self.k and te <= (k - 1) * dt + 1e-9:
+            k -= 1
+        while te > (self.t if k == self.k else k * dt) + 1e-9:
+            k += 1
+        return k
+
+    def _run_compiled(self, n: int, dt: float, t: np.ndarray, RF: np.ndarray, RS: np.ndarray,
+                      progress: Callable[[int, int], None] | None) -> None:
+        """The compiled plan, in chunks: events are applied between chunks (a parameter
+        change recomputes the coefficients once), and progress is reported per chunk."""
+        if self._scans is None:
+            self._scans = entry(self._slots, "scans", SCANS_SIGNATURE)
+        every = max(1, n // 100) if progress is not None else n
+        done = 0
+        while done < n:
+            self._apply_events(self.t)
+            stop = min(n, done + every)
+            k_event = self._next_event_scan(dt)
+            if k_event is not None:
+                stop = min(stop, done + max(1, k_event - self.k))
+            m = stop - done
+            self._scans(self._F, self._S, dt, self.t, self.k, m, t[done:stop], RF[done:stop],
+                        RS[done:stop], self._rec_f, self._rec_s)
+            self.k += m
+            self.t = self.k * dt
+            done = stop
+            if progress is not None:
+                progress(done, n)
 
     def state_dict(self) -> dict[str, Any]:
         """Time, scan count and every block's state: enough to resume a run exactly."""

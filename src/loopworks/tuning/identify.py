@@ -136,7 +136,6 @@ from itertools import pairwise
 from typing import Any
 
 import numpy as np
-from scipy.optimize import brentq
 
 from loopworks.blocks.relay import MIN_CYCLE_SCANS
 from loopworks.errors import InputError, ParameterError
@@ -410,6 +409,8 @@ def _solve_time_constant(t_on: float, lag_ratio: float | None, dead_time: float 
     if f(lo) * f(hi) > 0.0:
         raise IdentificationRefused(
             "no time constant matches the measured half period and dead time")
+    from scipy.optimize import brentq  # imported when needed: it takes a second to load
+
     return float(brentq(f, lo, hi, xtol=1e-12 * t_on, rtol=1e-12))
 
 

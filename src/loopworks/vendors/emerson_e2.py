@@ -104,7 +104,7 @@ Each is a parameter; the default is the spec's choice.
   Spec 3.9.
 * ``startup_errors``: ``zero`` (default [?]: e_{k-1} = e_{k-2} = 0 before the first update, as
   if the input had been at setpoint) or ``current`` (both = the first error: no P or D kick at
-  start-up). Spec 3.2 (meaning of Output at Setpoint), 3.9, E2.
+  start-up). Spec 3.2 (the meaning of Output at Setpoint), spec 3.9 and spec 3.8 E2.
 * ``old_output``: ``unfiltered`` (default [A]: the PID adds to its own unfiltered output) or
   ``filtered`` (OUT_{k-1} = F). Spec 3.6.
 * ``override_updates_pid``: ``false`` (default [?]: the PID's stored output is not set from the
@@ -113,7 +113,7 @@ Each is a parameter; the default is the spec's choice.
 * ``override_limits``: ``percent`` (default [A]: the override is limited to 0..100 %) or
   ``output_limits`` (output_min..output_max). Spec 3.7.
 * ``bad_input``: ``hold`` (default [A]) or ``failsafe`` (``out`` = ``failsafe_output``). The
-  E2 has no status (spec 3.2, 7).
+  E2 has no status (spec 7).
 
 The defaults of the settings themselves are [?] (spec 3.2, 3.9: the setting screens were not
 retrieved): kp 1.00, ki 0.30, kd 0.00 and min_accumulated_error 0.10 are the EEPR field defaults
@@ -126,8 +126,8 @@ Vendor quirks reproduced
 * Increments that would push past a clamp are lost (spec 3.4), so saturation slides the
   throttling range window: TR 10, kp 1, SP 29, OAS 50: inputs 34, 36, 35 give 100, 100, 90 %
   (spec 3.8 E7), and an output held at Output at Minimum leaves it as soon as an adjustment
-  raises it (E3).
-* The I Mode ignores errors up to and including MAE (spec 3.5, E4, E5); P and D keep acting, so
+  raises it (spec 3.8 E3).
+* The I Mode ignores errors up to and including MAE (spec 3.5, 3.8 E4, E5); P and D keep acting, so
   the loop may settle anywhere within SP ± MAE.
 * ki and kd are per update, not per second: changing ``update_interval`` changes the effective
   I and D strength (spec 3.3 [D]).
@@ -377,8 +377,10 @@ class E2PID(Block):
         Param("min_accumulated_error", 0.1, "EU",
               "Minimum Accumulated Error: no I adjustment while abs(e) <= MAE, inclusive edge "
               "(spec 3.5)", lo=0.0, lo_open=False),
-        Param("update_interval", 2.0, "s", "PID update interval (spec 3.2, 3.3)", lo=0.0),
-        Param("filter_period", 0.0, "s", "filter period; 0 = filter off (spec 3.6)",
+        Param("update_interval", 2.0, "s", "time between PID updates; kp, ki and kd act once "
+              "per update (spec 3.2, 3.3)", lo=0.0),
+        Param("filter_period", 0.0, "s", "time between filter updates, each a step of the "
+              "output towards the PID output; 0 = filter off (spec 3.6)",
               lo=0.0, lo_open=False),
         Param("filter_percentage", 100.0, _PCT,
               "filter percentage f: F += f·(OUT - F) each filter period (spec 3.6)",
@@ -413,9 +415,9 @@ class E2PID(Block):
               "choice", choices=("percent", "output_limits")),
         Param("bad_input", "hold", "",
               "NaN/inf or Bad pv/sp: the PID holds [A], or out goes to failsafe_output "
-              "(spec 3.2)", "choice", choices=("hold", "failsafe")),
+              "(the E2 has no status, spec 7)", "choice", choices=("hold", "failsafe")),
         Param("failsafe_output", 0.0, _PCT,
-              "out while pv/sp is bad and bad_input = failsafe [A] (spec 3.2)",
+              "out while pv/sp is bad and bad_input = failsafe [A] (the E2 has no status, spec 7)",
               lo=0.0, hi=100.0, lo_open=False, hi_open=False),
     )
     INPUTS: ClassVar[tuple[Port, ...]] = (

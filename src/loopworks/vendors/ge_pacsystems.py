@@ -1,7 +1,7 @@
 r"""GE PACSystems built-in PID: ``ge.pid_ind`` (PID_IND) and ``ge.pid_isa`` (PID_ISA).
 
 The PID of the PACSystems RX7i / RX3i / RSTi-EP CPUs (also VersaMax and Series 90-30), as
-specified in ``vendor-blocks.md`` section 1 (sources: GFK-2950C chapter 7 and seed 003). The
+specified in spec vendor-blocks section 1 (sources: GFK-2950C chapter 7 and seed 003). The
 block works on a 40-word reference array of signed 16-bit words; this emulation takes the user
 words (3-13) as parameters in engineering units, keeps the internal words (14-27) as its state,
 and by default reproduces the controller's integer arithmetic in counts.
@@ -50,7 +50,7 @@ Per solution, with ``e = SP - PV`` (``direct_acting``: ``PV - SP``), SP and PV t
 operands (native: rounded to whole counts, halves away from zero; one that is not a 16-bit
 word is Bad input, see below)::
 
-    dead band (1.7 step 6, strict edges):
+    dead band (spec 1.7 step 6, strict edges):
         e_db = 0                    if DB- < e < DB+
              = e                    otherwise, bit 3 = 0
              = e - DB+ or e - DB-   otherwise, bit 3 = 1 (the edge is subtracted)
@@ -79,7 +79,7 @@ carries the exact remainder, in units of 10^-7 count (IND) or 10^-9 count (ISA),
 denominators of ΔI, so every ΔI is a whole number of units (exact in float64 while the
 integral stays below about 9·10^8 counts for IND, 9·10^6 for ISA).
 
-Then (1.7 steps 9-13)::
+Then (spec 1.7 steps 9-13)::
 
     Auto:    Output = P + I + D + Bias              (I = integral after this ΔI)
     Manual:  target = word 14 ± 1 count for UP / DN (this solution); the integral is set so
@@ -123,16 +123,17 @@ solution (sweeps before the sample period has elapsed hold it). With a parameter
 Vendor behaviour reproduced
 ---------------------------
 
-* Not powered (``enable`` off): nothing runs, CV holds, ``ok`` = 0 (1.7 step 1).
+* Not powered (``enable`` off): nothing runs, CV holds, ``ok`` = 0 (spec 1.7 step 1).
 * Sweeps between solutions leave CV unchanged with ``ok`` = 1 (an execution without a
   parameter error, spec 1.1).
-* Parameter errors (1.7 step 2: a dead band that is not "both 0, or DB+ > 0 and DB- < 0";
+* Parameter errors (spec 1.7 step 2: a dead band that is not "both 0, or DB+ > 0 and DB- < 0";
   ``upper_clamp <= lower_clamp``): raised as ParameterError at construction, or with
   ``on_parameter_error = "ok_off"`` the PLC behaviour: every powered sweep gives ``ok`` = 0 and
   a frozen CV (spec 1.10).
 * Sample period 0 still solves at most every 10 ms: 9 ms sweeps solve every second sweep with
-  dt = 18 ms (G14); overshoot does not accumulate (30 ms sweeps, 100 ms period: every 120 ms).
-* First solution / long gap (1.7): words 24-26 (time of last solution) start at
+  dt = 18 ms (spec 1.9 G14); overshoot does not accumulate (30 ms sweeps, 100 ms period: every
+  120 ms).
+* First solution / long gap (spec 1.7): words 24-26 (time of last solution) start at
   ``initial_last_solution`` (0 s), so a first solution at a large clock time has a huge dt and
   the integral steps by Ki·e·dt (saturated at 32 bits). ``load_clock_at_start = true`` loads the
   clock at the first sweep instead, as the vendor's SVC_REQ 16/51 remedy does. The other
@@ -197,7 +198,7 @@ Options for the spec's [A]/[?] points
   derivative kicks, literal); true loads it from the first solution's PV or error (no kick)
   [spec 1.2 word 20 / 1.7: the internal words of a fresh array].
 * The dead band's bit-3 wording in the manual can be read against the table of spec 1.3;
-  ``deadband_subtract`` follows the table (the edge is subtracted outside the band) [?, 1.7
+  ``deadband_subtract`` follows the table (the edge is subtracted outside the band) [?, spec 1.7
   step 6].
 
 Worked example
@@ -537,11 +538,11 @@ def _common_params() -> tuple[Param, ...]:
               "dead band, spec 1.2/1.7", lo=-32768.0, hi=0.0, lo_open=False, hi_open=False),
         Param("bias", 0.0, "CV counts", "CV Bias (word 9), added to the PID sum, spec 1.2",
               lo=-32000.0, hi=32000.0, lo_open=False, hi_open=False),
-        Param("upper_clamp", 32000.0, "CV counts", "CV Upper Clamp (word 10), > lower_clamp, "
-              "before polarity, spec 1.2", lo=-32000.0, hi=32000.0, lo_open=False,
+        Param("upper_clamp", 32000.0, "CV counts", "CV Upper Clamp (word 10): highest output, "
+              "> lower_clamp, before polarity, spec 1.2", lo=-32000.0, hi=32000.0, lo_open=False,
               hi_open=False),
-        Param("lower_clamp", 0.0, "CV counts", "CV Lower Clamp (word 11), spec 1.2",
-              lo=-32000.0, hi=32000.0, lo_open=False, hi_open=False),
+        Param("lower_clamp", 0.0, "CV counts", "CV Lower Clamp (word 11): lowest output, "
+              "before polarity, spec 1.2", lo=-32000.0, hi=32000.0, lo_open=False, hi_open=False),
         Param("min_slew_time", 0.0, "s", "Minimum Slew Time (word 12): seconds for a full "
               "32000-count travel; 0 = no rate limit, spec 1.2/1.7 step 10", lo=0.0,
               hi=32000.0, lo_open=False, hi_open=False),
@@ -833,8 +834,8 @@ class GEPIDISA(GEPIDBlock):
         Param("ti", math.inf, "s", "Ti: word 8 holds 1/Ti in 0.001 repeats/s, Ti = 1000/word8 "
               "(at most 2000 s); inf = no integral, spec 1.2", lo=_TI_MIN, lo_open=False,
               hi_open=False),
-        Param("td", 0.0, "s", "Td (word 7, 0.01 s steps), spec 1.2/1.6", lo=0.0, hi=_GAIN_MAX,
-              lo_open=False, hi_open=False),
+        Param("td", 0.0, "s", "Td (word 7, 0.01 s steps): derivative time, D = Kc·Td·Δ/dt, "
+              "spec 1.2/1.6", lo=0.0, hi=_GAIN_MAX, lo_open=False, hi_open=False),
         *_common_params(),
         Param("isa_division", "combined", "", "integer division points of the ISA terms: "
               "combined (one division per term) or staged, [?] spec 1.5", "choice",

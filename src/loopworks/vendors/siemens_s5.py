@@ -57,9 +57,9 @@ spec's suggested rule says "dI_k > 0"; it is read here as the I element's contri
 the output, K·dI_k, which is the same thing for K > 0 and the spec's stated intent ("the
 direction the I-element would push further") for K < 0. A consequence of this realisation,
 kept as the spec's default: when the I element alone would carry Y past the limit (P and D at
-rest), the increment is dropped whole and Y stops short of the limit (spec 2.8 test: 120,
-140, 140, ... with BGOG = 150); ``i_suppression = "flag"`` lets Y reach the limit and then
-holds the I element there.
+rest), the increment is dropped whole and Y stops short of the limit (a test of this reading
+of spec 2.8: 120, 140, 140, ... with BGOG = 150); ``i_suppression = "flag"`` lets Y reach the
+limit and then holds the I element there.
 
 Manual mode (``auto`` = MAN, D 11.0 = 0; spec 2.9): the algorithm is not computed, but the
 histories are kept current (XW_{k-1} and PW_{k-1}; XZ_{k-1} and PZ_{k-1} if xz_on; Z_{k-1} if
@@ -104,7 +104,7 @@ k = 1000 is gain 0.9765625 with ``scale = "exact"`` (default) and 1.0 with ``"no
 
 Rounding loses fractions of a count at every product, so native results differ from the
 spec's exact real-number values by about a count per step (spec 2.13), and a decaying D
-memory ends a count or two short: the law-A kick of the 2.13 D-element check settles at 101
+memory ends a count or two short: the law-A kick of the spec 2.13 D-element check settles at 101
 instead of 100, the ramp check at 18 instead of TD·r = 20.
 
 **The native I element has a dead zone** (real S5 behaviour, from the word arithmetic): with
@@ -127,10 +127,10 @@ no rounding and no word overflow in between; the inputs are still limited to the
 Options for the spec's [A]/[?] points
 -------------------------------------
 * ``rounding`` = ``"nearest_even"`` (default) | ``"nearest"`` | ``"floor"`` | ``"truncate"``:
-  how each fixed-point product is rounded to a word [?] (spec 2.13, open question 8.2).
-  ``floor`` is a plain arithmetic shift; ``nearest`` rounds halves away from zero. The default
-  is the one that keeps the spec's 2.13 example within its ±1 count per step (floor and
-  truncate lose up to 2 counts a step there) and lets the law-A memory decay to zero (with
+  how each fixed-point product is rounded to a word [?] (spec 2.13; an open question, spec 8
+  item 2). ``floor`` is a plain arithmetic shift; ``nearest`` rounds halves away from zero. The
+  default is the one that keeps the spec's 2.13 example within its ±1 count per step (floor
+  and truncate lose up to 2 counts a step there) and lets the law-A memory decay to zero (with
   ``nearest`` and ``floor``, dD sticks at -1 because ½·(-1) rounds to -1, and a positioning
   controller then ramps by about a count per sample at zero error).
 * ``overflow`` = ``"saturate"`` (default) | ``"wrap"``: 16-bit intermediates in native mode

@@ -465,9 +465,12 @@ SEED_PARAMETERS: dict[str, tuple[float, str, str]] = {
     "process_gain": (2.0, "%/%", "identified process gain"),
     "cntrl_action": (-1.0, "", "controller action: reverse = -1, direct = +1"),
     "valve_action": (1.0, "", "valve action: inc-close = -1, inc-open = +1"),
-    "dither_amp": (0.0, "%", "dither amplitude (line 2)"),
-    "kicker_out": (0.0, "%", "kick amplitude (line 3)"),
-    "noise_band": (0.0, "%", "PV noise band (lines 5-9)"),
+    "dither_amp": (0.0, "%", "(RESOLUTION + DEADBAND/2)·DITHER_FACTOR/2, the dither "
+                   "amplitude (line 2)"),
+    "kicker_out": (0.0, "%", "(RESOLUTION + DEADBAND/2)·KICKER_FACTOR/2, the kick "
+                   "amplitude (line 3)"),
+    "noise_band": (0.0, "%", "DITHER_AMP·PROCESS_GAIN·NOISE_FACTOR (0 while INITIALIZE = "
+                   "KICK_START = 1), the PV noise band (lines 5-9)"),
     "kicker_delt": (0.0, "%", "kick currently applied; held inside the band (lines 16, 20)"),
     "dither_delt": (0.0, "%", "dither currently applied (lines 17, 21, 23)"),
     "dither_out": (0.0, "%", "dither waveform sample, the SGGN1 output (spec 6.5)"),

@@ -52,7 +52,7 @@ constant RESET driven by F, which is built from the previous *limited* output (o
 BKCAL_IN% with ``dynamic_reset_limit``, when BKCAL_IN is usable)::
 
     reset_feedback = "error":   F = OUT%_{k-1} - FF_{k-1} - (P_{k-1} - Pe_{k-1}) [- D_{k-1}]
-    reset_feedback = "output":  F = OUT%_{k-1} - FF_{k-1}          (4.7 step 7 as written)
+    reset_feedback = "output":  F = OUT%_{k-1} - FF_{k-1}     (spec 4.7 step 7 as written)
 
 with Pe = s·GAIN·(SP% - PV%) (proportional action on the error) and D removed in the
 Standard form only. While nothing limits the output, "error" makes the block exactly the
@@ -163,9 +163,9 @@ Each is a parameter whose default is the spec's choice:
 * ``ff_in_reset_feedback`` = false (FF removed from F, so FF is not integrated) | true.
   Spec 4.7 step 7 [A].
 * ``reset_feedback`` = ``error`` | ``output`` (see above). Spec 4.2 vs 4.7 step 7 [A]: the
-  literal step 7 integrates D and the setpoint weighting too, which contradicts the 4.2
-  statement that the unconstrained block equals the ideal equations (and gives the no-P
-  structures no integral action at all); ``error`` honours 4.2 and equals step 7 whenever
+  literal step 7 integrates D and the setpoint weighting too, which contradicts the spec
+  4.2 statement that the unconstrained block equals the ideal equations (and gives the no-P
+  structures no integral action at all); ``error`` honours spec 4.2 and equals step 7 whenever
   RATE = 0 and β = 1.
 * ``series_derivative`` = ``lead_lag`` ((1 + RATE·s)/(α·RATE·s + 1), the spec 4.2 equation,
   c = 1 - α) | ``filtered`` (1 + RATE·s/(α·RATE·s + 1), "derivative filter applied only to
@@ -674,6 +674,9 @@ class DeltaVPID(Block):
     summary = ("Emerson DeltaV PID: Standard/Series, STRUCTURE, external reset, ARW, modes, "
                "Fieldbus status")
     kernel = staticmethod(deltav_pid_kernel)
+    # not sound by itself (the property test finds non-finite states from extreme inputs): the
+    # full guard undoes such a scan and reruns it as Bad input
+    SOUND_KERNEL = False
 
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("form", "standard", "", "FORM: standard (ISA, non-interacting) or series "
@@ -695,14 +698,22 @@ class DeltaVPID(Block):
               "only (spec 4.3)", lo=0.0, hi=1.0, lo_open=False, hi_open=False),
         Param("ideadband", 0.0, "EU", "IDEADBAND: no reset action while abs(SP - PV) < "
               "IDEADBAND (spec 4.4)", lo=0.0, lo_open=False),
-        _eu("pv_scale_eu_0", 0.0, "EU", "PV_SCALE: EU at 0 % (spec 4.1, 4.2)"),
-        _eu("pv_scale_eu_100", 100.0, "EU", "PV_SCALE: EU at 100 %, > EU at 0 % (spec 4.1)"),
-        _eu("out_scale_eu_0", 0.0, "EU", "OUT_SCALE: EU at 0 % (spec 4.1, 4.2)"),
-        _eu("out_scale_eu_100", 100.0, "EU", "OUT_SCALE: EU at 100 %, > EU at 0 % (spec 4.1)"),
-        _eu("ff_scale_eu_0", 0.0, "EU", "FF_SCALE: EU at 0 % (spec 4.1, 4.7 step 8)"),
-        _eu("ff_scale_eu_100", 100.0, "EU", "FF_SCALE: EU at 100 % (spec 4.1)"),
-        _eu("trk_scale_eu_0", 0.0, "EU", "TRK_SCALE: EU at 0 % (spec 4.1, 4.5)"),
-        _eu("trk_scale_eu_100", 100.0, "EU", "TRK_SCALE: EU at 100 % (spec 4.1)"),
+        _eu("pv_scale_eu_0", 0.0, "EU", "PV_SCALE: the IN/SP value that is 0 % of the PV span; "
+            "the algorithm works on % of this span (spec 4.1, 4.2)"),
+        _eu("pv_scale_eu_100", 100.0, "EU", "PV_SCALE: the IN/SP value that is 100 % of the PV "
+            "span, > the 0 % value (spec 4.1)"),
+        _eu("out_scale_eu_0", 0.0, "EU", "OUT_SCALE: the OUT value that is 0 % of the output "
+            "span; OUT% is converted to EU on it (spec 4.1, 4.2)"),
+        _eu("out_scale_eu_100", 100.0, "EU", "OUT_SCALE: the OUT value that is 100 % of the "
+            "output span, > the 0 % value (spec 4.1)"),
+        _eu("ff_scale_eu_0", 0.0, "EU", "FF_SCALE: the feedforward value that is 0 % of its "
+            "span, for the conversion of FF to % (spec 4.1, 4.7 step 8)"),
+        _eu("ff_scale_eu_100", 100.0, "EU", "FF_SCALE: the feedforward value that is 100 % of its "
+            "span (spec 4.1)"),
+        _eu("trk_scale_eu_0", 0.0, "EU", "TRK_SCALE: the TRK_VAL value that is 0 % of its span; "
+            "TRK_VAL is converted through % to OUT_SCALE in LO (spec 4.1, 4.5)"),
+        _eu("trk_scale_eu_100", 100.0, "EU", "TRK_SCALE: the TRK_VAL value that is 100 % of its "
+            "span (spec 4.1)"),
         _eu("sp_hi_lim", None, "EU", "SP_HI_LIM: highest operator/limited SP (spec 4.1, 4.7 "
             "step 2)", "pv_scale_eu_100"),
         _eu("sp_lo_lim", None, "EU", "SP_LO_LIM: lowest operator/limited SP (spec 4.1)",
@@ -719,37 +730,47 @@ class DeltaVPID(Block):
             "4.1, 4.4)", "out_scale_eu_100"),
         _eu("out_lo_lim", None, "EU", "OUT_LO_LIM (OUT_SCALE EU), -10..110 % of span, < "
             "OUT_HI_LIM (spec 4.1)", "out_scale_eu_0"),
-        _eu("arw_hi_lim", None, "% or EU", "ARW_HI_LIM: RESET/16 beyond it on the way back "
-            "(spec 4.4); unit per arw_units", "the OUT high limit"),
-        _eu("arw_lo_lim", None, "% or EU", "ARW_LO_LIM (spec 4.4); unit per arw_units",
+        _eu("arw_hi_lim", None, "% or EU", "ARW_HI_LIM: while OUT is above it and the reset "
+            "moves down, the reset runs at RESET/16 (spec 4.4); unit per arw_units",
+            "the OUT high limit"),
+        _eu("arw_lo_lim", None, "% or EU", "ARW_LO_LIM: while OUT is below it and the reset "
+            "moves up, the reset runs at RESET/16 (spec 4.4); unit per arw_units",
             "the OUT low limit"),
         Param("bkcal_hys", 0.5, _PCT, "BKCAL_HYS: limit status released when OUT is this far "
               "from the limit (spec 4.1, 4.4)", lo=0.0, hi=50.0, lo_open=False, hi_open=False),
-        Param("ff_gain", 0.0, "", "FF_GAIN (spec 4.1, 4.7 step 8)", lo=-GAIN_LIMIT,
+        Param("ff_gain", 0.0, "", "FF_GAIN: feedforward gain, FF = FF_GAIN·FF_VAL converted to "
+              "% of OUT span and added to OUT; 0 = no feedforward (spec 4.1, 4.7 step 8)",
+              lo=-GAIN_LIMIT,
               hi=GAIN_LIMIT, lo_open=False, hi_open=False),
-        _flag("direct_acting", f"{_OPT} Direct acting: s = -1 (spec 4.2, 4.9)"),
+        _flag("direct_acting", f"{_OPT} Direct acting: e = PV - SP (s = -1), OUT rises with PV; "
+              "off: reverse acting, e = SP - PV (spec 4.2, 4.9)"),
         _flag("track_enable", f"{_OPT} Track enable: TRK_IN_D puts the block in LO "
               "(spec 4.5)"),
         _flag("track_in_manual", f"{_OPT} Track in Manual: tracking also with target Man "
               "(spec 4.5)"),
         _flag("sp_pv_track_man", f"{_OPT} SP-PV track in Man: SP = PV while the target is "
               "Man (spec 4.5, 4.7 step 2)"),
-        _flag("sp_pv_track_lo_iman", f"{_OPT} SP-PV track in LO or IMan (spec 4.7 step 2)"),
+        _flag("sp_pv_track_lo_iman", f"{_OPT} SP-PV track in LO or IMan: SP = PV while the "
+              "actual mode is LO or IMan (spec 4.7 step 2)"),
         _flag("sp_track_retained_target", f"{_OPT} SP track retained target: SP = CAS_IN in "
-              "Man/LO/IMan while the target is Cas (precedes SP-PV track)"),
-        _flag("use_pv_for_bkcal_out", f"{_OPT} Use PV for BKCAL_OUT (in Cas) (spec 4.7 "
-              "step 11)"),
-        _flag("obey_sp_limits_cas", f"{_OPT} Obey SP limits in Cas (spec 4.7 step 2)"),
-        _flag("no_out_limits_manual", f"{_OPT} No OUT limits in Manual (spec 4.5)"),
+              "Man/LO/IMan while the target is Cas (precedes SP-PV track) (spec 4.1)"),
+        _flag("use_pv_for_bkcal_out", f"{_OPT} Use PV for BKCAL_OUT: in Cas BKCAL_OUT is the PV "
+              "instead of the working SP (spec 4.7 step 11)"),
+        _flag("obey_sp_limits_cas", f"{_OPT} Obey SP limits in Cas: CAS_IN limited to "
+              "SP_LO_LIM..SP_HI_LIM (spec 4.7 step 2)"),
+        _flag("no_out_limits_manual", f"{_OPT} No OUT limits in Manual: the operator's OUT is "
+              "not limited to OUT_LO_LIM..OUT_HI_LIM in Man (spec 4.5)"),
         _flag("dynamic_reset_limit", f"{_OPT} dynamic reset limit: reset feedback from "
               "BKCAL_IN (spec 4.4)"),
-        _flag("ifs_if_bad_in", f"{_STO} IFS if Bad IN: OUT.ST Good cascade IFS (spec 4.1)"),
-        _flag("ifs_if_bad_cas_in", f"{_STO} IFS if Bad CAS_IN (spec 4.1)"),
+        _flag("ifs_if_bad_in", f"{_STO} IFS if Bad IN: OUT.ST is Good cascade IFS (initiate "
+              "fault state downstream) while IN is Bad (spec 4.1)"),
+        _flag("ifs_if_bad_cas_in", f"{_STO} IFS if Bad CAS_IN: OUT.ST is Good cascade IFS while "
+              "the target is Cas and CAS_IN is unusable (spec 4.1)"),
         _flag("use_uncertain_as_good", f"{_STO} Use Uncertain as Good: an Uncertain IN is "
               "not Bad (spec 4.1, 4.6)"),
         _flag("target_to_man_if_bad_in", f"{_STO} Target to Manual if Bad IN (spec 4.5)"),
-        _flag("target_to_next_if_bad_cas_in", f"{_STO} Target to next permitted mode (Auto) "
-              "if Bad CAS_IN (spec 4.1)"),
+        _flag("target_to_next_if_bad_cas_in", f"{_STO} Target to next permitted mode if Bad "
+              "CAS_IN: the target changes from Cas to Auto while CAS_IN is unusable (spec 4.1)"),
         Param("reset_discretisation", "euler", "", "R update a = dt/RESET (euler [A]), "
               "dt/(RESET + dt) or 1 - exp(-dt/RESET) (spec 4.7 step 7)", "choice",
               choices=("euler", "backward", "exact")),
@@ -758,9 +779,9 @@ class DeltaVPID(Block):
         Param("derivative_discretisation", "backward", "", "D filter: backward Euler [A] or "
               "exact step invariant (spec 4.7 step 6)", "choice",
               choices=("backward", "exact")),
-        Param("reset_feedback", "error", "", "F = limited OUT less FF and what the 4.2 "
-              "equations do not integrate (error) or less FF only (output, 4.7 step 7 "
-              "literally) [A]", "choice", choices=("error", "output")),
+        Param("reset_feedback", "error", "", "reset feedback F = limited OUT less FF and what "
+              "the spec 4.2 equations do not integrate (error), or less FF only (output, spec "
+              "4.7 step 7 literally) [A]", "choice", choices=("error", "output")),
         Param("ff_in_reset_feedback", False, "", "keep FF in the reset feedback (FF is "
               "integrated) [A] (spec 4.7 step 7)", "bool"),
         Param("series_derivative", "lead_lag", "", "Series D: (1 + RATE·s)/(α·RATE·s + 1) "

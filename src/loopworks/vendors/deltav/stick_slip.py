@@ -408,12 +408,13 @@ class StickSlip(Block):
         Port("signal_out", 0.0, _PCT,
              "SIGNAL_OUT, 'AO CAS_IN (%)': signal_in + kick + dither, no clamp; status = "
              "signal_in's (spec 6.3 lines 26, 28)", status=True),
-        Port("dither_amp", 0.0, _PCT, "DITHER_AMP: dither amplitude (spec 6.3 line 2)",
-             status=True),
-        Port("kicker_out", 0.0, _PCT, "KICKER_OUT: kick amplitude (spec 6.3 line 3)",
-             status=True),
-        Port("noise_band", 0.0, "% of PV", "NOISE_BAND: PV noise band (spec 6.3 lines 5-9)",
-             status=True),
+        Port("dither_amp", 0.0, _PCT, "DITHER_AMP: dither amplitude, (RESOLUTION + "
+             "DEADBAND/2)·DITHER_FACTOR/2 (spec 6.3 line 2)", status=True),
+        Port("kicker_out", 0.0, _PCT, "KICKER_OUT: kick amplitude, (RESOLUTION + "
+             "DEADBAND/2)·KICKER_FACTOR/2 (spec 6.3 line 3)", status=True),
+        Port("noise_band", 0.0, "% of PV", "NOISE_BAND: PV noise band, DITHER_AMP·"
+             "PROCESS_GAIN·NOISE_FACTOR; 0 while INITIALIZE = KICK_START = 1 (spec 6.3 lines "
+             "5-9)", status=True),
         Port("kicker_delt", 0.0, _PCT,
              "KICKER_DELT: kick applied; held inside the band (spec 6.3 lines 16, 20)",
              status=True),

@@ -1,0 +1,397 @@
+"""Execution plans: blocks laid out in one flat buffer, run by one generated step function.
+
+A plan is the compiled form of a run. Its blocks' arrays live in one float buffer ``F`` (per
+block ``[p | x | u | y]``) and one int buffer ``S`` (per block ``[us | ys]``), at offsets fixed
+when the plan is made; wires, the controller clock and the record are index copies into them.
+From that shape loopworks writes Python source: one function that, per scan, copies each
+block's wired inputs, sets its clock and calls its kernel (under the numeric guard of
+:func:`loopworks.blocks.kernel.guarded_scan`) in the declared order, with every offset a
+literal. numba compiles it with ``cache=True``; the source file is named by a hash of the
+plan's shape and of loopworks' own source, so a second process loads the machine code from
+disk instead of compiling, and a changed kernel can never load stale code.
+
+Three entry points are generated from the same layout:
+
+* ``scans(F, S, dt, t0, k0, n, T, RF, RS, IF, IS)``: n scans of a module (``Module.run``),
+  scan k at t = t0 (k = 0) or (k0 + k)·dt, recording F[IF] and S[IS] per scan;
+* ``step(dt, F, S)``: one scan of one block (``Block.step``);
+* ``rows(dts, F, S, U, US, Y, YS)``: one block over rows of inputs (``replay``);
+* ``call(dt, p, x, u, us, y, ys)``: one scan of one block on its own seven arrays, for kinds
+  whose sizes vary per instance (one compiled function for all sizes).
+
+Where the cache lives: ``LOOPWORKS_CACHE_DIR`` if set, else the platform's user cache
+directory (``$XDG_CACHE_HOME/loopworks`` or ``~/.cache/loopworks`` on Linux,
+``~/Library/Caches/loopworks`` on macOS, ``%LOCALAPPDATA%\\loopworks\\Cache`` on Windows). A
+cache that cannot be written falls back to compiling in memory, with one warning line per
+process, never an error.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import os
+import re
+import sys
+import tempfile
+import time
+import warnings
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+from typing import Any
+
+#: called with a one-line message when a plan had to be compiled (not loaded) and that took
+#: noticeable time; the CLI sets it to print the line, a library user hears nothing
+announce: Callable[[str], None] | None = None
+
+CALL_SIGNATURE = ("none(float64, float64[::1], float64[::1], float64[::1], int64[::1], "
+                  "float64[::1], int64[::1])")
+SCANS_SIGNATURE = ("none(float64[::1], int64[::1], float64, float64, int64, int64, "
+                   "float64[::1], float64[:, ::1], int64[:, ::1], int64[::1], int64[::1])")
+STEP_SIGNATURE = "none(float64, float64[::1], int64[::1])"
+ROWS_SIGNATURE = ("none(float64[::1], float64[::1], int64[::1], float64[:, ::1], int64[:, ::1], "
+                  "float64[:, ::1], int64[:, ::1])")
+
+
+@dataclass(frozen=True)
+class Slot:
+    """One block in a plan: its kernel, its array sizes and its offsets in F and S.
+
+    In F the block holds ``[p | x | u | y]`` from ``f0``; in S it holds ``[us | ys]`` from
+    ``s0``. ``full``: the kernel runs under the full numeric guard (else it is sound by
+    itself and only its non-finite inputs are marked Bad). ``links`` are its wired inputs as
+    (input index, source slot index, source output index), in the order they are copied;
+    ``clock`` is the input the module time goes to."""
+
+    kernel: Any
+    n_p: int
+    n_x: int
+    n_u: int
+    n_y: int
+    f0: int
+    s0: int
+    full: bool = True
+    links: tuple[tuple[int, int, int], ...] = ()
+    clock: int | None = None
+
+    @property
+    def p0(self) -> int:
+        return self.f0
+
+    @property
+    def x0(self) -> int:
+        return self.f0 + self.n_p
+
+    @property
+    def u0(self) -> int:
+        return self.f0 + self.n_p + self.n_x
+
+    @property
+    def y0(self) -> int:
+        return self.f0 + self.n_p + self.n_x + self.n_u
+
+    @property
+    def f1(self) -> int:
+        return self.y0 + self.n_y
+
+    @property
+    def ys0(self) -> int:
+        return self.s0 + self.n_u
+
+    @property
+    def s1(self) -> int:
+        return self.ys0 + self.n_y
+
+
+def layout(sizes: Sequence[tuple[Any, int, int, int, int, bool]]) -> list[Slot]:
+    """Slots for blocks of (kernel, n_p, n_x, n_u, n_y, full), packed one after the other."""
+    slots: list[Slot] = []
+    f0 = s0 = 0
+    for kernel, n_p, n_x, n_u, n_y, full in sizes:
+        slot = Slot(kernel, n_p, n_x, n_u, n_y, f0, s0, full)
+        slots.append(slot)
+        f0, s0 = slot.f1, slot.s1
+    return slots
+
+
+# -- where the generated source and its machine code live ------------------------------------
+
+def cache_dir() -> Path:
+    """The directory plans are cached in (see the module docstring)."""
+    env = os.environ.get("LOOPWORKS_CACHE_DIR", "").strip()
+    if env:
+        return Path(env).expanduser()
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or str(Path.home() / "AppData" / "Local")
+        return Path(base) / "loopworks" / "Cache"
+    if sys.platform == "darwin":
+        return Path.home() / "Library" / "Caches" / "loopworks"
+    return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "loopworks"
+
+
+_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+(loopworks[\w.]*)[ \t]+import"
+                     r"|import[ \t]+(loopworks[\w.]*))", re.MULTILINE)
+
+
+@cache
+def _imports(module: str) -> frozenset[str]:
+    """The loopworks modules ``module`` imports (read from its source: ``import loopworks.x``
+    and ``from loopworks.x import``, at any indentation), itself included, closed under the
+    same relation."""
+    seen = {module}
+    todo = [module]
+    while todo:
+        path = _origin(todo.pop())
+        if path is None:
+            continue
+        for found in _IMPORT.findall(path.read_text(encoding="utf-8")):
+            name = found[0] or found[1]
+            if name not in seen:
+                seen.add(name)
+                todo.append(name)
+    return frozenset(seen)
+
+
+def _origin(module: str) -> Path | None:
+    """The source file of a module, or None (not found, or not Python source)."""
+    try:
+        spec = importlib.util.find_spec(module)
+    except (ImportError, ValueError):
+        return None
+    if spec is None or spec.origin is None or not spec.origin.endswith(".py"):
+        return None
+    return Path(spec.origin)
+
+
+@cache
+def source_hash(*modules: str) -> str:
+    """A hash of the source of ``modules`` and of every loopworks module they import (and of
+    the guard's, which generated plans import), numba's version and Python's: a change to a
+    kernel, or to anything it uses, gives its plans new names, so no stale machine code can
+    load. (The generated text itself is hashed with it by the callers.)"""
+    import numba
+
+    names: set[str] = set(_imports("loopworks.blocks.kernel"))
+    for module in modules:
+        names |= _imports(module)
+    digest = hashlib.sha256()
+    for name in sorted(names):
+        path = _origin(name)
+        if path is not None:
+            digest.update(name.encode())
+            digest.update(path.read_bytes())
+    digest.update(numba.__version__.encode())
+    digest.update(sys.version.encode())
+    return digest.hexdigest()[:16]
+
+
+def resolve(module: str, qualname: str) -> Any:
+    """The object ``module.qualname`` (generated plans name kernels this way)."""
+    obj: Any = importlib.import_module(module)
+    for part in qualname.split("."):
+        obj = getattr(obj, part)
+    return obj
+
+
+def _reference(kernel: Any) -> tuple[str, str] | None:
+    """(module, qualname) under which ``kernel`` can be imported, or None (a kernel made at
+    run time: the plan is then compiled in memory, not cached)."""
+    module, qualname = getattr(kernel, "__module__", None), getattr(kernel, "__qualname__", "")
+    if not module or "<" in qualname:
+        return None
+    try:
+        found = resolve(module, qualname)
+    except (ImportError, AttributeError):
+        return None
+    return (module, qualname) if found is kernel else None
+
+
+# -- generated source ----
+
+# -- plans -------------------------------------------------------------------------------------
+
+def _call(slot: Slot, g: str, dt: str) -> str:
+    """The guarded kernel call of one slot on views of F and S."""
+    return (f"{g}({dt}, F[{slot.p0}:{slot.x0}], F[{slot.x0}:{slot.u0}], "
+            f"F[{slot.u0}:{slot.y0}], S[{slot.s0}:{slot.ys0}], F[{slot.y0}:{slot.f1}], "
+            f"S[{slot.ys0}:{slot.s1}])")
+
+
+def _header(kernels: dict[tuple[Any, bool], str], refs: dict[Any, Any],
+            linked: bool) -> list[str]:
+    """Imports and one guarded kernel per (kernel, full): inlined (``guarded_scan``: a
+    block's single ``step``, where the call overhead counts), or, ``linked`` (module
+    ``scans`` and replay ``rows``), each kind's own cached ``call`` entry
+    (:func:`kernel_call`), so those plans compile only their glue and each kernel is compiled
+    at most twice per machine (its step and its call), whatever the modules' shapes."""
+    lines = ["# Generated by loopworks (loopworks.blocks.plan); do not edit.",
+             "import numba", "", "from loopworks.blocks.kernel import guarded_scan",
+             "from loopworks.blocks.plan import kernel_call, resolve", ""]
+    for (kernel, full), g in kernels.items():
+        ref = refs[kernel]
+        source = f"resolve({ref[0]!r}, {ref[1]!r})" if ref else f"KERNELS[{g[1:]}]"
+        make = "kernel_call" if linked else "guarded_scan"
+        lines.append(f"{g} = {make}({source}, True, {full})")
+    return lines
+
+
+def kernel_call(kernel: Any, jit: bool, full: bool) -> Any:
+    """The compiled ``call(dt, p, x, u, us, y, ys)`` of ``kernel`` under the guard: a numba
+    dispatcher cached on disk, for every array size (``jit`` is always True: the signature
+    matches ``guarded_scan`` so generated headers read alike)."""
+    assert jit
+    return entry(layout([(kernel, 0, 0, 0, 0, full)]), "call", CALL_SIGNATURE)
+
+
+def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any]]:
+    """The Python source of a plan's entry points (``scans``, ``step``, ``rows``; the last
+    two for a one-block plan), and the kernels it needs injected (those not importable)."""
+    kernels: dict[tuple[Any, bool], str] = {}
+    for slot in slots:
+        kernels.setdefault((slot.kernel, slot.full), f"G{len(kernels)}")
+    refs = {k: _reference(k) for k, _ in kernels}
+    injected = [k if refs[k] is None else None for k, _ in kernels]
+    lines = _header(kernels, refs, linked="scans" in entries or "rows" in entries)
+    deco = "@numba.njit(cache=CACHE, nogil=True)"
+    if "scans" in entries:
+        lines += ["", "", deco,
+                  "def scans(F, S, dt, t0, k0, n, T, RF, RS, IF, IS):",
+                  "    for k in range(n):",
+                  "        t = t0 if k == 0 else (k0 + k) * dt",
+                  "        T[k] = t"]
+        for slot in slots:
+            for i, src, j in slot.links:
+                s = slots[src]
+                lines.append(f"        F[{slot.u0 + i}] = F[{s.y0 + j}]")
+                lines.append(f"        S[{slot.s0 + i}] = S[{s.ys0 + j}]")
+            if slot.clock is not None:
+                lines.append(f"        F[{slot.u0 + slot.clock}] = t")
+            lines.append("        " + _call(slot, kernels[(slot.kernel, slot.full)], "dt"))
+        lines += ["        for j in range(IF.shape[0]):",
+                  "            RF[k, j] = F[IF[j]]",
+                  "        for j in range(IS.shape[0]):",
+                  "            RS[k, j] = S[IS[j]]"]
+    if "call" in entries:
+        (slot,) = slots
+        lines += ["", "", deco, "def call(dt, p, x, u, us, y, ys):",
+                  f"    {kernels[(slot.kernel, slot.full)]}(dt, p, x, u, us, y, ys)"]
+    if "step" in entries:
+        (slot,) = slots
+        lines += ["", "", deco, "def step(dt, F, S):",
+                  "    " + _call(slot, kernels[(slot.kernel, slot.full)], "dt")]
+    if "rows" in entries:
+        (slot,) = slots
+        lines += ["", "", deco, "def rows(dts, F, S, U, US, Y, YS):",
+                  "    for k in range(dts.shape[0]):",
+                  f"        for i in range({slot.n_u}):",
+                  f"            F[{slot.u0} + i] = U[k, i]",
+                  f"            S[{slot.s0} + i] = US[k, i]",
+                  "        " + _call(slot, kernels[(slot.kernel, slot.full)], "dts[k]"),
+                  f"        for i in range({slot.n_y}):",
+                  f"            Y[k, i] = F[{slot.y0} + i]",
+                  f"            YS[k, i] = S[{slot.ys0} + i]"]
+    return "\n".join(lines) + "\n", injected if any(k is not None for k in injected) else []
+
+
+# -- loading ---------------------------------------------------------------------------------
+
+_loaded: dict[str, Any] = {}
+_warned = False
+
+
+def _warn_once(message: str) -> None:
+    global _warned
+    if not _warned:
+        _warned = True
+        warnings.warn(message, RuntimeWarning, stacklevel=4)
+
+
+def _write(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically (another process may be writing it too)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.exists() and path.read_text(encoding="utf-8") == text:
+        return
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _module(name: str, text: str, injected: list[Any]) -> Any:
+    """The generated module, imported from the cache directory (machine code cached next to
+    it by numba), or executed in memory when the cache cannot be written."""
+    namespace: dict[str, Any]
+    directory = cache_dir() / "plans"
+    path = directory / f"{name}.py"
+    if not injected:
+        try:
+            _write(path, text)
+            probe = directory / "__pycache__"
+            probe.mkdir(exist_ok=True)
+            if not os.access(probe, os.W_OK):
+                raise PermissionError(f"{probe} is not writable")
+        except OSError as exc:
+            _warn_once(f"loopworks: the plan cache {directory} cannot be written ({exc}); "
+                       "compiling in memory (set LOOPWORKS_CACHE_DIR to a writable directory)")
+        else:
+            spec = importlib.util.spec_from_file_location(name, path)
+            assert spec is not None and spec.loader is not None
+            mod = importlib.util.module_from_spec(spec)
+            mod.__dict__["CACHE"] = True
+            sys.modules[name] = mod
+            spec.loader.exec_module(mod)
+            return mod
+    mod = type(sys)(name)
+    namespace = mod.__dict__
+    namespace.update({"CACHE": False, "KERNELS": injected})
+    exec(compile(text, f"<loopworks plan {name}>", "exec"), namespace)
+    return mod
+
+
+def _name(slots: Sequence[Slot], what: str) -> tuple[str, str, list[Any]]:
+    """(module name, source, injected kernels) of a plan's entry point."""
+    text, injected = source(slots, (what,))
+    modules = sorted({slot.kernel.__module__ for slot in slots})
+    key = hashlib.sha256((source_hash(*modules) + text).encode()).hexdigest()[:20]
+    return f"lw_plan_{key}", text, injected
+
+
+def is_cached(slots: Sequence[Slot], what: str) -> bool:
+    """True when the entry point's machine code is in the cache (or loaded in this process):
+    using it costs a load, not a compilation."""
+    name, _, _ = _name(slots, what)
+    if name in _loaded and getattr(_loaded[name], what).overloads:
+        return True
+    return any((cache_dir() / "plans" / "__pycache__").glob(f"{name}.{what}-*.nbi"))
+
+
+def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
+    """The compiled entry point ``what`` ("scans", "step" or "rows") of a plan laid out as
+    ``slots``, loaded from the cache or compiled (once per process, once per machine)."""
+    name, text, injected = _name(slots, what)
+    mod = _loaded.get(name)
+    if mod is None:
+        mod = _loaded[name] = _module(name, text, injected)
+    disp = getattr(mod, what)
+    if not disp.overloads:
+        start = time.perf_counter()
+        disp.compile(signature)
+        took = time.perf_counter() - start
+        if announce is not None and not sum(disp.stats.cache_hits.values()) and took > 0.5:
+            announce(f"compiling the {'module' if what == 'scans' else 'block'}, once: "
+                     f"{took:.1f} s")
+    return disp
+
+
+def entry_point(slots: Sequence[Slot], what: str, signature: str) -> Any:
+    """:func:`entry`'s direct machine-code entry: skips numba's argument-type dispatch, so
+    it must be called with exactly the signature's array types (C-contiguous, float64/int64)."""
+    disp = entry(slots, what, signature)
+    return disp.overloads[disp.signatures[-1]].entry_point
