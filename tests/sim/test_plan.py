@@ -170,3 +170,30 @@ def test_an_unwritable_cache_compiles_in_memory_with_one_warning(tmp_path: Path)
     assert run.stderr.count("cannot be written") == 1, run.stderr
     assert float(run.stdout) == float(run_fresh({"LOOPWORKS_CACHE_DIR": str(tmp_path / "ok")})
                                       .stdout)
+
+
+def doubling_kernel(dt: float, p: Any, x: Any, u: Any, us: Any, y: Any, ys: Any) -> None:
+    """A tiny kernel for the cache tests: y = 2·u, x counts the scans."""
+    x[0] += 1.0
+    y[0] = 2.0 * u[0]
+    ys[0] = 128
+
+
+def test_the_first_compilation_is_announced_once(monkeypatch: pytest.MonkeyPatch,
+                                                 tmp_path: Path) -> None:
+    """Issue 12 point 5: a plan that must be compiled (not in the cache) says so on one line,
+    once per process, before compiling; what is cached is loaded silently."""
+    heard: list[str] = []
+    monkeypatch.setenv("LOOPWORKS_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(plan, "announce", heard.append)
+    monkeypatch.setattr(plan, "_announced", False)
+    for n_u in (1, 2):  # two shapes: two compilations, one line
+        slots = plan.layout([(doubling_kernel, 0, 1, n_u, 1, True)])
+        step = plan.entry(slots, "step", plan.STEP_SIGNATURE)
+        F, S = np.zeros(1 + n_u + 1), np.full(n_u + 1, 128, dtype=np.int64)
+        F[1] = 3.0
+        step(0.1, F, S)
+        assert (F[0], F[-1]) == (1.0, 6.0)
+        assert plan.is_cached(slots, "step")
+    assert len(heard) == 1 and "once for this machine" in heard[0], heard
+    assert str(tmp_path) in heard[0]

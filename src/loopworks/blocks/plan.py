@@ -35,7 +35,6 @@ import os
 import re
 import sys
 import tempfile
-import time
 import warnings
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -43,8 +42,8 @@ from functools import cache
 from pathlib import Path
 from typing import Any
 
-#: called with a one-line message when a plan had to be compiled (not loaded) and that took
-#: noticeable time; the CLI sets it to print the line, a library user hears nothing
+#: called with a one-line message before the first plan of a process that has to be compiled
+#: (not loaded from the cache); the CLI sets it to print the line, a library user hears nothing
 announce: Callable[[str], None] | None = None
 
 CALL_SIGNATURE = ("none(float64, float64[::1], float64[::1], float64[::1], int64[::1], "
@@ -381,13 +380,26 @@ def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
         mod = _loaded[name] = _module(name, text, injected)
     disp = getattr(mod, what)
     if not disp.overloads:
-        start = time.perf_counter()
+        global _announced
+        if announce is not None and not _announced and not is_cached(slots, what):
+            _announced = True  # one line per process, before the first compilation
+            kinds = ", ".join(sorted({_kind(slot.kernel) for slot in slots}))
+            announce(f"compiling {kinds} once for this machine (cached in {cache_dir()}; "
+                     "later runs load it): this can take a minute")
         disp.compile(signature)
-        took = time.perf_counter() - start
-        if announce is not None and not sum(disp.stats.cache_hits.values()) and took > 0.5:
-            announce(f"compiling the {'module' if what == 'scans' else 'block'}, once: "
-                     f"{took:.1f} s")
     return disp
+
+
+_announced = False
+
+
+def _kind(kernel: Any) -> str:
+    """A kernel's name as a user knows it: the kinds that run it (``deltav.pid``), else its
+    function's name."""
+    from loopworks.blocks.registry import block_class, kinds
+
+    names = [k for k in kinds() if block_class(k).kernel is kernel]
+    return "/".join(names) if names else str(getattr(kernel, "__name__", "kernel"))
 
 
 def entry_point(slots: Sequence[Slot], what: str, signature: str) -> Any:
