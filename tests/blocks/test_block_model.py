@@ -442,7 +442,7 @@ def test_a_held_result_keeps_the_scan_that_produced_it() -> None:
 
 def test_set_params_changes_tuning_and_keeps_state() -> None:
     # the textbook law (no bumpless correction, tests/blocks/test_pid.py pins that one)
-    pid = loopworks.create_block("pid", k=1.0, ti=10.0, bumpless_retune=False)
+    pid = loopworks.create_block("pid", k=1.0, ti=10.0, retune="textbook")
     pid.step(1.0, sp=10.0, pv=0.0)            # I = 1.0
     pid.set_params(k=2.0)                     # ki = k/ti = 0.2 now
     out = pid.step(1.0)["out"].value

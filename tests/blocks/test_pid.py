@@ -1050,7 +1050,7 @@ def test_saved_state_resumes(make: Make) -> None:
 @pytest.mark.parametrize("algorithm", ["positional", "velocity"])
 def test_retuning_in_auto_is_bumpless(make: Make, algorithm: str) -> None:
     """Issue 12 point 4 (DiscretePIDs.jl set_K!): K 2 -> 4 at e = 10 would move P from 20 to
-    40; with bumpless_retune the next scan moves only by the new integral increment
+    40; with retune = bumpless the next scan moves only by the new integral increment
     ki_new·dt·e = (4/8)·1·10 = 5."""
     blk = make(k=2.0, ti=8.0, algorithm=algorithm)
     for _ in range(3):
@@ -1060,8 +1060,8 @@ def test_retuning_in_auto_is_bumpless(make: Make, algorithm: str) -> None:
 
 
 def test_retuning_can_bump_when_asked(make: Make) -> None:
-    """bumpless_retune = false: the vendor-neutral textbook law, P jumps with K (20 -> 40)."""
-    blk = make(k=2.0, ti=8.0, bumpless_retune=False)
+    """retune = textbook: the vendor-neutral textbook law, P jumps with K (20 -> 40)."""
+    blk = make(k=2.0, ti=8.0, retune="textbook")
     for _ in range(3):
         before = out(blk, 1.0, sp=50.0, pv=40.0)
     blk.set_params(k=4.0)

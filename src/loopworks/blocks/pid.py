@@ -321,8 +321,10 @@ class PID(Block):
               "safe_out", "choice", choices=("hold", "safe")),
         Param("safe_out", None, "out", "output when bad_pv = safe (in out_lo..out_hi)",
               default_text="out_lo"),
-        Param("bumpless_retune", True, "", "set_params between computing scans (a new "
-              "tuning in AUTO/CAS) moves the integral so the output does not jump", "bool"),
+        Param("retune", "bumpless", "", "a parameter change between computing scans (new "
+              "tuning in AUTO/CAS): bumpless moves the integral so the output does not jump; "
+              "textbook applies the new law as it is", "choice",
+              choices=("bumpless", "textbook")),
     )
     INPUTS: ClassVar[tuple[Port, ...]] = (
         Port("sp", 0.0, "pv", "setpoint (AUTO)", status=True),
@@ -347,7 +349,7 @@ class PID(Block):
 
     def set_params(self, **changes: Any) -> None:
         """Change parameters between scans (see :meth:`Block.set_params`). With
-        ``bumpless_retune`` (default) and the controller computing (AUTO/CAS, not about to
+        ``retune = "bumpless"`` (default) and the controller computing (AUTO/CAS, not about to
         re-initialise), a change of the proportional term's coefficients (kp, b, action) does
         not bump the output: at the latched SP and PV,
 
@@ -359,7 +361,7 @@ class PID(Block):
         their changes need no correction."""
         old = self.p.copy()
         super().set_params(**changes)
-        if not self.params["bumpless_retune"] or self.x[S_INIT] != 0.0 or self.x[S_FIRST] != 0.0:
+        if self.params["retune"] != "bumpless" or self.x[S_INIT] != 0.0 or self.x[S_FIRST] != 0.0:
             return
         mode = self.u[MODE]
         if mode not in (AUTO, CAS):
