@@ -647,8 +647,3 @@ def test_docstring_python_example() -> None:
     assert outs == pytest.approx([50.0, 52.6, 52.6, 48.9], abs=1e-12)
 
 
-def test_jit_and_interpreted_agree_in_the_loop() -> None:
-    for kind, params in ((KNOCKER, {}), (CR, {}), (TWO_MOVE, {"approach": "auto"})):
-        a = loop_28(create_block(kind, jit=True, **params), duration=600.0)
-        b = loop_28(create_block(kind, jit=False, **params), duration=600.0)
-        assert (a["y"] == b["y"]).all()

@@ -84,7 +84,7 @@ def simulate(
 
     from loopworks.sim.report import write_report
     from loopworks.sim.result import SimResult
-    from loopworks.sim.scenario import load_scenario
+    from loopworks.sim.scenario import load_scenario, run_autotune
 
     _check_report_directory(output)
     sc = load_scenario(scenario)
@@ -92,8 +92,20 @@ def simulate(
         typer.echo(f"warning: {warning}", err=True)
     console = Console()
     title = sc.title or sc.source
-    if sc.autotune is not None:
-        at = sc.autotune
+    if sc.autotune_test is not None:  # the [autotune] relay test: an explicit step
+        test = sc.autotune_test
+        with Progress("[progress.description]{task.description}",
+                      "[progress.elapsed]{task.fields[seconds]}", console=console,
+                      transient=True, disable=quiet) as bar:
+            task = bar.add_task(escape(f"relay test on {test.loop} ({test.variant})"),
+                                total=None,
+                                seconds="")
+
+            def relay_tick(seconds: float) -> None:
+                bar.update(task, seconds=f"{seconds:.0f} s of test")
+
+            at = run_autotune(sc, progress=relay_tick)
+        assert at is not None
         console.print(f"[autotune] relay test on {at['loop']} ({at['variant']}): {at['outcome']}, "
                       f"process gain {_g(at['process_gain'])} %PV/%OUT, Ku {_g(at.get('ku'))}, "
                       f"Pu {_g(at.get('pu'))} s", markup=False)

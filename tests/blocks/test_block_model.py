@@ -300,22 +300,6 @@ def test_every_registered_kind_has_variants_here() -> None:
 
 
 @pytest.mark.parametrize("kind", sorted(VARIANTS))
-def test_step_with_jit_matches_step_without(kind: str) -> None:
-    """The block API gives the same outputs with the compiled entry point and without."""
-    rng = np.random.default_rng(7)
-    for params in VARIANTS[kind]:
-        a = loopworks.create_block(kind, jit=True, **params)
-        b = loopworks.create_block(kind, jit=False, **params)
-        for _ in range(500):
-            dt = scan_time(params, rng, 0.05, 1.0)
-            inputs = random_inputs(a, rng)
-            ra, rb = a.step(dt, **inputs), b.step(dt, **inputs)
-            for name in ra:
-                assert ra[name].status == rb[name].status
-                assert ra[name].value == pytest.approx(rb[name].value, abs=1e-12, nan_ok=True)
-
-
-@pytest.mark.parametrize("kind", sorted(VARIANTS))
 def test_resume_from_saved_state_equals_uninterrupted_run(kind: str) -> None:
     """Save mid-run (through JSON), restore into a fresh block, continue: identical outputs."""
     for params in VARIANTS[kind]:

@@ -23,7 +23,6 @@ from typer.testing import CliRunner
 import loopworks
 from loopworks import Module, create_block
 from loopworks.blocks.block import Block
-from loopworks.blocks.kernel import compiled
 from loopworks.cli import app
 from loopworks.errors import ParameterError
 from loopworks.plant.sensor import STREAM_DISTURBANCE, rng_normal, rng_seed_state
@@ -238,24 +237,6 @@ def test_resume_from_saved_state_continues_the_walk_exactly() -> None:
     resumed = create_block(saved["kind"], **saved["params"])
     resumed.load_state(saved)
     assert [resumed.step(0.7)["y"] for _ in range(160)] == expected[140:]
-
-
-def test_compiled_kernel_is_bit_identical() -> None:
-    blocks = [create_block(KIND, jit=False, walk_std=0.5, sine_amplitude=1.0, ramp_rate=0.1,
-                           seed=12) for _ in range(2)]
-    fast = compiled(type(blocks[0]).kernel)
-    py, nb = blocks
-    for _ in range(5000):
-        type(py).kernel(0.2, py.p, py.x, py.u, py.us, py.y, py.ys)
-        fast(0.2, nb.p, nb.x, nb.u, nb.us, nb.y, nb.ys)
-        assert (nb.y == py.y).all() and (nb.x == py.x).all()
-
-
-def test_jit_and_interpreted_steps_agree() -> None:
-    a = create_block(KIND, jit=True, walk_std=0.5, walk_time_constant=10.0, seed=1)
-    b = create_block(KIND, jit=False, walk_std=0.5, walk_time_constant=10.0, seed=1)
-    for _ in range(1000):
-        assert a.step(0.3, u=1.0)["y"] == b.step(0.3, u=1.0)["y"]
 
 
 def test_replay_cli_runs_the_docstring_example(tmp_path: Path) -> None:

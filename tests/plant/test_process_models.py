@@ -26,7 +26,6 @@ from typer.testing import CliRunner
 
 import loopworks
 from loopworks.blocks.block import Block
-from loopworks.blocks.kernel import compiled
 from loopworks.cli import app
 from loopworks.errors import InputError, ParameterError
 from loopworks.sim.module import Module
@@ -693,37 +692,6 @@ VARIANT_SETS: dict[str, list[dict[str, Any]]] = {
                    {"num": "0.1", "den": "1, 0", "sample_time": 1.0, "max_order": 2,
                     "delay_capacity": 3}],
 }
-
-
-@pytest.mark.parametrize("kind", sorted(VARIANT_SETS))
-def test_compiled_kernel_equals_interpreted_on_random_scans(kind: str) -> None:
-    """numba.njit(kernel) against the plain kernel on random inputs (NaN, inf, statuses) and
-    scan times: runs of one dt with occasional changes (both the direct and the walking path
-    of the line); for process.tf mostly its sample_time, sometimes another dt."""
-    # project rule (numba equivalence); these sets are the ones proposed for the project test
-    rng = np.random.default_rng(2024)
-    for params in VARIANT_SETS[kind]:
-        py = loopworks.create_block(kind, jit=False, **params)
-        nb = loopworks.create_block(kind, jit=False, **params)
-        fast = compiled(type(py).kernel)
-        ts = params.get("sample_time")
-        run_dt = float(rng.uniform(0.01, 2.0))
-        for _ in range(1500):
-            if rng.random() < 0.05:
-                run_dt = float(rng.uniform(0.01, 2.0))
-            dt = run_dt
-            if ts is not None:
-                dt = float(ts) if rng.random() < 0.9 else float(rng.uniform(0.01, 2.0))
-            r = rng.random()
-            value = NAN if r < 0.03 else INF if r < 0.04 else float(rng.uniform(-20.0, 120.0))
-            status = int(rng.choice([128, 128, 128, 128, 0, 0x40, 0x44, 0xC0, 130]))
-            py.set_inputs({"u": (value, status)})
-            nb.set_inputs({"u": (value, status)})
-            type(py).kernel(dt, py.p, py.x, py.u, py.us, py.y, py.ys)
-            fast(dt, nb.p, nb.x, nb.u, nb.us, nb.y, nb.ys)
-            np.testing.assert_allclose(nb.y, py.y, rtol=1e-12, atol=1e-12, equal_nan=True)
-            np.testing.assert_array_equal(nb.ys, py.ys)
-            np.testing.assert_allclose(nb.x, py.x, rtol=1e-12, atol=1e-12, equal_nan=True)
 
 
 @pytest.mark.parametrize("kind", sorted(VARIANT_SETS))

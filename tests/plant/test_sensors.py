@@ -25,7 +25,6 @@ from typer.testing import CliRunner
 import loopworks
 from loopworks import Module, create_block
 from loopworks.blocks.block import Block
-from loopworks.blocks.kernel import compiled
 from loopworks.cli import app
 from loopworks.errors import ParameterError
 from loopworks.plant import sensor
@@ -125,21 +124,6 @@ def test_normals_are_box_muller_of_two_uniforms() -> None:
     for _ in range(100):
         u1, u2 = rng_uniform(xu, 0), rng_uniform(xu, 0)
         assert rng_normal(x, 0) == math.sqrt(-2.0 * math.log(u1)) * math.cos(2 * math.pi * u2)
-
-
-def test_compiled_generator_is_bit_identical() -> None:
-    """numba-compiled and interpreted kernels give the same bits, noise and all."""
-    blocks = [create_block(KIND, jit=False, noise_std=1.3, time_constant=0.7, seed=11)
-              for _ in range(2)]
-    fast = compiled(type(blocks[0]).kernel)
-    for k in range(5000):
-        for b in blocks:
-            b.set_inputs({"y": 50.0 + math.sin(k / 50.0)})
-        py, nb = blocks
-        type(py).kernel(0.1, py.p, py.x, py.u, py.us, py.y, py.ys)
-        fast(0.1, nb.p, nb.x, nb.u, nb.us, nb.y, nb.ys)
-        assert nb.y[0] == py.y[0]
-        assert (nb.x == py.x).all()
 
 
 # -- the signal path -----------------------------------------------------------------------------
@@ -369,14 +353,6 @@ def test_resume_from_saved_state_continues_the_noise_exactly() -> None:
     resumed = create_block(saved["kind"], **saved["params"])
     resumed.load_state(saved)
     assert [resumed.step(1.0, y=y)["pv"] for y in ys[120:]] == expected[120:]
-
-
-def test_jit_and_interpreted_steps_are_bit_identical() -> None:
-    a = create_block(KIND, jit=True, noise_std=0.3, time_constant=2.0, quantum=0.05, seed=9)
-    b = create_block(KIND, jit=False, noise_std=0.3, time_constant=2.0, quantum=0.05, seed=9)
-    for k in range(2000):
-        y = 20.0 + k * 0.01
-        assert a.step(0.25, y=y)["pv"] == b.step(0.25, y=y)["pv"]
 
 
 def test_replay_cli_runs_the_docstring_example(tmp_path: Path) -> None:

@@ -16,11 +16,14 @@ import pytest
 
 import loopworks
 from loopworks.blocks import plan
+from loopworks.blocks.kernel import run_rows
 from loopworks.errors import InputError
 from loopworks.sim.module import Event, Module
 from loopworks.sim.result import SimResult
 from loopworks.sim.scenario import load_scenario
 from tests.blocks.test_block_model import VARIANTS, random_inputs, scan_time
+from tests.plant.test_process_models import VARIANT_SETS as PROCESS_VARIANTS
+from tests.vendors.test_siemens_s5 import VARIANTS as S5_VARIANTS
 
 EXAMPLES = sorted((Path(__file__).parents[2] / "examples").glob("*.toml"))
 SCANS = 400
@@ -49,19 +52,105 @@ def random_events(kind: str, params: dict[str, Any], dt: float,
     return events
 
 
+#: the parameter sets the vendor and plant tests pin, beside the branch-covering VARIANTS
+EXTRA: dict[str, list[dict[str, Any]]] = {
+    "s5.pid": S5_VARIANTS,
+    **PROCESS_VARIANTS,
+    "deltav.stick_slip": [{"resolution": 0.5, "deadband": 0.2, "precision": "float64",
+                           "deferred_param_reads": True, "dither_half_period": 2}],
+    "deltav.sggn": [{"waveform": w, "period": 2.5} for w in ("square", "sine", "triangle")],
+    "deltav.calc": [{"precision": "float64", "deferred_param_reads": True},
+                    {"expression": "'^/Y' := '^/A' / '^/B' - NOT '^/A'; '^/Y.ST' := '^/A';",
+                     "a": 0.0, "b": 0.0, "divide_by_zero": "ieee"}],
+    "deltav.pid": [{"gain": 2.0, "reset": 3.0, "rate": 1.5,
+                    "structure": "two_degrees_of_freedom", "beta": 0.6, "gamma": 0.4,
+                    "pv_ftime": 1.0, "arw_hi_lim": 80.0}],
+    "e2.pid": [{"kd": 1.0, "d_form": "as_printed", "filter_period": 3.0,
+                "old_output": "filtered", "i_tr_normalise": True}],
+    "sensor.transmitter": [{"noise_std": 1.3, "time_constant": 0.7, "seed": 11},
+                           {"noise_std": 0.3, "time_constant": 2.0, "quantum": 0.05,
+                            "seed": 9}],
+    "disturbance.load": [{"walk_std": 0.5, "sine_amplitude": 1.0, "ramp_rate": 0.1,
+                          "seed": 12}],
+}
+
+
+def rows_of(block: Any, inputs: list[dict[str, Any]]) -> tuple[Any, Any, Any, Any]:
+    """Inputs as replay rows (value and status arrays), and output arrays whose row 0 holds
+    the outputs before the first scan."""
+    n, n_u = len(inputs), len(block.INPUTS)
+    U, US = np.zeros((n, n_u)), np.full((n, n_u), 128, dtype=np.int64)
+    last = {port.name: (port.default, 128) for port in block.INPUTS}
+    for k, row in enumerate(inputs):
+        for name, value in row.items():
+            last[name] = value if isinstance(value, tuple) else (value, 128)
+        for i, port in enumerate(block.INPUTS):
+            U[k, i], US[k, i] = last[port.name]
+    Y = np.zeros((n, len(block.OUTPUTS)))
+    YS = np.zeros((n, len(block.OUTPUTS)), dtype=np.int64)
+    Y[0], YS[0] = block.y, block.ys
+    return U, US, Y, YS
+
+
+def usable_dt(block: Any, params: dict[str, Any], rng: np.random.Generator) -> float:
+    """A random scan time the block accepts (a short delay line takes only long scans)."""
+    for dt in [scan_time(params, rng, 0.05, 1.0) for _ in range(20)] + [1.0, 2.0, 5.0, 20.0]:
+        try:
+            block.check_dt(dt)
+        except InputError:
+            continue
+        return dt
+    raise AssertionError(f"{block.kind} {params}: no usable scan time")
+
+
 @pytest.mark.parametrize("kind", sorted(VARIANTS))
 def test_compiled_plan_equals_the_interpreted_run(kind: str) -> None:
-    """Issue 12: one equivalence test per kind. A module of the block alone, its inputs
-    changed by events at random scans (the plan runs in chunks between them), run as the
-    compiled plan and as the interpreted reference, for every parameter variant."""
+    """Issue 12: the one equivalence test per kind, for the three ways a kernel runs, each
+    compiled against the interpreted reference, for every parameter variant (the
+    branch-covering ones and those the vendor and plant tests pin):
+
+    * a module of the block alone, its inputs changed by events at random scans (the plan
+      runs in chunks between them): values to 1e-12, statuses equal;
+    * ``Block.step`` with random inputs (NaN, inf, statuses) and random scan times;
+    * replay rows (``run_rows``) of the same inputs at one scan time."""
     rng = np.random.default_rng(20261202)
-    for params in VARIANTS[kind]:
-        dt = scan_time(params, rng, 0.05, 1.0)
+    for params in VARIANTS[kind] + EXTRA.get(kind, []):
+        where = f"{kind} {params}"
+        probe = loopworks.create_block(kind, jit=False, **params)
+        dt = usable_dt(probe, params, rng)
         events = random_events(kind, params, dt, rng)
         runs = [Module({"b": loopworks.create_block(kind, jit=jit, **params)}, events=events)
                 .run(SCANS * dt, dt, plan=how)
                 for jit, how in ((False, "python"), (True, "compiled"))]
-        assert_same(*runs, where=f"{kind} {params}")
+        assert_same(*runs, where=where)
+
+        fast, slow = (loopworks.create_block(kind, jit=jit, **params) for jit in (True, False))
+        steps = []
+        for _ in range(SCANS):
+            step_dt = usable_dt(probe, params, rng)
+            inputs = random_inputs(fast, rng)
+            steps.append(inputs)
+            a, b = fast.step(step_dt, **inputs), slow.step(step_dt, **inputs)
+            for name in a:
+                assert a[name].status == b[name].status, f"{where}: step {name}"
+                assert a[name].value == pytest.approx(b[name].value, rel=1e-12, abs=1e-12,
+                                                      nan_ok=True), f"{where}: step {name}"
+            np.testing.assert_allclose(fast.x, slow.x, rtol=1e-12, atol=1e-12,
+                                       err_msg=f"{where}: step state")
+
+        block = loopworks.create_block(kind, jit=False, **params)
+        got = []
+        for jit in (True, False):
+            U, US, Y, YS = rows_of(block, steps)
+            x = block.x.copy()
+            run_rows(type(block).kernel, np.full(SCANS, dt), block.p.copy(), x, U, US, Y, YS,
+                     jit=jit, full=not block.SOUND_KERNEL)
+            got.append((Y, YS, x))
+        np.testing.assert_allclose(got[0][0], got[1][0], rtol=1e-12, atol=1e-12,
+                                   equal_nan=True, err_msg=f"{where}: rows")
+        np.testing.assert_array_equal(got[0][1], got[1][1], err_msg=f"{where}: row statuses")
+        np.testing.assert_allclose(got[0][2], got[1][2], rtol=1e-12, atol=1e-12,
+                                   err_msg=f"{where}: rows state")
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
@@ -197,3 +286,54 @@ def test_the_first_compilation_is_announced_once(monkeypatch: pytest.MonkeyPatch
         assert plan.is_cached(slots, "step")
     assert len(heard) == 1 and "once for this machine" in heard[0], heard
     assert str(tmp_path) in heard[0]
+
+
+THREE_PATHS = """
+import numpy as np
+import loopworks
+from loopworks.blocks.kernel import run_rows
+from loopworks.sim.module import Module
+
+block = loopworks.create_block("valve.backlash", b=1.0)
+block.step(0.5, op=10.0)
+n_y = len(block.OUTPUTS)
+run_rows(type(block).kernel, np.array([0.5, 0.5]), block.p.copy(), block.x.copy(),
+         np.array([[1.0], [20.0]]), np.full((2, 1), 128, dtype=np.int64), np.zeros((2, n_y)),
+         np.full((2, n_y), 128, dtype=np.int64), jit=True, full=not block.SOUND_KERNEL)
+module = Module({"v": loopworks.create_block("valve.backlash", b=1.0)},
+                inputs={"v": {"op": 5.0}})
+module.run(1.0, 0.5, plan="compiled")
+"""
+
+
+def test_each_kernel_is_compiled_into_one_entry_only(tmp_path: Path) -> None:
+    """A block's step, a replay's rows and a module's scans all call the kind's one cached
+    ``call`` entry: the kernel's arithmetic is compiled once per machine, whichever runs
+    first ("never compile the same thing twice"). Run in a fresh process, so nothing is
+    loaded already."""
+    subprocess.run([sys.executable, "-c", THREE_PATHS], capture_output=True, text=True,
+                   env={**os.environ, "LOOPWORKS_CACHE_DIR": str(tmp_path)}, timeout=600,
+                   check=True)
+    texts = [p.read_text() for p in (tmp_path / "plans").glob("lw_plan_*.py")]
+    inlined = [t for t in texts if "= guarded_scan(" in t]
+    assert len(texts) == 4 and len(inlined) == 1, texts  # call, and step, rows, scans
+    assert "def call(" in inlined[0]
+    assert sum("= kernel_call(" in t for t in texts) == 3
+
+
+def test_the_plan_name_follows_the_kernels_code_not_its_module(tmp_path: Path) -> None:
+    """A plan's name hashes what its machine code depends on: the kernel's code and the
+    constants and primitives it uses, not the rest of its module (a docstring elsewhere, a
+    parameter's meaning), so an edit there costs no compilation, and an edit that changes the
+    arithmetic always gives a new name."""
+    text = "def k(dt, p, x, u, us, y, ys):\n    y[0] = GAIN * u[0]\n"
+
+    def kernel(source: str, gain: float) -> Any:
+        namespace: dict[str, Any] = {"GAIN": gain, "__name__": "tests.fake_kernels"}
+        exec(compile(source, "<fake>", "exec"), namespace)
+        return namespace["k"]
+
+    base = plan._kernels_hash((kernel(text, 2.0),))
+    assert plan._kernels_hash((kernel("\n\n# moved down\n" + text, 2.0),)) == base
+    assert plan._kernels_hash((kernel(text, 3.0),)) != base  # a constant numba freezes
+    assert plan._kernels_hash((kernel(text.replace("*", "+"), 2.0),)) != base

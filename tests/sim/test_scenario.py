@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from loopworks.errors import FileFormatError
-from loopworks.sim.scenario import load_scenario, parse_scenario
+from loopworks.sim.scenario import load_scenario, parse_scenario, run_autotune
 
 GOOD = """
 [simulation]
@@ -60,6 +60,7 @@ def test_built_in_scenario_shows_the_seed_claim_and_its_cost() -> None:
     compensator on, the PV varies less over the second half, and the valve travels further and
     reverses more often (the finding the README reports)."""
     sc = load_scenario()
+    run_autotune(sc)  # the compensator's PROCESS_GAIN from the relay test, as simulate does
     assert list(sc.variants) == ["compensation_off", "compensation_on"]
     assert sc.metrics_window == (1800.0, 3600.0)
     off, on = (sc.variants[v].run(sc.duration, sc.dt).metrics(window=sc.metrics_window)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from loopworks.errors import FileFormatError
-from loopworks.sim.scenario import load_scenario, parse_scenario
+from loopworks.sim.scenario import load_scenario, parse_scenario, run_autotune
 
 LOOP = """
 [simulation]
@@ -65,11 +65,39 @@ start = 150.0
 def test_autotune_sets_the_identified_process_gain_in_every_variant() -> None:
     # vendor-blocks 5.1: the compensator's PROCESS_GAIN is the tuner's identified process gain
     sc = parse_scenario(LOOP + AUTOTUNE)
+    assert run_autotune(sc) is sc.autotune
     assert sc.autotune is not None and sc.autotune["outcome"] == "converged"
     for module in sc.variants.values():
         assert module.blocks["compensator"].params["process_gain"] == pytest.approx(1.5, rel=0.02)
     assert sc.autotune["process_gain"] == sc.variants["on"].blocks["compensator"].params[
         "process_gain"]
+
+
+def test_loading_runs_nothing_and_run_autotune_is_the_explicit_step(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # issue 12 point 3: parsing is pure; the relay test runs only when asked for
+    import loopworks.sim.tune as tune
+
+    calls: list[str] = []
+    real = tune.relay_test
+
+    def counted(*args: object, **kwargs: object) -> object:
+        calls.append("relay")
+        return real(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(tune, "relay_test", counted)
+    sc = parse_scenario(LOOP + AUTOTUNE)
+    assert calls == [] and sc.autotune is None and sc.autotune_test is not None
+    before = {name: m.blocks["compensator"].params["process_gain"]
+              for name, m in sc.variants.items()}
+    ticks: list[float] = []
+    at = run_autotune(sc, progress=ticks.append)
+    assert calls == ["relay"] and at is sc.autotune and at is not None
+    assert ticks and ticks == sorted(ticks)  # the test's own progress, in seconds of test
+    for name, module in sc.variants.items():
+        gain = module.blocks["compensator"].params["process_gain"]
+        assert gain == at["process_gain"] != before[name]
+    assert sc.module is sc.variants[next(iter(sc.variants))]
 
 
 def test_autotune_errors_name_the_table() -> None:
@@ -148,6 +176,7 @@ def test_autotune_offset_stage_gives_the_gain_through_the_loop() -> None:
     # equal amplitudes: K = 1.5 within 2 %
     text = LOOP + AUTOTUNE + "offset = 0.5\nbias_ratio = 1.0\n"
     sc = parse_scenario(text)
+    run_autotune(sc)
     assert sc.autotune is not None and sc.autotune["outcome"] == "converged"
     assert sc.autotune["process_gain"] == pytest.approx(1.5, rel=0.02)
 
@@ -166,7 +195,7 @@ def test_built_in_scenario_takes_the_compensator_gain_from_a_relay_test() -> Non
     # issue 6 point 6 (vendor-blocks 5.1, seed 000): PROCESS_GAIN is the tuner's identified
     # process gain, in % PV per % OUT
     sc = load_scenario()
-    at = sc.autotune
+    at = run_autotune(sc)
     assert at is not None and at["outcome"] == "converged" and at["loop"] == "pid"
     assert at["variant"] == "compensation_off"
     for module in sc.variants.values():
@@ -190,7 +219,8 @@ def test_tune_without_loop_runs_the_scenarios_own_test() -> None:
     assert done.returncode == 0, done.stderr
     data = json.loads(done.stdout)
     assert data["loop"] == "pid" and data["outcome"] == "converged"
-    assert data["process_gain"] == pytest.approx(load_scenario().autotune["process_gain"],
-                                                 rel=1e-9)
+    at = run_autotune(load_scenario())
+    assert at is not None
+    assert data["process_gain"] == pytest.approx(at["process_gain"], rel=1e-9)
     # the relay oscillated under the PID's reverse action: the settings keep it
     assert data["settings"]["direct_acting"] is False

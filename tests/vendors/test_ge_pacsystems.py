@@ -760,3 +760,19 @@ def test_a_subnormal_integral_resolution_is_a_parameter_error(kind: str) -> None
     """Found by the slow property profile: 1/5e-324 overflowed inside the check (issue 11)."""
     with pytest.raises(ParameterError, match="integral_resolution"):
         loopworks.create_block(kind, integral_resolution=5e-324)
+
+
+@pytest.mark.parametrize("kind", ["ge.pid_ind", "ge.pid_isa"])
+def test_an_integral_resolution_finer_than_a_billionth_is_a_parameter_error(kind: str) -> None:
+    """Found by the slow property profile (issue 11): integral_resolution = 2.2e-308 (1/n for
+    n = 4.5e307) made the integral's limit INT32_MAX·n infinite, and the integral with it.
+    1/n is allowed up to n = 10^9 (the exact carry's finest unit), and stays finite there."""
+    with pytest.raises(ParameterError, match=r"integral_resolution.*1 to 1e\+09"):
+        loopworks.create_block(kind, integral_resolution=2.2250738585072014e-308)
+    with pytest.raises(ParameterError, match="integral_resolution"):
+        loopworks.create_block(kind, integral_resolution=1e-10)
+    fast = {"ki": 30.0} if kind == "ge.pid_ind" else {"ti": 0.05}
+    block = loopworks.create_block(kind, **fast, integral_resolution=1e-9)
+    for _ in range(2000):
+        block.step(0.1, sp=30000.0, pv=-30000.0)
+        assert all(math.isfinite(v) for v in [*block.x, *block.y]), block.state()

@@ -23,7 +23,6 @@ from typer.testing import CliRunner
 
 import loopworks
 from loopworks.blocks.block import Block
-from loopworks.blocks.kernel import compiled
 from loopworks.cli import app
 from loopworks.errors import InputError, ParameterError
 from loopworks.vendors import siemens_s5
@@ -809,20 +808,15 @@ def random_inputs(rng: np.random.Generator) -> dict[str, Any]:
 
 
 @pytest.mark.parametrize("params", VARIANTS)
-def test_compiled_kernel_matches_interpreted(params: dict[str, Any]) -> None:
-    """numba and plain Python agree on random inputs; states stay finite words (native)."""
+def test_native_states_stay_finite_words(params: dict[str, Any]) -> None:
+    """On random inputs the states stay finite, and in native arithmetic whole 16-bit words
+    (spec 2.8 [V]). (Compiled against interpreted: tests/sim/test_plan.py, these variants
+    included.)"""
     rng = np.random.default_rng(2024)
     py = loopworks.create_block("s5.pid", jit=False, **params)
-    nb = loopworks.create_block("s5.pid", jit=False, **params)
-    fast = compiled(type(py).kernel)
     for _ in range(1500):
-        inputs = random_inputs(rng)
-        py.set_inputs(inputs)
-        nb.set_inputs(inputs)
+        py.set_inputs(random_inputs(rng))
         type(py).kernel(1.0, py.p, py.x, py.u, py.us, py.y, py.ys)
-        fast(1.0, nb.p, nb.x, nb.u, nb.us, nb.y, nb.ys)
-        np.testing.assert_allclose(nb.y, py.y, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(nb.x, py.x, rtol=1e-12, atol=1e-12)
         assert np.isfinite(py.x).all()
         if params.get("arithmetic", "native") == "native":
             assert (py.x == np.round(py.x)).all()

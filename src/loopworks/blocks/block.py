@@ -15,9 +15,9 @@ parameters into the flat ``p`` array the kernel reads. Everything else is here:
 from __future__ import annotations
 
 import math
-import sys
-from collections.abc import Iterator, Mapping
-from typing import Any, ClassVar, cast
+from collections.abc import Callable, Iterator, Mapping
+from typing import Any, ClassVar
+from weakref import ref as _weakref
 
 import numpy as np
 
@@ -40,15 +40,16 @@ class Outputs(list, Mapping[str, Signal]):  # type: ignore[type-arg]
     """The outputs of one scan, by port name: ``result["out"]`` is a :class:`Signal`.
 
     It reads the block's output buffers directly while it is the newest result; if it is still
-    held when the block scans again (or is reset or loaded), it first takes a copy, so a result
-    always shows the scan that produced it. The :class:`Signal` pairs are built when read."""
+    alive when the block scans again (or is reset or loaded), the block first makes it take a
+    copy (the block keeps a weak reference to it), so a result always shows the scan that
+    produced it. The :class:`Signal` pairs are built when read."""
 
-    __slots__ = ()
+    __slots__ = ("__weakref__",)
 
     def __getitem__(self, name: str) -> Signal:  # type: ignore[override]
         get = list.__getitem__
         i = get(self, 0)[name]
-        return Signal(get(self, 1)[i], get(self, 2)[i])
+        return Signal(float(get(self, 1)[i]), int(get(self, 2)[i]))
 
     def _freeze(self) -> None:
         """Copy the values out of the block's buffers before they change."""
@@ -75,8 +76,12 @@ class Outputs(list, Mapping[str, Signal]):  # type: ignore[type-arg]
         return "Outputs(" + ", ".join(f"{k}={self[k]}" for k in self) + ")"
 
 
-_refcount = sys.getrefcount
 _INF = math.inf
+
+
+def _no_result() -> None:
+    """The dead weak reference a block starts with (no step() result yet)."""
+    return None
 
 
 class Block:
@@ -127,7 +132,8 @@ class Block:
         self._run: Kernel = self._run_first
         self._packed: Any = self._packed_first
         self._all_good = True  # every input status is Good NC (128): the fast path skips them
-        self._last: Outputs | None = None  # the newest step() result, read from the buffers
+        # a weak reference to the newest step() result, which reads the buffers while alive
+        self._last: Callable[[], Outputs | None] = _no_result
         self.reset()
 
     def _bind(self) -> None:
@@ -140,11 +146,6 @@ class Block:
         self.y: FloatArray = F[n_p + n_x + n_u:]
         self.us: IntArray = S[:n_u]
         self.ys: IntArray = S[n_u:]
-        # memoryviews on the same buffers: item access from Python is several times cheaper
-        self._um: Any = memoryview(cast(Any, self.u))
-        self._usm: Any = memoryview(cast(Any, self.us))
-        self._ym: Any = memoryview(cast(Any, self.y))
-        self._ysm: Any = memoryview(cast(Any, self.ys))
 
     def adopt(self, F: FloatArray, S: IntArray) -> None:
         """Move the block's buffers into ``F`` and ``S``, views of a plan's flat buffers of
@@ -223,22 +224,23 @@ class Block:
         if not 0.0 < dt < _INF:
             raise InputError(
                 f"{self.kind}: dt = {dt!r} s is not allowed: dt must be > 0 and finite")
-        last = self._last
-        if last is not None and _refcount(last) > 3:  # held by the caller: copy it first
+        last = self._last()
+        if last is not None:  # still held by the caller: it keeps this scan's values
             last._freeze()
         if inputs:
-            index, u = self._fast_index, self._um
+            index, u = self._fast_index, self.u
             good = self._all_good
             for name, value in inputs.items():
                 i = index.get(name)
                 if i is not None and type(value) is float:  # the fast path
                     u[i] = value
                     if not good:
-                        self._usm[i] = 128
+                        self.us[i] = 128
                 else:
                     self.set_inputs({name: value})
         self._packed(dt, self._F, self._S)
-        self._last = result = Outputs((self._out_index, self._ym, self._ysm))
+        result = Outputs((self._out_index, self.y, self.ys))
+        self._last = _weakref(result)
         return result
 
     def set_inputs(self, inputs: Mapping[str, Any]) -> None:
@@ -296,15 +298,16 @@ class Block:
 
     def outputs(self) -> Outputs:
         """The outputs of the last scan (a copy)."""
-        result = Outputs((self._out_index, self._ym, self._ysm))
+        result = Outputs((self._out_index, self.y, self.ys))
         result._freeze()
         return result
 
     def _release_last(self) -> None:
         """Before the output buffers change outside a step: let a held result copy them."""
-        if self._last is not None:
-            self._last._freeze()
-            self._last = None
+        last = self._last()
+        if last is not None:
+            last._freeze()
+        self._last = _no_result
 
     def state(self) -> dict[str, float]:
         """The named state variables, for inspection."""

@@ -200,8 +200,8 @@ def guarded_scan(kernel: Any, jit: bool, full: bool = True) -> Any:
     (float32 storage, 16-bit words) check that in their kernel; this is the floor under all.
     ``full=False`` is step 1 only, for a kernel that keeps steps 2-3 by itself
     (``Block.SOUND_KERNEL``, shown by the property tests): no state copy per scan.
-    Compiled, the kernel is inlined into the guard, and the guard into the generated plan that
-    calls it (:mod:`loopworks.blocks.plan`), which is what is cached on disk.
+    Compiled, the kernel is inlined into the guard, and the guard into its kind's ``call``
+    entry (:mod:`loopworks.blocks.plan`), cached on disk; every other plan calls that entry.
     """
     if not jit:
         fn = _guarded_py.get((kernel, full))
@@ -238,8 +238,9 @@ def step_entry(kernel: Any, n_p: int, n_x: int, n_u: int, n_y: int, full: bool =
     buffer S = [us | ys]: a one-block plan (:mod:`loopworks.blocks.plan`), cached on disk.
 
     Two arrays to unbox instead of six make a single step from Python markedly cheaper. The
-    sizes are literals of the generated function, so each (kernel, sizes) compiles once per
-    machine."""
+    sizes are literals of the generated glue, which calls the kind's cached ``call`` entry
+    (:func:`guarded_entry`): each (kernel, sizes) compiles its glue once per machine (well
+    under a second), the kernel itself once per machine for every use."""
     key = (kernel, n_p, n_x, n_u, n_y, full)
     fn = _entries.get(key)
     if fn is None:

@@ -32,15 +32,17 @@ import hashlib
 import importlib
 import importlib.util
 import os
-import re
 import sys
 import tempfile
+import types
 import warnings
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 #: called with a one-line message before the first plan of a process that has to be compiled
 #: (not loaded from the cache); the CLI sets it to print the line, a library user hears nothing
@@ -131,27 +133,67 @@ def cache_dir() -> Path:
     return Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "loopworks"
 
 
-_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+(loopworks[\w.]*)[ \t]+import"
-                     r"|import[ \t]+(loopworks[\w.]*))", re.MULTILINE)
+def _code_parts(code: types.CodeType) -> Iterator[bytes]:
+    """What a code object computes, without its line numbers or docstring position: its
+    byte code, names and constants, nested code objects (comprehensions) included."""
+    yield code.co_code
+    yield repr((code.co_names, code.co_varnames, code.co_freevars)).encode()
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            yield from _code_parts(const)
+        else:
+            yield repr(const).encode()
 
 
-@cache
-def _imports(module: str) -> frozenset[str]:
-    """The loopworks modules ``module`` imports (read from its source: ``import loopworks.x``
-    and ``from loopworks.x import``, at any indentation), itself included, closed under the
-    same relation."""
-    seen = {module}
-    todo = [module]
-    while todo:
-        path = _origin(todo.pop())
-        if path is None:
-            continue
-        for found in _IMPORT.findall(path.read_text(encoding="utf-8")):
-            name = found[0] or found[1]
-            if name not in seen:
-                seen.add(name)
-                todo.append(name)
-    return frozenset(seen)
+def _all_names(code: types.CodeType) -> set[str]:
+    names = set(code.co_names)
+    for const in code.co_consts:
+        if isinstance(const, types.CodeType):
+            names |= _all_names(const)
+    return names
+
+
+def _feed(obj: Any, digest: Any, seen: set[int]) -> None:
+    """Feed ``digest`` with what the machine code compiled from ``obj`` depends on: for a
+    function, its code and, through the globals it names, the functions it calls (a
+    primitive, a numba dispatcher's Python function), the constants it reads (numba freezes
+    global values into the machine code) and the modules it uses (a loopworks module by its
+    whole source, any other by name); its defaults and closure cells likewise."""
+    if id(obj) in seen:
+        return
+    seen.add(id(obj))
+    py_func = getattr(obj, "py_func", None)  # a numba dispatcher
+    if py_func is not None:
+        obj = py_func
+    if isinstance(obj, types.FunctionType):
+        digest.update(f"function {obj.__module__}.{obj.__qualname__}".encode())
+        for part in _code_parts(obj.__code__):
+            digest.update(part)
+        for name in sorted(_all_names(obj.__code__)):
+            if name in obj.__globals__:
+                digest.update(f"global {name}".encode())
+                _feed(obj.__globals__[name], digest, seen)
+        for value in obj.__defaults__ or ():
+            _feed(value, digest, seen)
+        for cell in obj.__closure__ or ():
+            _feed(cell.cell_contents, digest, seen)
+    elif isinstance(obj, types.ModuleType):
+        digest.update(f"module {obj.__name__}".encode())
+        path = _origin(obj.__name__) if obj.__name__.startswith("loopworks") else None
+        if path is not None:
+            digest.update(path.read_bytes())
+    elif isinstance(obj, bool | int | float | complex | str | bytes | type(None)):
+        digest.update(f"{type(obj).__name__} {obj!r}".encode())
+    elif isinstance(obj, tuple | list | frozenset):
+        digest.update(f"{type(obj).__name__} {len(obj)}".encode())
+        for item in obj:
+            _feed(item, digest, seen)
+    elif isinstance(obj, np.ndarray):
+        digest.update(repr((obj.dtype.str, obj.shape)).encode() + obj.tobytes())
+    else:  # a class, a numpy function or type: its name
+        digest.update(f"{type(obj).__qualname__} "
+                      f"{getattr(obj, '__module__', '')}.{getattr(obj, '__qualname__', '')}"
+                      .encode())
 
 
 def _origin(module: str) -> Path | None:
@@ -166,22 +208,24 @@ def _origin(module: str) -> Path | None:
 
 
 @cache
-def source_hash(*modules: str) -> str:
-    """A hash of the source of ``modules`` and of every loopworks module they import (and of
-    the guard's, which generated plans import), numba's version and Python's: a change to a
-    kernel, or to anything it uses, gives its plans new names, so no stale machine code can
-    load. (The generated text itself is hashed with it by the callers.)"""
+def _kernels_hash(kernels: tuple[Any, ...]) -> str:
+    """A hash of what the machine code of a plan over ``kernels`` depends on: each kernel's
+    code and everything it uses (:func:`_feed`), the source of the guard and plan machinery
+    (``blocks.kernel``, this module), numba's version and Python's. A change to a kernel, to a
+    primitive or constant it uses, gives its plans new names, so no stale machine code can
+    load; a change elsewhere in a kernel's module (a docstring, a parameter's meaning, another
+    class) does not, so it costs no compilation. (The generated text is hashed with it by the
+    callers.)"""
     import numba
 
-    names: set[str] = set(_imports("loopworks.blocks.kernel"))
-    for module in modules:
-        names |= _imports(module)
     digest = hashlib.sha256()
-    for name in sorted(names):
+    for name in ("loopworks.blocks.kernel", __name__):
         path = _origin(name)
         if path is not None:
-            digest.update(name.encode())
             digest.update(path.read_bytes())
+    seen: set[int] = set()
+    for kernel in kernels:
+        _feed(kernel, digest, seen)
     digest.update(numba.__version__.encode())
     digest.update(sys.version.encode())
     return digest.hexdigest()[:16]
@@ -221,11 +265,11 @@ def _call(slot: Slot, g: str, dt: str) -> str:
 
 def _header(kernels: dict[tuple[Any, bool], str], refs: dict[Any, Any],
             linked: bool) -> list[str]:
-    """Imports and one guarded kernel per (kernel, full): inlined (``guarded_scan``: a
-    block's single ``step``, where the call overhead counts), or, ``linked`` (module
-    ``scans`` and replay ``rows``), each kind's own cached ``call`` entry
-    (:func:`kernel_call`), so those plans compile only their glue and each kernel is compiled
-    at most twice per machine (its step and its call), whatever the modules' shapes."""
+    """Imports and one guarded kernel per (kernel, full): inlined (``guarded_scan``: only in
+    each kind's own ``call`` entry), or, ``linked`` (a module's ``scans``, a block's ``step``,
+    a replay's ``rows``), that kind's cached ``call`` entry (:func:`kernel_call`), so those
+    plans compile only their glue (well under a second) and each kernel is compiled once per
+    machine, whatever the modules' shapes and whichever command runs it first."""
     lines = ["# Generated by loopworks (loopworks.blocks.plan); do not edit.",
              "import numba", "", "from loopworks.blocks.kernel import guarded_scan",
              "from loopworks.blocks.plan import kernel_call, resolve", ""]
@@ -253,7 +297,7 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
         kernels.setdefault((slot.kernel, slot.full), f"G{len(kernels)}")
     refs = {k: _reference(k) for k, _ in kernels}
     injected = [k if refs[k] is None else None for k, _ in kernels]
-    lines = _header(kernels, refs, linked="scans" in entries or "rows" in entries)
+    lines = _header(kernels, refs, linked="call" not in entries)
     deco = "@numba.njit(cache=CACHE, nogil=True)"
     if "scans" in entries:
         lines += ["", "", deco,
@@ -357,8 +401,8 @@ def _module(name: str, text: str, injected: list[Any]) -> Any:
 def _name(slots: Sequence[Slot], what: str) -> tuple[str, str, list[Any]]:
     """(module name, source, injected kernels) of a plan's entry point."""
     text, injected = source(slots, (what,))
-    modules = sorted({slot.kernel.__module__ for slot in slots})
-    key = hashlib.sha256((source_hash(*modules) + text).encode()).hexdigest()[:20]
+    key = hashlib.sha256((_kernels_hash(tuple(dict.fromkeys(slot.kernel for slot in slots)))
+                          + text).encode()).hexdigest()[:20]
     return f"lw_plan_{key}", text, injected
 
 

@@ -279,7 +279,8 @@ def _run(block: Block, part: _Chunk, clock: int | None, source: str,
     YS = np.empty((n, len(block.OUTPUTS)), dtype=np.int64)
     Y[0] = block.y
     YS[0] = block.ys
-    run_rows(type(block).kernel, dts, block.p, block.x, U, US, Y, YS, jit=block.jit)
+    run_rows(type(block).kernel, dts, block.p, block.x, U, US, Y, YS, jit=block.jit,
+             full=not block.SOUND_KERNEL)
     block.u[:] = U[-1]
     block.us[:] = US[-1]
     block._all_good = bool((block.us == 128).all())

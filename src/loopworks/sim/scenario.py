@@ -18,6 +18,9 @@
                             (default 2), and set = {"load.walk_std" = 0.0}: parameters
                             changed for the test only (a quiet plant, as a test would be
                             scheduled). ``loopworks tune`` uses the same test settings.
+                            Loading runs nothing: :func:`run_autotune` is the explicit step
+                            that runs the test and rebuilds the variants with the gain
+                            (``loopworks simulate`` calls it, with its own progress line).
 
 Blocks run in the order their tables appear, unless ``[simulation] order`` says otherwise. Keys
 match parameter and input names in any letter case. Errors name the file and the table.
@@ -91,7 +94,9 @@ class _Scenario(BaseModel):
 class Scenario:
     """A loaded scenario: its modules (one per ``[compare]`` variant, else one named "base";
     ``module`` is the first), and how long and how finely to run them. ``warnings`` are what
-    loaded but looks unintended (an event after the end of the run)."""
+    loaded but looks unintended (an event after the end of the run). ``autotune_test`` is the
+    ``[autotune]`` relay test, checked but not run; ``autotune`` is its result once
+    :func:`run_autotune` has run it (None before)."""
 
     module: Module
     dt: float
@@ -117,6 +122,9 @@ class AutotuneTest:
     variant: str
     relay: dict[str, Any]
     build: Callable[[], Module]
+    #: the modules of every variant with ``process_gain`` (%PV/%OUT) written into the
+    #: ``[autotune] process_gain`` parameters
+    rebuild: Callable[[float], dict[str, Module]] = field(repr=False, default=lambda g: {})
 
 
 def _format_validation(err: ValidationError, source: str) -> str:
@@ -206,13 +214,22 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     warnings = [f"{source}: event at t = {ev.t:g} s (set = '{ev.target}') is after the last "
                 f"scan (t = {(n - 1) * sim.dt:g} s) of the {sim.duration:g} s run: it never "
                 "happens" for ev in next(iter(modules.values())).late_events(sim.duration, sim.dt)]
-    test = None if sc.autotune is None else _autotune_test(sc, variants, source)
-    autotune = None if test is None else _autotune(sc, test, variants, source)
-    if autotune is not None:  # the identified gain is in the tables now
-        modules = {name: _build(sc, t, where(name)) for name, t in variants.items()}
+    test = None
+    if sc.autotune is not None:
+        test = _autotune_test(sc, variants, source)
+        targets = tuple(sc.autotune.process_gain)
+
+        def rebuild(gain: float) -> dict[str, Module]:
+            for table in variants.values():
+                for ref in targets:
+                    block, _, param = ref.rpartition(".")
+                    table[block.lower()][param.lower()] = gain
+            return {name: _build(sc, t, where(name)) for name, t in variants.items()}
+
+        test.rebuild = rebuild
     first = next(iter(modules.values()))
     return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, modules, text,
-                    window, autotune, test, warnings)
+                    window, None, test, warnings)
 
 
 def _window(sim: _Simulation, n: int, source: str) -> tuple[float, float] | None:
@@ -270,44 +287,55 @@ def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]]
             raise FileFormatError(f"{where}: set entry {ref!r} must be 'block.parameter' with "
                                   "a block of this scenario")
         tables[block.lower()][param.lower()] = value
-    relay = {"amplitude": at.amplitude, "hysteresis": at.hysteresis, "start": at.start,
-             "bias_ratio": at.bias_ratio, "offset": at.offset,
-             "stable_cycles": at.stable_cycles}
-    return AutotuneTest(at.loop.lower(), name, relay,
+    relay: dict[str, Any] = {"amplitude": at.amplitude, "hysteresis": at.hysteresis,
+                             "start": at.start, "bias_ratio": at.bias_ratio,
+                             "offset": at.offset, "stable_cycles": at.stable_cycles}
+    test = AutotuneTest(at.loop.lower(), name, relay,
                         lambda: _build(sc, tables, f"{source} (autotune)"))
+    from loopworks.sim.tune import check_relay_test
+
+    try:  # what the test would refuse before its first scan, refused now
+        check_relay_test(test.build(), test.loop, sc.simulation.dt, **relay)
+    except LoopworksError as exc:
+        raise FileFormatError(f"{where}: {exc}") from None
+    return test
 
 
-def _autotune(sc: _Scenario, test: AutotuneTest, variants: dict[str, dict[str, dict[str, Any]]],
-              source: str) -> dict[str, Any]:
-    """Run the [autotune] relay test and write the identified process gain into the block
-    tables of every variant; returns what was identified (for reports)."""
+def run_autotune(sc: Scenario, progress: Callable[[float], None] | None = None
+                 ) -> dict[str, Any] | None:
+    """Run the scenario's ``[autotune]`` relay test (if it has one) and write the identified
+    process gain into every variant: ``sc.variants`` and ``sc.module`` are rebuilt with it, and
+    ``sc.autotune`` holds what was identified (for reports), which is also returned.
+    ``progress(seconds_of_test)`` is called as the test runs. A test that identifies no
+    process gain raises FileFormatError naming the table."""
+    test = sc.autotune_test
+    if test is None:
+        return None
     from loopworks.sim.tune import relay_test
     from loopworks.tuning.convert import port_spans
 
-    at = sc.autotune
-    assert at is not None
-    where = f"{source}: [autotune]"
+    where = f"{sc.source}: [autotune]"
     module = test.build()
     try:
-        run = relay_test(module, test.loop, sc.simulation.dt, **test.relay)
+        run = relay_test(module, test.loop, sc.dt, progress=progress, **test.relay)
     except LoopworksError as exc:
         raise FileFormatError(f"{where}: {exc}") from None
     idn = run.identification
     if idn is None or idn.process_gain is None:
         why = "" if idn is None else " (" + "; ".join(idn.notes) + ")"
-        raise FileFormatError(f"{where}: the relay test on '{at.loop}' ended with "
+        raise FileFormatError(f"{where}: the relay test on '{test.loop}' ended with "
                               f"'{run.outcome}' and gave no process gain{why}")
     ctrl = module.blocks[test.loop]
     pv_span, out_span = port_spans(ctrl.kind, {k: v for k, v in ctrl.params.items()
                                                if v is not None})
     gain = idn.process_gain * out_span / pv_span
-    for table in variants.values():
-        for ref in at.process_gain:
-            block, _, param = ref.rpartition(".")
-            table[block.lower()][param.lower()] = gain
-    return {"loop": at.loop, "variant": test.variant, "outcome": run.outcome,
-            "process_gain": gain, "relay_shift": run.test.offset,
-            **{k: v for k, v in idn.as_dict().items() if k not in ("process_gain", "notes")}}
+    sc.variants = test.rebuild(gain)
+    sc.module = next(iter(sc.variants.values()))
+    sc.autotune = {"loop": test.loop, "variant": test.variant, "outcome": run.outcome,
+                   "process_gain": gain, "relay_shift": run.test.offset,
+                   **{k: v for k, v in idn.as_dict().items()
+                      if k not in ("process_gain", "notes")}}
+    return sc.autotune
 
 
 def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Module:

@@ -162,17 +162,14 @@ def _controller_limits(block: Block) -> tuple[float, float]:
     return 0.0, 100.0
 
 
-def relay_test(module: Module, loop: str, dt: float, *, start: float | None = None,
-               amplitude: float | None = None, hysteresis: float | None = None,
-               biased: bool = True, bias_ratio: float = 0.5, offset: float = 0.0,
-               timeout: float = 7200.0, handback: float | None = None, stable_cycles: int = 2,
-               max_deviation: float = math.inf, ku_convention: str = "hysteresis_corrected",
-               amplitude_estimate: str = "peaks",
-               progress: Callable[[float], None] | None = None) -> RelayRun:
-    """Run a relay test on controller ``loop`` of ``module`` with scans of ``dt`` seconds
-    (procedure in the module docstring). Raises InputError for a loop that is not a known
-    controller or is not wired to a PV, and RelayTestRefused for a test that supports no
-    identification."""
+def _relay_setup(module: Module, loop: str, dt: float, start: float | None,
+                 amplitude: float | None, hysteresis: float | None, biased: bool,
+                 bias_ratio: float, offset: float, timeout: float, stable_cycles: int,
+                 max_deviation: float) -> tuple[Block, str, dict[str, Any], float, float]:
+    """Everything :func:`relay_test` checks before it runs a scan: the loop is a known
+    controller wired to a PV, dt and start are usable, and the relay block takes its
+    parameters (the hysteresis, unless given, is measured later and checked as 0 here).
+    Returns the controller, the PV source, the relay's parameters, d and the start (s)."""
     if loop not in module.blocks:
         raise InputError(f"--loop '{loop}': no such block; blocks: {', '.join(module.blocks)}")
     ctrl = module.blocks[loop]
@@ -183,7 +180,7 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
     if ctrl.kind == "s5.pid" and ctrl.params["velocity"]:
         raise InputError(f"--loop '{loop}': an s5.pid in velocity mode outputs increments; "
                          "the relay test needs the positioning algorithm (velocity = false)")
-    out_port, pv_port, sp_port, links, settings = HANDOVER[ctrl.kind]
+    pv_port = HANDOVER[ctrl.kind][1]
     pv_src = module.wires.get(f"{loop}.{pv_port}")
     if pv_src is None:
         raise InputError(f"--loop '{loop}': its input '{pv_port}' is not wired to a PV")
@@ -203,6 +200,36 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
     start = _default_start(module, dt) if start is None else float(start)
     if not 0.0 <= start < math.inf:
         raise InputError(f"start = {start!r} s is not allowed: must be finite and >= 0")
+    Relay(**relay_params, hysteresis=0.0 if hysteresis is None else float(hysteresis))
+    return ctrl, pv_src, relay_params, d, start
+
+
+def check_relay_test(module: Module, loop: str, dt: float, *, start: float | None = None,
+                     amplitude: float | None = None, hysteresis: float | None = None,
+                     biased: bool = True, bias_ratio: float = 0.5, offset: float = 0.0,
+                     timeout: float = 7200.0, stable_cycles: int = 2,
+                     max_deviation: float = math.inf) -> None:
+    """Raise the error :func:`relay_test` would raise before its first scan, running
+    nothing (a scenario's ``[autotune]`` is checked so when it loads)."""
+    _relay_setup(module, loop, dt, start, amplitude, hysteresis, biased, bias_ratio, offset,
+                 timeout, stable_cycles, max_deviation)
+
+
+def relay_test(module: Module, loop: str, dt: float, *, start: float | None = None,
+               amplitude: float | None = None, hysteresis: float | None = None,
+               biased: bool = True, bias_ratio: float = 0.5, offset: float = 0.0,
+               timeout: float = 7200.0, handback: float | None = None, stable_cycles: int = 2,
+               max_deviation: float = math.inf, ku_convention: str = "hysteresis_corrected",
+               amplitude_estimate: str = "peaks",
+               progress: Callable[[float], None] | None = None) -> RelayRun:
+    """Run a relay test on controller ``loop`` of ``module`` with scans of ``dt`` seconds
+    (procedure in the module docstring). Raises InputError for a loop that is not a known
+    controller or is not wired to a PV, and RelayTestRefused for a test that supports no
+    identification."""
+    ctrl, pv_src, relay_params, d, start = _relay_setup(
+        module, loop, dt, start, amplitude, hysteresis, biased, bias_ratio, offset, timeout,
+        stable_cycles, max_deviation)
+    out_port, _, sp_port, links, settings = HANDOVER[ctrl.kind]
 
     # settle under the controller (events up to start only)
     module.events = [e for e in module.events if e.t < start - 1e-9]

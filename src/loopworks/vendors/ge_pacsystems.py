@@ -262,6 +262,8 @@ CV, OUTPUT, OK = range(3)
  S_SOLVED) = range(16)
 
 TICKS_PER_S = 10_000.0  # the controller clock has 100 µs resolution (spec 1.5)
+#: the finest integral_resolution is 1/MAX_UNITS of a count
+MAX_UNITS = 1e9
 MIN_PERIOD_TICKS = 100.0  # at least 10 ms between solutions (spec 1.2 word 3)
 CLOCK_MAX_S = (2.0 ** 48 - 1.0) / TICKS_PER_S  # words 24-26: a 48-bit clock
 INT32_MAX = 2147483647.0  # words 21-22
@@ -565,7 +567,8 @@ def _common_params() -> tuple[Param, ...]:
               "carried (spec 1.5); float: the same equations in floating point", "choice",
               choices=("native", "float")),
         Param("integral_resolution", 0.001, "counts", "resolution of the carried integral "
-              "remainder (word 27), 0 = exact carry; 0 or 1/n, [A] spec 1.5", lo=0.0, hi=1.0,
+              "remainder (word 27), 0 = exact carry; 0 or 1/n (n ≤ 10^9), [A] spec 1.5", lo=0.0,
+              hi=1.0,
               lo_open=False, hi_open=False),
         Param("rounding", "truncate", "", "integer division direction for P, D and the slew "
               "step, [?] spec 1.5", "choice", choices=("truncate", "floor")),
@@ -716,9 +719,12 @@ class GEPIDBlock(Block):
         if res > 0.0:
             inverse = 1.0 / res
             units = float(round(inverse)) if math.isfinite(inverse) else math.inf
-            if not math.isfinite(units) or abs(units * res - 1.0) > 1e-9:
+            # n ≤ MAX_UNITS: the integral limit INT32_MAX·n and every sum stay finite (1/2.2e-308
+            # made it inf); 10^9 units per count is the exact carry's finest denominator
+            if not math.isfinite(units) or units > MAX_UNITS or abs(units * res - 1.0) > 1e-9:
                 raise self._fail(f"parameter 'integral_resolution' = {res:g} is not allowed: "
-                                 "it must be 0 or 1/n for a whole n (e.g. 0.001)")
+                                 f"it must be 0 or 1/n for a whole n from 1 to {MAX_UNITS:.0e} "
+                                 "(e.g. 0.001)")
             unit_div = base / units
         else:
             units = 1e9 if self.IS_ISA else 1e7

@@ -250,17 +250,6 @@ def test_resume_from_saved_state_equals_uninterrupted_run() -> None:
     assert [second.step(dt, amplitude=a)["out"].value for dt, a in seq[100:]] == expected[100:]
 
 
-def test_compiled_and_interpreted_give_identical_results() -> None:
-    rng = np.random.default_rng(6)
-    for shape in ("square", "sine", "triangle"):
-        a = loopworks.create_block("deltav.sggn", jit=True, waveform=shape, period=2.5)
-        b = loopworks.create_block("deltav.sggn", jit=False, waveform=shape, period=2.5)
-        for _ in range(300):
-            dt = float(rng.uniform(0.05, 2.0))
-            amp = float(rng.choice([NAN, 0.3, -1.0]))
-            assert a.step(dt, amplitude=amp)["out"] == b.step(dt, amplitude=amp)["out"]
-
-
 def test_replay_cli_runs_the_docstring_example(tmp_path: Path) -> None:
     """Triangle, period 4 s: positions 0, 1/4, 1/2, 3/4 give 0, A, 0, -A; A = 2 from the
     input, then the parameter 1."""
