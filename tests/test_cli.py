@@ -11,6 +11,7 @@ import csv
 import io
 import json
 import math
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -561,3 +562,30 @@ def test_help_does_not_import_the_heavy_libraries() -> None:
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60, check=True)
     assert proc.stdout.strip() == "[]"
+
+
+def test_compile_fills_the_cache_so_later_commands_compile_nothing(tmp_path: Path) -> None:
+    """`loopworks compile KIND ... --jobs N` compiles each kind's kernel into the plan cache
+    (in N processes); run again it loads them; a later command in a fresh process then
+    compiles nothing (no "compiling ..." announcement)."""
+    env = {**os.environ, "LOOPWORKS_CACHE_DIR": str(tmp_path / "cache")}
+
+    def run(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-m", "loopworks", *args], capture_output=True,
+                              text=True, env=env, timeout=600)
+
+    first = run("compile", "valve.backlash", "sensor.transmitter", "--jobs", "2", "-q")
+    assert first.returncode == 0, first.stderr
+    assert first.stdout.startswith("2 of 2 kernels compiled, 0 loaded from the cache")
+    again = run("compile", "valve.backlash", "sensor.transmitter", "-q")
+    assert again.stdout.startswith("0 of 2 kernels compiled, 2 loaded from the cache")
+    path = tmp_path / "op.csv"
+    path.write_text("t,op\n0,10\n1,20\n2,15\n")
+    replay = run("replay", "valve.backlash", str(path), "-p", "b=1")
+    assert replay.returncode == 0, replay.stderr
+    assert "compiling" not in replay.stderr and replay.stdout.startswith("t,")
+    wrong = run("compile", "valve.nope")
+    assert wrong.returncode == 2 and wrong.stderr.count("\n") == 1
+    assert "valve.nope" in wrong.stderr and "valve.backlash" in wrong.stderr
+    zero = run("compile", "pid", "--jobs", "0")
+    assert zero.returncode == 2 and "--jobs 0" in zero.stderr

@@ -440,6 +440,61 @@ def read_params_file(path: Path, kind: str) -> dict[str, Any]:
     return table
 
 
+@app.command("compile")
+@_user_errors
+def compile_kinds(
+    kinds: Annotated[list[str] | None, typer.Argument(
+        help="block kinds to compile (default: every kind)")] = None,
+    jobs: Annotated[int, typer.Option(
+        "--jobs", "-j", help="compile in this many processes (at most one per core helps)")
+    ] = 1,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """Compile the kinds' kernels for this machine into the plan cache, so no later command
+    (simulate, replay, a live controller's first scan) waits for a compilation. A kind
+    that is cached already is loaded, not compiled again."""
+    import time
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    from rich.console import Console
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeElapsedColumn
+
+    import loopworks
+    from loopworks.blocks import plan
+    from loopworks.blocks.registry import block_class
+
+    if jobs < 1:
+        _fail(f"--jobs {jobs}: expected a whole number of processes >= 1")
+    plan.announce = None  # this command reports what it compiled itself
+    chosen = [k.lower() for k in kinds] if kinds else loopworks.kinds()
+    for kind in chosen:
+        block_class(kind)  # an unknown kind is one error line, before anything compiles
+    # one kind per kernel and guard (kinds that share a kernel share its entry), the longest
+    # kernels first, so the processes finish together
+    by_entry = {(block_class(k).kernel, block_class(k).SOUND_KERNEL): k for k in chosen}
+    work = sorted(by_entry.values(), key=lambda k: -len(block_class(k).kernel.__code__.co_code))
+    console = Console(stderr=True)
+    start = time.perf_counter()
+    done: list[tuple[str, float, bool]] = []
+    with Progress("{task.description}", BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+                  console=console, transient=True, disable=quiet) as bar:
+        task = bar.add_task("compiling", total=len(work))
+        if jobs == 1:
+            for kind in work:
+                done.append(plan.compile_kind(kind))
+                bar.advance(task)
+        else:
+            with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
+                for result in pool.map(plan.compile_kind, work):
+                    done.append(result)
+                    bar.advance(task)
+    made = [d for d in done if d[2]]
+    typer.echo(f"{len(made)} of {len(work)} kernels compiled, {len(work) - len(made)} "
+               f"loaded from the cache, in {time.perf_counter() - start:.1f} s "
+               f"({plan.cache_dir()})")
+
+
 def _announce(message: str) -> None:
     typer.echo(message, err=True)
 

@@ -425,7 +425,10 @@ def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
     disp = getattr(mod, what)
     if not disp.overloads:
         global _announced
-        if announce is not None and not _announced and not is_cached(slots, what):
+        # only a kernel's own entry takes long to compile; the glue of the plans that call
+        # it (step, rows, scans) takes well under a second and is not announced
+        if (announce is not None and not _announced and what == "call"
+                and not is_cached(slots, what)):
             _announced = True  # one line per process, before the first compilation
             kinds = ", ".join(sorted({_kind(slot.kernel) for slot in slots}))
             announce(f"compiling {kinds} once for this machine (cached in {cache_dir()}; "
@@ -444,6 +447,22 @@ def _kind(kernel: Any) -> str:
 
     names = [k for k in kinds() if block_class(k).kernel is kernel]
     return "/".join(names) if names else str(getattr(kernel, "__name__", "kernel"))
+
+
+def compile_kind(kind: str) -> tuple[str, float, bool]:
+    """Compile ``kind``'s kernel into the cache (its ``call`` entry, which every other plan
+    calls), or load it when it is there: (kind, seconds, True when it had to compile).
+    ``loopworks compile`` runs this for many kinds, in several processes."""
+    import time
+
+    from loopworks.blocks.registry import block_class
+
+    cls = block_class(kind)
+    slots = layout([(cls.kernel, 0, 0, 0, 0, not cls.SOUND_KERNEL)])
+    cached = is_cached(slots, "call")
+    start = time.perf_counter()
+    entry(slots, "call", CALL_SIGNATURE)
+    return kind, time.perf_counter() - start, not cached
 
 
 def entry_point(slots: Sequence[Slot], what: str, signature: str) -> Any:
