@@ -26,7 +26,7 @@ from hypothesis import strategies as st
 
 import loopworks
 from loopworks.blocks.block import Block
-from loopworks.blocks.pid import SAFE
+from loopworks.blocks.pid import P as PID_P
 from tests.properties.strategies import blocks, cases
 
 #: every kind that declares its kernel sound by itself (``Block.SOUND_KERNEL``, which lets the
@@ -138,7 +138,7 @@ def test_pid_returns_bumplessly_after_bad_pv(data: st.DataObject, bad: Any) -> N
     for _ in range(data.draw(st.integers(1, 4))):
         out = block.step(dt, sp=sp, pv=bad, ff=ff)["out"]
         # hold: Uncertain, last usable value (0x44); safe: Uncertain, substitute (0x48)
-        assert (out.value, out.status & 0xFC) == ((block.p[SAFE], 0x48) if safe
+        assert (out.value, out.status & 0xFC) == ((block.p[PID_P.safe], 0x48) if safe
                                                   else (before, 0x44))
     settle_check(block, out.value, dt, pid_scale(block, sp, ff), 5, sp=sp, pv=sp, ff=ff)
 

@@ -1,8 +1,10 @@
 """The block model: parameters, named ports with status, inspectable state, and a kernel.
 
-A block subclass declares ``PARAMS``, ``INPUTS``, ``OUTPUTS`` and ``STATES``, a static
-``kernel`` (see :mod:`loopworks.blocks.kernel`) and ``coefficients()``, which turns the validated
-parameters into the flat ``p`` array the kernel reads. Everything else is here:
+A block subclass declares ``PARAMS``, ``INPUTS``, ``OUTPUTS``, ``COEFFS`` and ``STATES`` (the
+last two are layouts, :mod:`loopworks.blocks.layout`, from which its kernel's index names are
+generated), a static ``kernel`` (see :mod:`loopworks.blocks.kernel`) and ``coefficients()``,
+which turns the validated parameters into the named values of the ``p`` array the kernel
+reads (packed in the declared order). Everything else is here:
 
 * parameters are validated when the block is made (:mod:`loopworks.blocks.params`);
 * ``step(dt, **inputs)`` advances one scan. An input keeps its last given value until it is
@@ -21,6 +23,7 @@ from weakref import ref as _weakref
 
 import numpy as np
 
+from loopworks.blocks import layout
 from loopworks.blocks import status as st
 from loopworks.blocks.kernel import (
     FloatArray,
@@ -92,7 +95,10 @@ class Block:
     PARAMS: ClassVar[tuple[Param, ...]] = ()
     INPUTS: ClassVar[tuple[Port, ...]] = ()
     OUTPUTS: ClassVar[tuple[Port, ...]] = ()
-    STATES: ClassVar[tuple[str, ...]] = ()
+    #: the coefficient array p: names and Arrays (:mod:`loopworks.blocks.layout`)
+    COEFFS: ClassVar[tuple[Any, ...]] = ()
+    #: the state array x: names and Arrays (an Array's size may follow the parameters)
+    STATES: ClassVar[tuple[Any, ...]] = ()
     #: False for kinds whose array sizes vary per instance (``deltav.calc``): the compiled
     #: single-step wrapper is specialised to the sizes, so such kinds step through the kernel's
     #: standard entry point instead of compiling a wrapper per instance.
@@ -113,14 +119,15 @@ class Block:
     def __init__(self, *, jit: bool | None = None, **params: Any) -> None:
         self.given: dict[str, Any] = {k.lower(): v for k, v in params.items()}
         self.params: dict[str, Any] = validate(self.kind, self.PARAMS, params)
-        self.p: FloatArray = np.asarray(self.coefficients(), dtype=np.float64)
+        self.p: FloatArray = self._coefficients()
         self.jit = jit_enabled() if jit is None else jit
         self._in_index = {port.name: i for i, port in enumerate(self.INPUTS)}
         # inputs a plain float may be written to directly (enumerated ones are checked)
         self._fast_index = {port.name: i for i, port in enumerate(self.INPUTS)
                             if not port.choices}
         self._out_index = {port.name: i for i, port in enumerate(self.OUTPUTS)}
-        n_p, n_x, n_u, n_y = len(self.p), len(self.STATES), len(self.INPUTS), len(self.OUTPUTS)
+        self.n_x = layout.size(self.STATES, self.params)
+        n_p, n_x, n_u, n_y = len(self.p), self.n_x, len(self.INPUTS), len(self.OUTPUTS)
         # One float buffer [p | x | u | y] and one int buffer [us | ys]; the named arrays are
         # views into them (a module moves them into its plan's buffers, see adopt()).
         self._F: FloatArray = np.zeros(n_p + n_x + n_u + n_y)
@@ -138,7 +145,7 @@ class Block:
 
     def _bind(self) -> None:
         """Name the views of the buffers: p, x, u, y in ``_F``; us, ys in ``_S``."""
-        n_p, n_x, n_u = len(self.p), len(self.STATES), len(self.INPUTS)
+        n_p, n_x, n_u = len(self.p), self.n_x, len(self.INPUTS)
         F, S = self._F, self._S
         self.p = F[:n_p]
         self.x: FloatArray = F[n_p:n_p + n_x]
@@ -161,14 +168,24 @@ class Block:
         self._F, self._S = F, S
         self._bind()
 
+    def _coefficients(self) -> FloatArray:
+        """``coefficients()`` packed in the order ``COEFFS`` declares."""
+        values = self.coefficients()
+        if not isinstance(values, Mapping):  # a kind not yet declaring COEFFS
+            return np.asarray(values, dtype=np.float64)
+        return np.asarray(layout.pack(self.COEFFS, values, f"{self.kind}: coefficients()",
+                                      self.params), dtype=np.float64)
+
     # -- to be provided by subclasses -------------------------------------------------------
-    def coefficients(self) -> list[float]:
-        """The kernel's ``p`` array from ``self.params``; cross-parameter checks go here."""
+    def coefficients(self) -> Mapping[str, Any]:
+        """The kernel's coefficients from ``self.params``, by their ``COEFFS`` names (an
+        Array's as a sequence); cross-parameter checks go here."""
         raise NotImplementedError  # pragma: no cover - abstract
 
     def initial_state(self) -> list[float]:
-        """State right after construction or ``reset()``; zeros unless overridden."""
-        return [0.0] * len(self.STATES)
+        """State right after construction or ``reset()`` (flat, in ``STATES`` order); zeros
+        unless overridden."""
+        return [0.0] * self.n_x
 
     def initial_outputs(self) -> list[float]:
         """Outputs before the first scan (what a module's blocks read from this one until it
@@ -285,7 +302,7 @@ class Block:
         params = validate(self.kind, self.PARAMS, given)
         old_params, self.params = self.params, params
         try:
-            coefficients = np.asarray(self.coefficients(), dtype=np.float64)
+            coefficients = self._coefficients()
         except Exception:
             self.params = old_params
             raise
@@ -309,9 +326,9 @@ class Block:
             last._freeze()
         self._last = _no_result
 
-    def state(self) -> dict[str, float]:
-        """The named state variables, for inspection."""
-        return {name: float(v) for name, v in zip(self.STATES, self.x, strict=True)}
+    def state(self) -> dict[str, Any]:
+        """The named state variables, for inspection (an Array's as a list)."""
+        return layout.unpack(self.STATES, self.x, self.params)
 
     def state_dict(self) -> dict[str, Any]:
         """Everything that persists between scans, as plain JSON-able Python values."""
@@ -329,12 +346,13 @@ class Block:
         """Restore what :meth:`state_dict` saved. The kind and state names must match."""
         if saved.get("kind") != self.kind:
             raise InputError(f"saved state is for kind {saved.get('kind')!r}, not {self.kind!r}")
-        names = set(saved["state"])
-        if names != set(self.STATES):
-            raise InputError(f"{self.kind}: saved state names {sorted(names)} do not match "
-                             f"{sorted(self.STATES)}")
+        try:
+            x = layout.pack(self.STATES, saved["state"], f"{self.kind}: saved state",
+                            self.params)
+        except (ValueError, TypeError) as exc:
+            raise InputError(str(exc)) from None
         self._release_last()
-        self.x[:] = [float(saved["state"][n]) for n in self.STATES]
+        self.x[:] = x
         for arr, sarr, ports, key in ((self.u, self.us, self.INPUTS, "inputs"),
                                       (self.y, self.ys, self.OUTPUTS, "outputs")):
             for i, port in enumerate(ports):

@@ -81,6 +81,7 @@ from typing import Any, ClassVar
 from loopworks.blocks.block import Block
 from loopworks.blocks.forms import series_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
@@ -97,18 +98,34 @@ from loopworks.blocks.status import (
 )
 from loopworks.errors import ParameterError
 
-# Coefficient layout (p)
-KP, KI, KD, TF, B, C, SIGN, VELOCITY, AW, TT_INV, LO, HI, RATE, IDB, EDB, BIAS, SAFE, BADPV = \
-    range(18)
 AW_NONE, AW_CLAMPING, AW_BACK_CALCULATION = 0, 1, 2
 BAD_HOLD, BAD_SAFE = 0, 1
-# Inputs (u, us)
-SP, PV, FF, MODE, MAN_OUT, CAS_SP, TRACK, TRACK_VALUE = range(8)
-MAN, AUTO, CAS = 0, 1, 2
-# Outputs (y, ys)
-OUT, P_TERM, I_TERM, D_TERM = range(4)
-# State (x)
-(S_I, S_D, S_DPREV, S_U, S_V, S_ACC, S_PPREV, S_DOUTPREV, S_FFPREV, S_FIRST, S_INIT) = range(11)
+MAN, AUTO, CAS = 0, 1, 2  # values of the mode input
+
+INPUTS = (
+    Port("sp", 0.0, "pv", "setpoint (AUTO)", status=True),
+    Port("pv", 0.0, "pv", "process variable", status=True),
+    Port("ff", 0.0, "out", "feedforward, added to the output", status=True),
+    Port("mode", float(AUTO), "", "MAN (0), AUTO (1) or CAS (2)",
+         choices=("MAN", "AUTO", "CAS")),
+    Port("man_out", math.nan, "out", "operator output in MAN (NaN = hold)", status=True),
+    Port("cas_sp", math.nan, "pv", "cascade setpoint (CAS)", status=True),
+    Port("track", 0.0, "", "output tracking switch (> 0.5 = track)"),
+    Port("track_value", math.nan, "out", "output while tracking", status=True),
+)
+OUTPUTS = (
+    Port("out", 0.0, "out", "controller output", status=True),
+    Port("p_term", 0.0, "out", "proportional contribution"),
+    Port("i_term", 0.0, "out", "integral contribution"),
+    Port("d_term", 0.0, "out", "derivative contribution"),
+)
+#: the coefficient array p (coefficients())
+COEFFS = ("kp", "ki", "kd", "tf", "b", "c", "sign", "velocity", "aw", "tt_inv", "lo", "hi",
+          "rate", "idb", "edb", "bias", "safe", "badpv")
+#: the state array x
+STATES = ("i", "d", "d_prev", "u_prev", "v_prev", "acc", "p_prev", "d_out_prev", "ff_prev",
+          "first", "init")
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 
 # Inputs beyond this magnitude are not measurements (issue 11 point 1); shared with e2.pid
@@ -127,52 +144,52 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
     """One scan of the generic PID (equations in the module docstring). A computing scan
     works on locals and writes the state only once every term is finite, so a scan whose
     arithmetic overflows is Bad input and leaves the state as it was."""
-    lo = p[LO]
-    hi = p[HI]
-    u_prev = x[S_U]
-    mode = u[MODE]
+    lo = p[P.lo]
+    hi = p[P.hi]
+    u_prev = x[X.u_prev]
+    mode = u[U.mode]
     out = u_prev
     status = GOOD_NC | CONSTANT
     computed = False
-    track = u[TRACK]
+    track = u[U.track]
     if finite(track) and track > 0.5:  # output tracking, any mode
-        if finite(u[TRACK_VALUE]) and (us[TRACK_VALUE] & 0xC0) != BAD:
-            out = clamp(u[TRACK_VALUE], lo, hi)
+        if finite(u[U.track_value]) and (us[U.track_value] & 0xC0) != BAD:
+            out = clamp(u[U.track_value], lo, hi)
         else:
             status = UNCERTAIN_LAST_USABLE_VALUE | CONSTANT
     elif mode == MAN:
-        if finite(u[MAN_OUT]) and (us[MAN_OUT] & 0xC0) != BAD:
-            out = clamp(u[MAN_OUT], lo, hi)
+        if finite(u[U.man_out]) and (us[U.man_out] & 0xC0) != BAD:
+            out = clamp(u[U.man_out], lo, hi)
     else:
-        isp = CAS_SP if mode == CAS else SP
+        isp = U.cas_sp if mode == CAS else U.sp
         sp = u[isp]
-        pv = u[PV]
-        ff = u[FF]
+        pv = u[U.pv]
+        ff = u[U.ff]
         q_sp = us[isp] & 0xC0
-        q_pv = us[PV] & 0xC0
-        q_ff = us[FF] & 0xC0
+        q_pv = us[U.pv] & 0xC0
+        q_ff = us[U.ff] & 0xC0
         usable = ((mode == AUTO or mode == CAS) and measured(sp, us[isp])
-                  and measured(pv, us[PV]) and measured(ff, us[FF]))
+                  and measured(pv, us[U.pv]) and measured(ff, us[U.ff]))
         if usable:
-            s = p[SIGN]
-            bias = p[BIAS]
+            s = p[P.sign]
+            bias = p[P.bias]
             e = s * (sp - pv)
-            pterm = s * p[KP] * (p[B] * sp - pv)
-            d = s * (p[C] * sp - pv)
-            init = x[S_INIT] != 0.0
-            first = x[S_FIRST] != 0.0
-            d_prev = x[S_DPREV]
-            d_filt = x[S_D]
+            pterm = s * p[P.kp] * (p[P.b] * sp - pv)
+            d = s * (p[P.c] * sp - pv)
+            init = x[X.init] != 0.0
+            first = x[X.first] != 0.0
+            d_prev = x[X.d_prev]
+            d_filt = x[X.d]
             if init or first:
                 d_prev = d
                 d_filt = 0.0
-            dterm = (p[TF] * d_filt + p[KD] * (d - d_prev)) / (p[TF] + dt)
-            i_prev = x[S_I]
-            acc = x[S_ACC]
-            v_prev = x[S_V]
-            p_prev = x[S_PPREV]
-            dout_prev = x[S_DOUTPREV]
-            ff_prev = x[S_FFPREV]
+            dterm = (p[P.tf] * d_filt + p[P.kd] * (d - d_prev)) / (p[P.tf] + dt)
+            i_prev = x[X.i]
+            acc = x[X.acc]
+            v_prev = x[X.v_prev]
+            p_prev = x[X.p_prev]
+            dout_prev = x[X.d_out_prev]
+            ff_prev = x[X.ff_prev]
             if init:  # bumpless return: continue from the last output
                 i_prev = u_prev - pterm - dterm - ff - bias
                 acc = u_prev
@@ -180,15 +197,15 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
                 p_prev = pterm
                 dout_prev = dterm
                 ff_prev = ff
-            velocity = p[VELOCITY] != 0.0
-            gap = abs(e) < p[EDB]  # error gap: hold the output, re-initialise on leaving
+            velocity = p[P.velocity] != 0.0
+            gap = abs(e) < p[P.edb]  # error gap: hold the output, re-initialise on leaving
             di = 0.0
-            if not gap and abs(e) >= p[IDB]:  # inside the integral dead band I is frozen
-                di = p[KI] * dt * e
-                if p[AW] == AW_BACK_CALCULATION:
+            if not gap and abs(e) >= p[P.idb]:  # inside the integral dead band I is frozen
+                di = p[P.ki] * dt * e
+                if p[P.aw] == AW_BACK_CALCULATION:
                     # forward Euler of dI/dt = (u - v)/Tt overshoots for dt > Tt and diverges
                     # for dt > 2·Tt: the gain is capped at 1 (v realigned to u in one scan)
-                    di += min(dt * p[TT_INV], 1.0) * (u_prev - v_prev)
+                    di += min(dt * p[P.tt_inv], 1.0) * (u_prev - v_prev)
             if velocity:
                 base = acc + (pterm - p_prev) + (dterm - dout_prev) + (ff - ff_prev)
             else:
@@ -196,9 +213,9 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
             upper = hi
             lower = lo
             if not first:
-                upper = min(hi, u_prev + p[RATE] * dt)
-                lower = max(lo, u_prev - p[RATE] * dt)
-            if p[AW] == AW_CLAMPING and not velocity:
+                upper = min(hi, u_prev + p[P.rate] * dt)
+                lower = max(lo, u_prev - p[P.rate] * dt)
+            if p[P.aw] == AW_CLAMPING and not velocity:
                 # the integral moves only as far as keeps v inside the effective limits
                 if di > 0.0 and base + di > upper:
                     di = max(0.0, upper - base)
@@ -212,7 +229,7 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
             else:
                 out = clamp(v, lower, upper)
                 if velocity:
-                    acc = out if p[AW] == AW_CLAMPING else v
+                    acc = out if p[P.aw] == AW_CLAMPING else v
                     iterm = acc - pterm - dterm - ff - bias
                 else:
                     i_new = i_prev + di
@@ -222,20 +239,20 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
             usable = finite(pterm + dterm + i_new + base + v + acc + iterm)
             if usable:
                 computed = True
-                x[S_D] = dterm
-                x[S_DPREV] = d
-                x[S_FIRST] = 0.0
+                x[X.d] = dterm
+                x[X.d_prev] = d
+                x[X.first] = 0.0
                 if gap:
-                    x[S_INIT] = 1.0
+                    x[X.init] = 1.0
                     status = GOOD_NC | CONSTANT
                 else:
-                    x[S_I] = i_new
-                    x[S_ACC] = acc
-                    x[S_V] = v
-                    x[S_PPREV] = pterm
-                    x[S_DOUTPREV] = dterm
-                    x[S_FFPREV] = ff
-                    x[S_INIT] = 0.0
+                    x[X.i] = i_new
+                    x[X.acc] = acc
+                    x[X.v_prev] = v
+                    x[X.p_prev] = pterm
+                    x[X.d_out_prev] = dterm
+                    x[X.ff_prev] = ff
+                    x[X.init] = 0.0
                     status = GOOD_NC
                     if q_sp == UNCERTAIN or q_pv == UNCERTAIN or q_ff == UNCERTAIN:
                         status = UNCERTAIN_NON_SPECIFIC
@@ -243,26 +260,26 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
                         status |= HIGH_LIMITED
                     elif out <= lo:
                         status |= LOW_LIMITED
-                y[P_TERM] = pterm
-                y[I_TERM] = iterm
-                y[D_TERM] = dterm
+                y[Y.p_term] = pterm
+                y[Y.i_term] = iterm
+                y[Y.d_term] = dterm
         if not usable:
-            if p[BADPV] == BAD_SAFE:
-                out = p[SAFE]
+            if p[P.badpv] == BAD_SAFE:
+                out = p[P.safe]
                 status = UNCERTAIN_SUBSTITUTE | CONSTANT
             else:
                 out = u_prev
                 status = UNCERTAIN_LAST_USABLE_VALUE | CONSTANT
     if not computed:
-        x[S_INIT] = 1.0
-        x[S_FIRST] = 0.0
-        x[S_V] = out
-        y[P_TERM] = 0.0
-        y[I_TERM] = 0.0
-        y[D_TERM] = 0.0
-    x[S_U] = out
-    y[OUT] = out
-    ys[OUT] = status
+        x[X.init] = 1.0
+        x[X.first] = 0.0
+        x[X.v_prev] = out
+        y[Y.p_term] = 0.0
+        y[Y.i_term] = 0.0
+        y[Y.d_term] = 0.0
+    x[X.u_prev] = out
+    y[Y.out] = out
+    ys[Y.out] = status
 
 
 _GAINS_IDEAL = ("k", "ti", "td")
@@ -326,26 +343,10 @@ class PID(Block):
               "textbook applies the new law as it is", "choice",
               choices=("bumpless", "textbook")),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("sp", 0.0, "pv", "setpoint (AUTO)", status=True),
-        Port("pv", 0.0, "pv", "process variable", status=True),
-        Port("ff", 0.0, "out", "feedforward, added to the output", status=True),
-        Port("mode", float(AUTO), "", "MAN (0), AUTO (1) or CAS (2)",
-             choices=("MAN", "AUTO", "CAS")),
-        Port("man_out", math.nan, "out", "operator output in MAN (NaN = hold)", status=True),
-        Port("cas_sp", math.nan, "pv", "cascade setpoint (CAS)", status=True),
-        Port("track", 0.0, "", "output tracking switch (> 0.5 = track)"),
-        Port("track_value", math.nan, "out", "output while tracking", status=True),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("out", 0.0, "out", "controller output", status=True),
-        Port("p_term", 0.0, "out", "proportional contribution"),
-        Port("i_term", 0.0, "out", "integral contribution"),
-        Port("d_term", 0.0, "out", "derivative contribution"),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "i", "d", "d_prev", "u_prev", "v_prev", "acc", "p_prev", "d_out_prev", "ff_prev",
-        "first", "init")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
     def set_params(self, **changes: Any) -> None:
         """Change parameters between scans (see :meth:`Block.set_params`). With
@@ -361,23 +362,23 @@ class PID(Block):
         their changes need no correction."""
         old = self.p.copy()
         super().set_params(**changes)
-        if self.params["retune"] != "bumpless" or self.x[S_INIT] != 0.0 or self.x[S_FIRST] != 0.0:
+        if self.params["retune"] != "bumpless" or self.x[X.init] != 0.0 or self.x[X.first] != 0.0:
             return
-        mode = self.u[MODE]
+        mode = self.u[U.mode]
         if mode not in (AUTO, CAS):
             return
-        sp, pv = self.u[CAS_SP if mode == CAS else SP], self.u[PV]
-        p_old = old[SIGN] * old[KP] * (old[B] * sp - pv)
-        p_new = self.p[SIGN] * self.p[KP] * (self.p[B] * sp - pv)
+        sp, pv = self.u[U.cas_sp if mode == CAS else U.sp], self.u[U.pv]
+        p_old = old[P.sign] * old[P.kp] * (old[P.b] * sp - pv)
+        p_new = self.p[P.sign] * self.p[P.kp] * (self.p[P.b] * sp - pv)
         if math.isfinite(p_old) and math.isfinite(p_new):
-            self.x[S_I] += p_old - p_new
-            self.x[S_PPREV] += p_new - p_old
+            self.x[X.i] += p_old - p_new
+            self.x[X.p_prev] += p_new - p_old
 
     def gains(self) -> tuple[float, float, float]:
         """(kp, ki, kd) of the equivalent parallel form."""
-        return self.p[KP], self.p[KI], self.p[KD]
+        return self.p[P.kp], self.p[P.ki], self.p[P.kd]
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         given = set(self.given)
         form = prm["form"]
@@ -450,32 +451,24 @@ class PID(Block):
             raise ParameterError(
                 f"pid: parameter 'safe_out' = {safe:g} is out of range: allowed "
                 f"[{lo:g}, {hi:g}] (out_lo..out_hi)")
-        coeffs = [0.0] * 18
-        coeffs[KP], coeffs[KI], coeffs[KD], coeffs[TF] = kp, ki, kd, tf
-        coeffs[B], coeffs[C] = float(prm["b"]), float(prm["c"])
-        coeffs[SIGN] = 1.0 if prm["action"] == "reverse" else -1.0
-        coeffs[VELOCITY] = 1.0 if velocity else 0.0
-        coeffs[AW], coeffs[TT_INV] = float(aw), tt_inv
-        coeffs[LO], coeffs[HI] = lo, hi
-        coeffs[RATE] = float(prm["rate_limit"])
-        coeffs[IDB] = float(prm["i_deadband"])
-        coeffs[EDB] = float(prm["e_deadband"])
-        coeffs[BIAS] = float(prm["bias"])
-        coeffs[SAFE] = safe
-        coeffs[BADPV] = float(BAD_SAFE if prm["bad_pv"] == "safe" else BAD_HOLD)
-        return coeffs
+        return {"kp": kp, "ki": ki, "kd": kd, "tf": tf, "b": prm["b"], "c": prm["c"],
+                "sign": 1.0 if prm["action"] == "reverse" else -1.0,
+                "velocity": 1.0 if velocity else 0.0, "aw": aw, "tt_inv": tt_inv,
+                "lo": lo, "hi": hi, "rate": prm["rate_limit"], "idb": prm["i_deadband"],
+                "edb": prm["e_deadband"], "bias": prm["bias"], "safe": safe,
+                "badpv": BAD_SAFE if prm["bad_pv"] == "safe" else BAD_HOLD}
 
     def initial_outputs(self) -> list[float]:
         """Before its first scan the controller's output is where it starts: bias, limited."""
-        return [self.x[S_U], 0.0, 0.0, 0.0]
+        return [self.x[X.u_prev], 0.0, 0.0, 0.0]
 
     def initial_state(self) -> list[float]:
-        x = [0.0] * len(self.STATES)
-        bias = self.p[BIAS]
-        x[S_U] = min(max(bias, self.p[LO]), self.p[HI])
-        x[S_V] = x[S_U]
-        x[S_ACC] = bias
-        x[S_FIRST] = 1.0
+        x = [0.0] * self.n_x
+        bias = self.p[P.bias]
+        x[X.u_prev] = min(max(bias, self.p[P.lo]), self.p[P.hi])
+        x[X.v_prev] = x[X.u_prev]
+        x[X.acc] = bias
+        x[X.first] = 1.0
         return x
 
 

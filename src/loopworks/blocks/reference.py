@@ -51,6 +51,21 @@ def output_rows(cls: type[Block]) -> list[tuple[str, str, str, str]]:
     return [(p.name, p.unit, "yes" if p.status else "", p.meaning) for p in cls.OUTPUTS]
 
 
+def layout_rows(entries: tuple[Any, ...]) -> list[tuple[str, str, str]]:
+    """(index, name, size) for every entry of a layout (COEFFS or STATES); a per-instance
+    size is described by the Array's meaning."""
+    from loopworks.blocks.layout import Array, offsets
+
+    rows = []
+    for at, entry in zip(offsets(entries), entries, strict=True):
+        if isinstance(entry, Array):
+            size = str(entry.size) if isinstance(entry.size, int) else entry.meaning
+            rows.append((str(at), entry.name, size))
+        else:
+            rows.append((str(at), entry, "1"))
+    return rows
+
+
 def _table(header: tuple[str, ...], rows: list[tuple[str, ...]]) -> str:
     def cell(text: str) -> str:
         return text.replace("|", "\\|")
@@ -227,6 +242,20 @@ def markdown(cls: type[Block]) -> str:
         "## Behaviour",
         "",
         module_doc,
+        "",
+        "## Layout",
+        "",
+        "What the kernel keeps from scan to scan (the state, `state()`), and the coefficients "
+        "it reads, derived from the parameters; each name is an index of the kernel "
+        "(`x[X.name]`, `p[P.name]`).",
+        "",
+        "State:",
+        "",
+        _table(("index", "name", "size"), layout_rows(cls.STATES)),
+        "",
+        "Coefficients:",
+        "",
+        _table(("index", "name", "size"), layout_rows(cls.COEFFS)),
         "",
         "## Non-finite values (every kind)",
         "",
