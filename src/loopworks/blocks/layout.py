@@ -84,9 +84,10 @@ def offsets(entries: Sequence[Entry]) -> list[int]:
 def index(entries: Sequence[Entry], typename: str = "Layout") -> Any:
     """The named tuple of each entry's index (an Array's: its first element's). The names
     must be Python identifiers (the kernel writes them as ``P.name``)."""
+    at = offsets(entries)
     cls = namedtuple(typename, [_name(e) for e in entries])  # type: ignore[misc]
     cls._lw_layout = True  # made here (the layout test finds a kernel's names by it)
-    return cls(*offsets(entries))
+    return cls(*at)
 
 
 def size(entries: Sequence[Entry], params: Mapping[str, Any] | None = None) -> int:
