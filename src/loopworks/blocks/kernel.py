@@ -50,6 +50,17 @@ def primitive(fn: F) -> F:
     return fn
 
 
+def sees_nonfinite(fn: F) -> F:
+    """Mark a kernel that treats a non-finite input value as Bad input by itself (it checks
+    every input it reads with ``finite``/``measured`` before using it), so showing such inputs
+    to it as Bad changes nothing: a kind that is also sound by itself (``Block.SOUND_KERNEL``)
+    then runs its kernel with no guard at all, and saves the per-scan status copy that marking
+    makes while an unused input holds NaN. The property test "marking changes nothing" checks
+    every kernel so marked."""
+    fn._lw_sees_nonfinite = True  # type: ignore[attr-defined]
+    return fn
+
+
 def jit_enabled() -> bool:
     """Compiled kernels are used unless the environment sets ``LOOPWORKS_JIT=0``."""
     return os.environ.get("LOOPWORKS_JIT", "1").strip().lower() not in ("0", "false", "no", "off")
@@ -150,13 +161,23 @@ def _marking_template(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     KERNEL(dt, p, x, u, MARKED(u, us), y, ys)  # type: ignore[name-defined] # noqa: F821
 
 
-def guard_template(full: bool) -> Any:
-    """The guard's source function: the full guard, or the marking-only one."""
-    return _guarded_template if full else _marking_template
+def _bare_template(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
+                   y: FloatArray, ys: IntArray) -> None:
+    """One scan of KERNEL, sound by itself and seeing non-finite inputs as Bad by itself
+    (:func:`sees_nonfinite`): nothing to guard."""
+    KERNEL(dt, p, x, u, us, y, ys)  # type: ignore[name-defined] # noqa: F821
 
 
-def _make_guarded(kernel: Any, sound: Any, marked: Any, full: bool) -> Any:
-    return types.FunctionType(guard_template(full).__code__,
+def guard_template(full: bool, kernel: Any = None) -> Any:
+    """The guard's source function: the full guard, the marking-only one, or none (a sound
+    kernel that sees non-finite inputs itself)."""
+    if full:
+        return _guarded_template
+    return _bare_template if getattr(kernel, "_lw_sees_nonfinite", False) else _marking_template
+
+
+def _make_guarded(kernel: Any, sound: Any, marked: Any, full: bool, source: Any) -> Any:
+    return types.FunctionType(guard_template(full, source).__code__,
                               {"KERNEL": kernel, "SOUND": sound, "MARKED": marked, "np": np},
                               f"guarded_{kernel.__name__}")
 
@@ -207,7 +228,7 @@ def guarded_scan(kernel: Any, jit: bool, full: bool = True) -> Any:
         fn = _guarded_py.get((kernel, full))
         if fn is None:
             fn = _guarded_py[(kernel, full)] = _quiet(
-                _make_guarded(kernel, _sound_np, _marked_np, full))
+                _make_guarded(kernel, _sound_np, _marked_np, full, kernel))
         return fn
     key = ("guarded", kernel, full)
     fn = _compiled.get(key)
@@ -215,7 +236,7 @@ def guarded_scan(kernel: Any, jit: bool, full: bool = True) -> Any:
         import numba
 
         fn = _compiled[key] = numba.njit(inline="always", nogil=True)(
-            _make_guarded(compiled(kernel, inline=True), *guard_helpers(), full))
+            _make_guarded(compiled(kernel, inline=True), *guard_helpers(), full, kernel))
     return fn
 
 

@@ -80,7 +80,7 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.forms import series_to_ideal
-from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.kernel import FloatArray, IntArray, primitive, sees_nonfinite
 from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite
@@ -139,6 +139,7 @@ def measured(value: float, status: int) -> bool:
     return finite(value) and abs(value) <= INPUT_LIMIT and (status & 0xC0) != BAD
 
 
+@sees_nonfinite
 def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                y: FloatArray, ys: IntArray) -> None:
     """One scan of the generic PID (equations in the module docstring). A computing scan

@@ -12,8 +12,10 @@ disk instead of compiling, and a changed kernel can never load stale code.
 
 Three entry points are generated from the same layout:
 
-* ``scans(F, S, dt, t0, k0, n, T, RF, RS, IF, IS)``: n scans of a module (``Module.run``),
-  scan k at t = t0 (k = 0) or (k0 + k)·dt, recording F[IF] and S[IS] per scan;
+* ``scans(F, S, dt, t0, k0, n, T, RF, RS, IF, IS, at)``: n scans of a module
+  (``Module.run``), scan k at t = t0 (k = 0) or (k0 + k)·dt, recording T[at + k] = t,
+  RF[:, at + k] = F[IF] and RS[:, at + k] = S[IS] (one row per signal, so each signal's
+  record is one contiguous array);
 * ``step(dt, F, S)``: one scan of one block (``Block.step``);
 * ``rows(dts, F, S, U, US, Y, YS)``: one block over rows of inputs (``replay``);
 * ``call(dt, p, x, u, us, y, ys)``: one scan of one block on its own seven arrays, for kinds
@@ -51,7 +53,8 @@ announce: Callable[[str], None] | None = None
 CALL_SIGNATURE = ("none(float64, float64[::1], float64[::1], float64[::1], int64[::1], "
                   "float64[::1], int64[::1])")
 SCANS_SIGNATURE = ("none(float64[::1], int64[::1], float64, float64, int64, int64, "
-                   "float64[::1], float64[:, ::1], int64[:, ::1], int64[::1], int64[::1])")
+                   "float64[::1], float64[:, ::1], int64[:, ::1], int64[::1], int64[::1], "
+                   "int64)")
 STEP_SIGNATURE = "none(float64, float64[::1], int64[::1])"
 ROWS_SIGNATURE = ("none(float64[::1], float64[::1], int64[::1], float64[:, ::1], int64[:, ::1], "
                   "float64[:, ::1], int64[:, ::1])")
@@ -167,6 +170,8 @@ def _feed(obj: Any, digest: Any, seen: set[int]) -> None:
         obj = py_func
     if isinstance(obj, types.FunctionType):
         digest.update(f"function {obj.__module__}.{obj.__qualname__}".encode())
+        if getattr(obj, "_lw_sees_nonfinite", False):  # it runs without the marking guard
+            digest.update(b"sees nonfinite")
         for part in _code_parts(obj.__code__):
             digest.update(part)
         for name in sorted(_all_names(obj.__code__)):
@@ -301,10 +306,10 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
     deco = "@numba.njit(cache=CACHE, nogil=True)"
     if "scans" in entries:
         lines += ["", "", deco,
-                  "def scans(F, S, dt, t0, k0, n, T, RF, RS, IF, IS):",
+                  "def scans(F, S, dt, t0, k0, n, T, RF, RS, IF, IS, at):",
                   "    for k in range(n):",
                   "        t = t0 if k == 0 else (k0 + k) * dt",
-                  "        T[k] = t"]
+                  "        T[at + k] = t"]
         for slot in slots:
             for i, src, j in slot.links:
                 s = slots[src]
@@ -314,9 +319,9 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
                 lines.append(f"        F[{slot.u0 + slot.clock}] = t")
             lines.append("        " + _call(slot, kernels[(slot.kernel, slot.full)], "dt"))
         lines += ["        for j in range(IF.shape[0]):",
-                  "            RF[k, j] = F[IF[j]]",
+                  "            RF[j, at + k] = F[IF[j]]",
                   "        for j in range(IS.shape[0]):",
-                  "            RS[k, j] = S[IS[j]]"]
+                  "            RS[j, at + k] = S[IS[j]]"]
     if "call" in entries:
         (slot,) = slots
         lines += ["", "", deco, "def call(dt, p, x, u, us, y, ys):",

@@ -363,8 +363,9 @@ class Module:
             block._release_last()
             block.check_dt(dt)
         t = np.empty(n)
-        RF = np.empty((n, self._rec_f.shape[0]))
-        RS = np.empty((n, self._rec_s.shape[0]), dtype=np.int64)
+        # one row per signal: each signal's record is a contiguous array, handed out as is
+        RF = np.empty((self._rec_f.shape[0], n))
+        RS = np.empty((self._rec_s.shape[0], n), dtype=np.int64)
         if plan not in ("auto", "compiled", "python"):
             raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or python")
         if plan == "compiled" and not self.compiled:
@@ -383,8 +384,8 @@ class Module:
         for name in self.order:
             b = self.blocks[name]
             for port in (*b.INPUTS, *b.OUTPUTS):
-                values[f"{name}.{port.name}"] = RF[:, col].copy()
-                status[f"{name}.{port.name}"] = RS[:, col].copy()
+                values[f"{name}.{port.name}"] = RF[col]
+                status[f"{name}.{port.name}"] = RS[col]
                 col += 1
         return SimResult(t=t, values=values, status=status,
                          kinds={n: self.blocks[n].kind for n in self.order},
@@ -397,8 +398,8 @@ class Module:
         for k in range(n):
             t[k] = self.t
             self.scan(dt)
-            RF[k] = self._F[self._rec_f]
-            RS[k] = self._S[self._rec_s]
+            RF[:, k] = self._F[self._rec_f]
+            RS[:, k] = self._S[self._rec_s]
             if progress is not None and (k % every == 0 or k == n - 1):
                 progress(k + 1, n)
 
@@ -430,8 +431,8 @@ class Module:
             if k_event is not None:
                 stop = min(stop, done + max(1, k_event - self.k))
             m = stop - done
-            self._scans(self._F, self._S, dt, self.t, self.k, m, t[done:stop], RF[done:stop],
-                        RS[done:stop], self._rec_f, self._rec_s)
+            self._scans(self._F, self._S, dt, self.t, self.k, m, t, RF, RS, self._rec_f,
+                        self._rec_s, done)
             self.k += m
             self.t = self.k * dt
             done = stop
