@@ -52,6 +52,9 @@ from loopworks.errors import FileFormatError, InputError
 BULK_MIN_BYTES = 1 << 16
 #: In bulk, read the next chunk and write the last in worker threads while one runs.
 OVERLAP = True
+#: a replay of fewer rows (in one chunk) runs interpreted: at ~10-60 us a row that is less than
+#: the ~1 s numba needs to start before it can load any compiled code
+INTERPRET_BELOW_ROWS = 5_000
 _HEAD_BYTES = 1 << 20  # for the bulk reader, the header must end within the first MiB
 _HEAD_READ = 1 << 16  # read so much of it at first
 
@@ -175,16 +178,16 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
         size = max(chunk, 2)  # the first scan's dt needs the second row
         if reader is not None:
             chunks = _first_two_rows(_slow_chunks(reader, lay, _Clock(), block, size))
-            return _replay_chunks(block, chunks, lay, clock, output, progress, bulk=False)
+            return _replay_chunks(block, chunks, lay, clock, output, progress, size, bulk=False)
         assert start is not None
         chunks = _first_two_rows(_bulk_chunks(raw, start, lay, block, size))
         if not OVERLAP:
-            return _replay_chunks(block, chunks, lay, clock, output, progress, bulk=True)
+            return _replay_chunks(block, chunks, lay, clock, output, progress, size, bulk=True)
         from loopworks.sim.overlap import Ahead
 
         ahead = Ahead(chunks)
         try:
-            return _replay_chunks(block, ahead, lay, clock, output, progress, bulk=True)
+            return _replay_chunks(block, ahead, lay, clock, output, progress, size, bulk=True)
         finally:
             ahead.close()  # before the input closes
 
@@ -230,7 +233,7 @@ def _layout(block: Block, header: list[str], source: str,
 
 def _replay_chunks(block: Block, chunks: Iterator[_Chunk], lay: _Layout, clock: int | None,
                    output: str | Path | TextIO | None, progress: Callable[[int], None] | None,
-                   bulk: bool) -> ReplaySummary:
+                   chunk_rows: int, bulk: bool) -> ReplaySummary:
     """Run the parsed chunks through ``block`` and write the outputs (``bulk``: compiled
     formatting, written behind in a worker thread)."""
     first_chunk = next(chunks, None)
@@ -246,8 +249,12 @@ def _replay_chunks(block: Block, chunks: Iterator[_Chunk], lay: _Layout, clock: 
             st_idx = [block._out_index[p.name] for p in st_out]
             rows = 0
             t_first = t_last = math.nan
+            # a replay that fits in one chunk of fewer than INTERPRET_BELOW_ROWS rows runs
+            # interpreted: loading compiled code (numba's start-up) would cost more than it saves
+            jit = block.jit and not (first_chunk.n < INTERPRET_BELOW_ROWS
+                                     and _is_last(first_chunk, chunk_rows))
             for part in itertools.chain([first_chunk], chunks):
-                Y, YS = _run(block, part, clock, lay.source, first=rows == 0)
+                Y, YS = _run(block, part, clock, lay.source, first=rows == 0, jit=jit)
                 if rows == 0:
                     t_first = float(part.ts[0])
                 t_last = float(part.ts[-1])
@@ -262,9 +269,15 @@ def _replay_chunks(block: Block, chunks: Iterator[_Chunk], lay: _Layout, clock: 
     return ReplaySummary(rows, t_first, t_last, str(name))
 
 
+def _is_last(part: _Chunk, chunk_rows: int) -> bool:
+    """True when ``part`` is the whole file: the readers fill every chunk but the last."""
+    return part.n < chunk_rows
+
+
 def _run(block: Block, part: _Chunk, clock: int | None, source: str,
-         first: bool) -> tuple[FloatArray, IntArray]:
-    """Run one chunk of rows through ``block``; its outputs, row by row."""
+         first: bool, jit: bool) -> tuple[FloatArray, IntArray]:
+    """Run one chunk of rows through ``block`` (compiled when ``jit``); its outputs, row by
+    row."""
     n = part.n
     U, US = _inputs(block, part, clock)
     dts = part.dts
@@ -279,7 +292,7 @@ def _run(block: Block, part: _Chunk, clock: int | None, source: str,
     YS = np.empty((n, len(block.OUTPUTS)), dtype=np.int64)
     Y[0] = block.y
     YS[0] = block.ys
-    run_rows(type(block).kernel, dts, block.p, block.x, U, US, Y, YS, jit=block.jit,
+    run_rows(type(block).kernel, dts, block.p, block.x, U, US, Y, YS, jit=jit,
              full=not block.SOUND_KERNEL)
     block.u[:] = U[-1]
     block.us[:] = US[-1]
