@@ -3,6 +3,7 @@ from the declarations, the arrays a block holds follow them, and the generated d
 
 from __future__ import annotations
 
+import contextlib
 import re
 import types
 from collections.abc import Iterator, Mapping
@@ -15,6 +16,7 @@ import pytest
 import loopworks
 from loopworks.blocks import layout
 from loopworks.blocks.layout import Array
+from tests.blocks.test_block_model import VARIANTS
 
 SRC = Path(loopworks.__file__).resolve().parent
 DOCS = SRC.parent.parent / "docs" / "blocks"
@@ -46,18 +48,23 @@ def _declarations(cls: type[loopworks.Block] | loopworks.Block) -> dict[str, tup
             "OUTPUTS": cls.OUTPUTS}
 
 
-@pytest.mark.parametrize("kind", loopworks.kinds())
-def test_the_kernel_indexes_with_names_made_from_the_declarations(kind: str) -> None:
+#: every kind with each parameter set that exercises its branches (tests.blocks.test_block_model)
+CASES = [(kind, params) for kind in loopworks.kinds() for params in VARIANTS.get(kind, [{}])]
+IDS = [f"{kind}-{i}" for kind in loopworks.kinds() for i in range(len(VARIANTS.get(kind, [{}])))]
+
+
+@pytest.mark.parametrize(("kind", "params"), CASES, ids=IDS)
+def test_the_kernel_indexes_with_names_made_from_the_declarations(
+        kind: str, params: dict[str, Any]) -> None:
     """Each layout name tuple the kernel reads is index() of one of the kind's declarations
-    (an instance's, for kinds whose ports follow their parameters), and the kernel reads at
-    least the coefficient and output names: no hand-written offsets."""
-    block = loopworks.create_block(kind)
+    (an instance's, for kinds whose ports follow their parameters): no hand-written
+    offsets."""
+    block = loopworks.create_block(kind, **params)
     declared = {}
     for key, value in _declarations(block).items():
-        try:
+        # names that are not identifiers (deltav.calc's "x.st") make no index
+        with contextlib.suppress(ValueError):
             declared[key] = layout.index(value)
-        except ValueError:  # names that are not identifiers (deltav.calc's "x.st"): no index
-            pass
     used = {name: value for name, value in _referenced(type(block).kernel)
             if getattr(type(value), "_lw_layout", False)}
     assert used, f"{kind}: the kernel reads no generated layout names"
@@ -68,11 +75,11 @@ def test_the_kernel_indexes_with_names_made_from_the_declarations(kind: str) -> 
                          f"kind's declarations {sorted(declared)}")
 
 
-@pytest.mark.parametrize("kind", loopworks.kinds())
-def test_the_arrays_follow_the_declarations(kind: str) -> None:
+@pytest.mark.parametrize(("kind", "params"), CASES, ids=IDS)
+def test_the_arrays_follow_the_declarations(kind: str, params: dict[str, Any]) -> None:
     """coefficients() gives names (packed by COEFFS), the state has the declared size and
     names, and a saved state round-trips by those names."""
-    block = loopworks.create_block(kind)
+    block = loopworks.create_block(kind, **params)
     values = block.coefficients()
     assert isinstance(values, Mapping), f"{kind}: coefficients() must return names and values"
     assert list(values) == list(layout.entries_of(block.COEFFS))
@@ -84,7 +91,7 @@ def test_the_arrays_follow_the_declarations(kind: str) -> None:
         if isinstance(entry, Array):
             assert len(state[entry.name]) == entry.length(block.params)
     saved = block.state_dict()
-    again = loopworks.create_block(kind)
+    again = loopworks.create_block(kind, **params)
     again.load_state(saved)
     assert np.array_equal(again.x, block.x, equal_nan=True)
 

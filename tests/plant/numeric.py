@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from loopworks.blocks import layout
 from loopworks.blocks.block import Block
 
 #: the values issue 11 point 1 names, and the float32 edge
@@ -26,7 +27,8 @@ def kernel_scan(block: Block, dt: float, **inputs: Any) -> None:
 def unsound(block: Block) -> list[str]:
     """What breaks the numeric contract now: a non-finite state, or a non-finite output whose
     status is not Bad (or that carries no status)."""
-    found = [f"state {n} = {v}" for n, v in zip(block.STATES, block.x, strict=True)
+    names = layout.names(block.STATES, block.params)  # an Array's elements as name[i]
+    found = [f"state {n} = {v}" for n, v in zip(names, block.x, strict=True)
              if not math.isfinite(v)]
     for i, port in enumerate(block.OUTPUTS):
         value, status = float(block.y[i]), int(block.ys[i])

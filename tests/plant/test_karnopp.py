@@ -78,7 +78,7 @@ def test_1_6_defaults_are_the_specs_real_valve() -> None:
     assert prm["p_min"] == pytest.approx(41.4e3, abs=50.0)
     assert (prm["f_v"], prm["v_s"]) == (FV, VS)
     assert prm["tau_ip"] == pytest.approx(3.57, abs=0.005)
-    assert (v.p[karnopp.P_FS], v.p[karnopp.P_FC]) == (FS, FC)
+    assert (v.p[karnopp.P.f_s], v.p[karnopp.P.f_c]) == (FS, FC)
 
 
 def test_1_1_valve_estimation_mapping_gives_the_specs_pair() -> None:
@@ -111,8 +111,8 @@ def test_1_1_force_balance_mapping() -> None:
 def test_1_7_friction_from_any_one_parameter_set(params: dict[str, Any], f_s: float,
                                                  f_c: float) -> None:
     v = loopworks.create_block("valve.karnopp", **params)
-    assert v.p[karnopp.P_FS] == pytest.approx(f_s)
-    assert v.p[karnopp.P_FC] == pytest.approx(f_c)
+    assert v.p[karnopp.P.f_s] == pytest.approx(f_s)
+    assert v.p[karnopp.P.f_c] == pytest.approx(f_c)
 
 
 @pytest.mark.parametrize(("params", "match"), [
@@ -248,7 +248,7 @@ def test_1_1_force_balance_sj_on_a_quasi_static_coulomb_valve(make: Make) -> Non
     part relaxes as the stem stops) to -Fs, i.e. by S to S + Fv·v/U of op. Ramp 0.01 % per
     0.1 s scan (0.1 %/s): v = (U/k)·0.1 = 2.931e-5 m/s, Fv·v = 3.664 N (0.0594 % of op)."""
     v = make(s=3.0, j=1.0, v_s=0.0, tau_ip=0.0)
-    assert v.p[karnopp.P_FS] == pytest.approx(2.0 * U) and v.p[karnopp.P_FC] == pytest.approx(U)
+    assert v.p[karnopp.P.f_s] == pytest.approx(2.0 * U) and v.p[karnopp.P.f_c] == pytest.approx(U)
     p0 = v.step(0.1, op=50.0)["position"].value
     ops_up = [50.0 + 0.01 * i for i in range(1, 1001)]
     up = [v.step(0.1, op=x)["position"].value for x in ops_up]

@@ -721,6 +721,36 @@ def test_resume_from_saved_state_equals_one_run(kind: str) -> None:
         assert got[1] == expected[1][150:]
 
 
+@pytest.mark.parametrize("kind", sorted(VARIANT_SETS))
+def test_the_line_is_one_state_entry(kind: str) -> None:
+    """The delay line (and process.tf's ξ) is one list in the state, sized by delay_capacity
+    (and max_order): the state of a run round-trips into a fresh block through JSON, and a
+    state saved with the earlier separate names (line_head, line_u_0, ...) is refused with an
+    InputError that names the state's entries."""
+    for params in VARIANT_SETS[kind]:
+        block = loopworks.create_block(kind, **params)
+        cap = int(block.params["delay_capacity"])
+        name = "xi_line" if kind == "process.tf" else "line"
+        extra = 2 * int(block.params["max_order"]) if kind == "process.tf" else 0
+        ts = params.get("sample_time", 2.0)  # within every variant's delay_capacity
+        run(block, [float(ts)] * 7, [float(k) for k in range(7)])
+        state = block.state()
+        assert list(state)[-1] == name and len(state[name]) == extra + 4 + 2 * cap
+        saved = json.loads(json.dumps(block.state_dict()))
+        fresh = loopworks.create_block(kind, **params)
+        fresh.load_state(saved)
+        assert np.array_equal(fresh.x, block.x)
+        line = state[name][extra:]
+        old = {k: v for k, v in state.items() if k != name}
+        old.update(zip(("line_head", "line_count", "line_run_dt", "line_run_len"), line,
+                       strict=False))
+        old.update({f"line_u_{i}": line[4 + i] for i in range(cap)})
+        old.update({f"line_dt_{i}": line[4 + cap + i] for i in range(cap)})
+        with pytest.raises(InputError, match=f"line_u_0.*one entry.*u_held, {name}"):
+            fresh.load_state({**saved, "state": old})
+        assert np.array_equal(fresh.x, block.x)  # the refused state changed nothing
+
+
 # ---------------------------------------------------------------------------------------------
 # The relay oracles of spec 3.2 on the reference plants
 

@@ -407,7 +407,7 @@ def test_noise_that_overflows_is_held_bad_by_the_kernel_itself() -> None:
     draws = np.array(rng_seed_state(4, sensor.STREAM_SENSOR))
     for _ in range(20):
         rng_normal(draws, 0)
-    assert list(tt.x[sensor.S_RNG:]) == list(draws)
+    assert list(tt.x[sensor.X.rng_s10:]) == list(draws)
 
 
 def test_start_value_is_the_settled_pv_of_the_latched_y() -> None:

@@ -29,10 +29,10 @@ def _ge(after_polarity: bool) -> Callable[[Block], tuple[float, float]]:
     from loopworks.vendors import ge_pacsystems as ge
 
     def limits(b: Block) -> tuple[float, float]:
-        lo, hi = float(b.p[ge.LOWER]), float(b.p[ge.UPPER])
-        if b.p[ge.PARAM_ERR] != 0.0:
+        lo, hi = float(b.p[ge.P.lower]), float(b.p[ge.P.upper])
+        if b.p[ge.P.param_err] != 0.0:
             return (-math.inf, math.inf)
-        return (-hi, -lo) if after_polarity and b.p[ge.INVERT] != 0.0 else (lo, hi)
+        return (-hi, -lo) if after_polarity and b.p[ge.P.invert] != 0.0 else (lo, hi)
     return limits
 
 

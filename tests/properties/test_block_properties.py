@@ -24,6 +24,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 import loopworks
+from loopworks.blocks import layout
 from loopworks.blocks.block import Block
 from tests.properties.limits import output_limits
 from tests.properties.strategies import Case, cases
@@ -61,7 +62,7 @@ def check_sound(block: Block, scan: int, case: Case) -> None:
             assert port.status and status & 0xC0 == 0, (
                 f"{block.kind} scan {scan}: output {port.name} = {value} with status {status} "
                 f"(params {case.params}, inputs {case.inputs[scan]})")
-    for name, value in zip(block.STATES, block.x, strict=True):
+    for name, value in zip(layout.names(block.STATES, block.params), block.x, strict=True):
         assert math.isfinite(value), (
             f"{block.kind} scan {scan}: state {name} = {value} (params {case.params}, "
             f"inputs {case.inputs[scan]})")

@@ -22,6 +22,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import loopworks
+from loopworks.blocks import layout
 from loopworks.blocks.relay import (
     BAD_INPUT,
     CONVERGED,
@@ -345,7 +346,8 @@ def test_relay_kernel_keeps_state_finite_and_nan_outputs_bad(
         u[:] = (sp, pv, u_in, enable, clock)
         us[:3] = (s_sp, s_pv, s_u)
         relay_kernel(0.5, p, x, u, us, y, ys)
-        assert np.all(np.isfinite(x)), dict(zip(block.STATES, x, strict=True))
+        assert np.all(np.isfinite(x)), dict(zip(layout.names(block.STATES), x,
+                                                strict=True))
         for i, port in enumerate(block.OUTPUTS):
             assert math.isfinite(y[i]) or (port.status and ys[i] & 0xC0 == 0), port.name
             if not port.status:

@@ -245,6 +245,52 @@ def test_old_output_filtered_option_integrates_the_filter_output(make: Make) -> 
 
 
 # ----------------------------------------------------------------------------------------------
+# Retuning (issue 12 point 4): the law is incremental (spec 3.3), so no retune option
+# ----------------------------------------------------------------------------------------------
+RETUNE: dict[str, Any] = {"throttling_range": 10.0, "kp": 1.0, "ki": 0.3, "kd": 0.0,
+                          "min_accumulated_error": 0.1, "output_at_setpoint": 50.0,
+                          "update_interval": 1.0}
+
+
+def test_retune_at_steady_error_moves_the_output_only_by_the_new_increment(make: Make) -> None:
+    """spec 3.3: OUT_k = OUT_{k-1} + Padj + Iadj + Dadj, Padj = kp·(e_k - e_{k-1})·100/TR,
+    Iadj = ki·e_k, Dadj = kd·(e_k - 2e_{k-1} + e_{k-2}). SP 29, input 30: e = 1. Update 1:
+    50 + 1·1·100/10 + 0.3 = 60.3; update 2: + 0.3. At the steady error Padj = Dadj = 0, so
+    kp 1 -> 2 adds only Iadj = 0.3 (a positional kp·e·100/TR would jump by 10), TR 10 -> 5
+    with kd 0 -> 0.5 adds 0.3 again (a positional P would jump by 2·1·(20 - 10) = 20), and
+    ki 0.3 -> 0.6 adds the new Iadj = 0.6."""
+    b = make(**RETUNE)
+    assert outs(b, 1.0, [30.0, 30.0], sp=29.0, port="pid_out") == \
+        pytest.approx([60.3, 60.6], abs=1e-12)
+    b.set_params(kp=2.0)
+    r = run(b, 1.0)
+    assert r["p_adj"][0] == 0.0 and r["d_adj"][0] == 0.0
+    assert r["pid_out"][0] == pytest.approx(60.9, abs=1e-12)
+    b.set_params(throttling_range=5.0, kd=0.5)
+    r = run(b, 1.0)
+    assert r["p_adj"][0] == 0.0 and r["d_adj"][0] == 0.0
+    assert r["pid_out"][0] == pytest.approx(61.2, abs=1e-12)
+    b.set_params(ki=0.6)
+    r = run(b, 1.0)
+    assert r["i_adj"][0] == pytest.approx(0.6, abs=1e-15)
+    assert r["pid_out"][0] == r["out"][0] == pytest.approx(61.8, abs=1e-12)
+
+
+def test_after_a_retune_the_loop_follows_the_new_tuning(make: Make) -> None:
+    """spec 3.3 with kp 2, TR 5, ki 0.6, kd 0.5 set at e = 1 (steady): the input 30 -> 30.5
+    gives e = 1.5: Padj = 2·0.5·100/5 = 20, Iadj = 0.6·1.5 = 0.9, Dadj = 0.5·(1.5 - 2 + 1) =
+    0.25: 60.6 + 21.15 = 81.75; next (e = 1.5 steady): Padj = 0, Iadj = 0.9, Dadj =
+    0.5·(1.5 - 3 + 1) = -0.25: + 0.65 = 82.4."""
+    b = make(**RETUNE)
+    outs(b, 1.0, [30.0, 30.0], sp=29.0)
+    b.set_params(kp=2.0, throttling_range=5.0, ki=0.6, kd=0.5)
+    r = run(b, 1.0, pv=30.5)
+    assert (r["p_adj"][0], r["i_adj"][0], r["d_adj"][0]) == pytest.approx((20.0, 0.9, 0.25))
+    assert r["pid_out"][0] == pytest.approx(81.75, abs=1e-12)
+    assert run(b, 1.0)["pid_out"][0] == pytest.approx(82.4, abs=1e-12)
+
+
+# ----------------------------------------------------------------------------------------------
 # Timing: spec 3.3 (fixed update interval), 3.6 (filter period, independent)
 # ----------------------------------------------------------------------------------------------
 def test_updates_every_interval_at_fast_scans_without_drift(make: Make) -> None:

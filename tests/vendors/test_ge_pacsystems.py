@@ -569,7 +569,7 @@ def test_derivative_filter_bit5(make: Make) -> None:
     first = 500.0 * (1.0 - math.exp(-1.0))
     assert solve(pid, 0.2, sp=50, pv=0)[1] == math.trunc(first)
     assert solve(pid, 0.3, sp=50, pv=0)[1] == math.trunc(first * math.exp(-1.0))
-    assert make(derivative_filter=True, kd=2.0).p[ge_pacsystems.TF] == pytest.approx(0.2)
+    assert make(derivative_filter=True, kd=2.0).p[ge_pacsystems.P.tf] == pytest.approx(0.2)
 
 
 def test_slew_remainder_carries_below_one_count(make: Make) -> None:
@@ -697,6 +697,155 @@ def test_engineering_values_round_to_their_words() -> None:
 
 
 # ----------------------------------------------------------------------------------------------
+# Retuning in Auto (issue 12 point 4)
+# ----------------------------------------------------------------------------------------------
+# e = 1000 - 900 = 100 counts; Kp 4 (word 6 = 400), Ki 1.5 (word 8 = 1500), 100 ms solutions:
+# P = 400·100/100 = 400, ΔI = 1500·100·1000/10^7 = 15 counts per solution (spec 1.5).
+IND_TUNING: dict[str, Any] = {"kp": 4.0, "ki": 1.5, "sample_period": 0.1, **BIPOLAR}
+# PID_ISA Kc 2 (word 6 = 200), Ti 10 s (word 8 = 100): P = 200·100/100 = 200,
+# ΔI = 200·100·100·1000/10^9 = 2 counts per solution (spec 1.5, isa_division combined).
+ISA_TUNING: dict[str, Any] = {"kc": 2.0, "ti": 10.0, "sample_period": 0.1, **BIPOLAR}
+
+
+def three_solutions(first: Block, *others: Block) -> list[float]:
+    """Solutions at 0.1, 0.2, 0.3 s with SP 1000, PV 900 of every block; word 19 of the
+    first."""
+    outs = []
+    for k in (1, 2, 3):
+        for block in others:
+            solve(block, 0.1 * k, sp=1000, pv=900)
+        outs.append(solve(first, 0.1 * k, sp=1000, pv=900)[1])
+    return outs
+
+
+def test_retune_vendor_steps_the_output_by_the_change_of_p(make: Make) -> None:
+    """spec 1.6 (Output = Kp·e + Integ + Kd·Δ/dt + Bias, the integral accumulated): 415, 430,
+    445; Kp 4 -> 6 (word 6 = 600) makes P = 600·100/100 = 600, so the next solution is
+    600 + 4·15 = 660: a step of (600 - 400)·100/100 = 200 over the old law's 460."""
+    pid = make(**IND_TUNING)
+    assert pid.params["retune"] == "vendor"
+    assert three_solutions(pid) == [415.0, 430.0, 445.0]
+    pid.set_params(kp=6.0)
+    assert solve(pid, 0.4)[1] == 660.0
+    assert solve(pid, 0.5)[1] == 675.0
+
+
+def test_retune_vendor_isa_kc_does_not_rescale_the_past_integral(make: Make) -> None:
+    """spec 1.5 (ISA ΔI = Kc·e·dt/Ti, accumulated in CV counts) and 1.6: 202, 204, 206.
+    Kc 2 -> 3 (word 6 = 300): P = 300, ΔI = 300·100·100·1000/10^9 = 3, and the integral 6
+    is kept as it is: 300 + 6 + 3 = 309 (an integral multiplied by Kc at output time would
+    give 300 + 9 + 3 = 312)."""
+    pid = make("ge.pid_isa", **ISA_TUNING)
+    assert three_solutions(pid) == [202.0, 204.0, 206.0]
+    pid.set_params(kc=3.0)
+    assert solve(pid, 0.4)[1] == 309.0
+    assert pid.state()["integral"] == 9.0
+
+
+@pytest.mark.parametrize("rounding", ["truncate", "floor"])
+def test_retune_bumpless_next_solution_is_the_old_tunings(make: Make, rounding: str) -> None:
+    """retune = bumpless, Kp 6 -> 4 at e = 100: the integral moves by P_old - P_new =
+    600 - 400 = +200 counts, word 27 untouched, so the next solution equals the old tuning's:
+    600 + 4·15 = 660 (spec 1.6). Afterwards the loop follows the new tuning: a block tuned
+    Kp 4 from the start (460 at 0.4 s) differs from it by that constant integral offset, 200,
+    through SP steps (e 110, 110, 90: P = 4·e, ΔI = 16.5, 16.5, 13.5 with the remainder
+    carried)."""
+    start = {**IND_TUNING, "kp": 6.0, "rounding": rounding}
+    old = make(**start)
+    pid = make(**start, retune="bumpless")
+    new = make(**{**start, "kp": 4.0})
+    assert three_solutions(pid, old, new) == [615.0, 630.0, 645.0]
+    integral, remainder = pid.state()["integral"], pid.state()["int_remainder"]
+    pid.set_params(kp=4.0)
+    assert (pid.state()["integral"], pid.state()["int_remainder"]) == (integral + 200.0,
+                                                                       remainder)
+    assert solve(pid, 0.4)[1] == solve(old, 0.4)[1] == 660.0
+    assert solve(new, 0.4)[1] == 460.0
+    for k, sp in ((5, 1010), (6, 1010), (7, 990), (8, 990)):
+        assert solve(pid, 0.1 * k, sp=sp)[1] - solve(new, 0.1 * k, sp=sp)[1] == 200.0
+
+
+def test_retune_bumpless_isa_moves_only_by_the_new_increment(make: Make) -> None:
+    """PID_ISA, bumpless, Kc 2 -> 3 after 202, 204, 206: the integral moves by
+    P_old - P_new = 200 - 300 = -100 (6 -> -94), so the next solution moves only by the new
+    increment ΔI = 3 (spec 1.5): 209, where the old tuning gives 208 (its increment 2)."""
+    old = make("ge.pid_isa", **ISA_TUNING)
+    pid = make("ge.pid_isa", **ISA_TUNING, retune="bumpless")
+    assert three_solutions(pid, old) == [202.0, 204.0, 206.0]
+    pid.set_params(kc=3.0)
+    assert pid.state()["integral"] == -94.0
+    assert solve(pid, 0.4)[1] == 209.0
+    assert solve(old, 0.4)[1] == 208.0
+    assert solve(pid, 0.5)[1] == 212.0  # the new law: 300 + (-91 + 3)
+
+
+@pytest.mark.parametrize(("change", "p_new"), [
+    ({"kp": 6.0}, 600.0),  # 600·100/100
+    ({"direct_acting": True}, -400.0),  # e = PV - SP = -100 (spec 1.7 step 5)
+    ({"deadband_pos": 150.0, "deadband_neg": -150.0}, 0.0),  # inside the band (step 6)
+    ({"deadband_pos": 50.0, "deadband_neg": -50.0, "deadband_subtract": True},
+     200.0),  # e_db = 100 - 50 (step 6, Config bit 3)
+])
+@pytest.mark.parametrize("retune", ["vendor", "bumpless"])
+def test_retune_of_each_p_coefficient(make: Make, change: dict[str, Any], p_new: float,
+                                      retune: str) -> None:
+    """P only (Ki 0: the integral is a frozen manual reset, 0 here), e = 100: the output is
+    P = 400·100/100 = 400. vendor: the next solutions give the new law's P (spec 1.6);
+    bumpless: the integral takes P_old - P_new and the output stays at 400."""
+    pid = make(kp=4.0, sample_period=0.1, retune=retune, **BIPOLAR)
+    assert solve(pid, 0.1, sp=1000, pv=900)[1] == 400.0
+    pid.set_params(**change)
+    expected = p_new if retune == "vendor" else 400.0
+    assert [solve(pid, t)[1] for t in (0.2, 0.3)] == [expected, expected]
+
+
+@pytest.mark.parametrize(("rounding", "residual"), [("floor", 0.0), ("truncate", 1.0)])
+def test_retune_bumpless_residual_is_at_most_one_count(make: Make, rounding: str,
+                                                       residual: float) -> None:
+    """The stated bound: the correction is a whole count, but truncate takes the integral's
+    whole part toward zero, so when the correction carries an integral with a remainder
+    across zero the next output differs from the old tuning's by one count; floor is exact.
+    Kp 0.05 -> 0.10 (word 6 = 5 -> 10) at e = -20: P = 5·(-20)/100 = -1 -> -2, so
+    P_old - P_new = +1; Ki word 125: ΔI = 125·(-20)·1000/10^7 = -0.25 per solution.
+    truncate: old -1 + trunc(-0.5) = -1, bumpless -2 + trunc(-0.25 + 1 - 0.25) = -2;
+    floor: old -1 + floor(-0.5) = -2, bumpless -2 + floor(0.5) = -2 (spec 1.5 [?] rounding)."""
+    tuning = {"kp": 0.05, "ki": 0.125, "sample_period": 0.1, "rounding": rounding, **BIPOLAR}
+    old = make(**tuning)
+    pid = make(**tuning, retune="bumpless")
+    assert solve(old, 0.1, sp=0, pv=20)[1] == solve(pid, 0.1, sp=0, pv=20)[1]
+    pid.set_params(kp=0.1)
+    assert abs(solve(pid, 0.2)[1] - solve(old, 0.2)[1]) == residual
+
+
+def test_retune_in_manual_does_nothing_special(make: Make) -> None:
+    """In Manual the integral is back-calculated every solution (spec 1.7 step 9), so a Kp
+    change leaves the bumpless block exactly where the vendor's is: the vendor array (G12),
+    Manual at 8000 with e = 1000; Kp 4 -> 6 gives the integral 8000 - 6000 = 2000 at the
+    next Manual solution, and the first Auto solution is 6000 + 2000 + 150 = 8150."""
+    g12 = {"kp": 4.0, "ki": 1.5, "sample_period": 0.1, "deadband_pos": 5.0,
+           "deadband_neg": -5.0, "upper_clamp": 20000.0, "lower_clamp": 4000.0}
+    blocks = [make(**g12, retune=retune) for retune in ("vendor", "bumpless")]
+    for pid in blocks:
+        for k in (1, 2):
+            solve(pid, 0.1 * k, sp=10000, pv=9000, man=1, manual_command=8000)
+        pid.set_params(kp=6.0)
+    assert held(blocks[0]) == held(blocks[1])
+    for pid in blocks:
+        assert solve(pid, 0.3)[1] == 8000.0
+        assert pid.state()["integral"] == 2000.0
+        assert solve(pid, 0.4, man=0, manual_command=NAN)[1] == 8150.0
+
+
+def test_retune_before_the_first_solution_changes_nothing(make: Make) -> None:
+    """No solution yet: there is no output to keep, and the integral stays 0."""
+    pid = make(kp=4.0, retune="bumpless", **BIPOLAR)
+    pid.set_inputs({"sp": 1000.0, "pv": 900.0})
+    pid.set_params(kp=6.0)
+    assert pid.state()["integral"] == 0.0
+    assert solve(pid, 0.1)[1] == 600.0
+
+
+# ----------------------------------------------------------------------------------------------
 # Robustness, state, replay, documentation
 # ----------------------------------------------------------------------------------------------
 def test_extreme_inputs_never_crash(make: Make) -> None:
@@ -751,7 +900,7 @@ def test_docstring_lists_every_option() -> None:
                  "slew_remainder", "derivative_filter", "derivative_filter_time", "arw_hold",
                  "override_sp_pv", "manual_tracking", "initial_last_solution",
                  "load_clock_at_start", "on_parameter_error", "bad_input",
-                 "deadband_subtract", "prime_derivative"):
+                 "deadband_subtract", "prime_derivative", "retune"):
         assert f"``{name}``" in section, name
 
 

@@ -696,6 +696,68 @@ def test_native_integral_dead_zone_is_documented_and_real(make: Make) -> None:
         pytest.approx(100 * 5 / 1024), pytest.approx(2 * 100 * 5 / 1024)]
 
 
+# -- retuning in Auto (issue 12 point 4; spec 2.5, 2.7) -----------------------------------------
+# The S5 law is a correction-rate law summed into DW 48 (spec 2.5, 2.7): a new tuning adds the
+# new increment to DW 48, nothing is re-evaluated from the past, so there is no retune option.
+
+
+@pytest.mark.parametrize("arithmetic", ["native", "float"])
+def test_retune_in_auto_moves_y_only_by_the_new_increment(make: Make, arithmetic: str) -> None:
+    """spec 2.5, 2.7: dY_k = K·(R·PW_k + TI·XW_k + dD_k), Y_k = Y_{k-1} + dY_k. The spec 2.13
+    PI case (nominal ÷1000) at the steady error XW = 100: Y = 110, 120, 130. Then, with PW = 0:
+    k 1000 -> 2000: dY = 2·(0.1·100) = 20 -> 150 (a positional K·(R·XW + I) would also jump
+    by (2 - 1)·100 = 100, to 250); ti 100 -> 300: dY = 2·(0.3·100) = 60 -> 210; r 1000 -> 0:
+    R weights only PW = 0, dY = 60 again -> 270. Every product is whole, so native = float."""
+    block = make(**PI, scale="nominal", arithmetic=arithmetic)
+    y, _ = run(block, steps(3, w=100.0))
+    assert y == [110, 120, 130]
+    block.set_params(k=2000)
+    assert run(block, [{}]) == ([150], [20])
+    block.set_params(ti=300)
+    assert run(block, [{}]) == ([210], [60])
+    block.set_params(r=0)
+    assert run(block, [{}]) == ([270], [60])
+
+
+def test_retune_in_auto_native_exact_scaling(make: Make) -> None:
+    """spec 2.5 with ÷1024 words (spec 2.2), XW = 100 steady, K = R = 1000, TI = 100. First
+    call: dPW = round(1000·100/1024 = 97.66) = 98, dI = round(9.77) = 10, dY = round(1000·108
+    /1024 = 105.47) = 105; then dY = round(1000·10/1024 = 9.77) = 10: 105, 115, 125. k -> 2000:
+    dY = round(2000·10/1024 = 19.53) = 20 -> 145."""
+    block = make(**PI)
+    assert run(block, steps(3, w=100.0))[0] == [105, 115, 125]
+    block.set_params(k=2000)
+    assert run(block, steps(2))[0] == [145, 165]
+
+
+def test_retune_then_the_loop_follows_the_new_tuning(make: Make) -> None:
+    """spec 2.5: after k 1000 -> 2000 and ti 100 -> 300 (nominal) an X step 0 -> 20 gives
+    XW = 80, PW = -20: dY = 2·(1·(-20) + 0.3·80) = 2·4 = 8; then PW = 0: dY = 2·24 = 48."""
+    block = make(**PI, scale="nominal")
+    assert run(block, steps(2, w=100.0))[0] == [110, 120]
+    block.set_params(k=2000, ti=300)
+    assert run(block, [{"x": 20.0}, {}]) == ([128, 176], [8, 48])
+
+
+def test_retune_in_velocity_mode_outputs_the_new_increment(make: Make) -> None:
+    """spec 2.7, 2.8: in velocity mode DW 48 = dY_k: 110, 10, 10; k -> 2000: 20, 20."""
+    block = make(**PI, scale="nominal", velocity=True)
+    assert run(block, steps(3, w=100.0))[0] == [110, 10, 10]
+    block.set_params(k=2000)
+    assert run(block, steps(2))[0] == [20, 20]
+
+
+def test_retune_in_manual_does_nothing_special(make: Make) -> None:
+    """spec 2.9: in Manual the algorithm is not computed (Y follows YH = 130, already there);
+    a new k changes nothing there, and Auto continues from DW 48 with the new increment
+    (histories kept, PW = 0): 130 + 2·10 = 150."""
+    block = make(**PI, scale="nominal")
+    assert run(block, steps(3, w=100.0))[0] == [110, 120, 130]
+    assert run(block, [{"auto": "MAN", "yh": 130.0}])[0] == [130]
+    block.set_params(k=2000)
+    assert run(block, [{}, {"auto": "AUTO"}]) == ([130, 150], [0, 20])
+
+
 # -- the block has no clock (spec 2.5, 2.11) ------------------------------------------------------
 
 

@@ -203,6 +203,7 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite, sign
 from loopworks.blocks.registry import register
@@ -221,8 +222,6 @@ _OP_OUT = Port("op_out", 0.0, _PCT, "to the valve: op_in + correction, status of
                status=True)
 _CORRECTION = Port("correction", 0.0, _PCT, "u_c = op_out - op_in (spec 2.1)")
 
-OP_OUT, CORRECTION = range(2)
-
 
 @primitive
 def switched_on(value: float) -> bool:
@@ -231,34 +230,43 @@ def switched_on(value: float) -> bool:
 
 
 @primitive
-def put_out(y: FloatArray, ys: IntArray, out: float, correction: float, status: int) -> None:
-    """Write ``op_out`` with the status of ``op_in`` (spec 2.1) and ``correction``. A value that
-    is not finite is not written: that output holds its last value, and ``op_out`` is then Bad
-    (``status`` if it is Bad already, its substatus kept; else Bad non-specific, 0)."""
+def put_out(y: FloatArray, ys: IntArray, i_out: int, i_correction: int, out: float,
+            correction: float, status: int) -> None:
+    """Write ``op_out`` (at ``y[i_out]``) with the status of ``op_in`` (spec 2.1) and
+    ``correction`` (at ``y[i_correction]``); each kernel passes its own output names, as the
+    kinds' output layouts differ. A value that is not finite is not written: that output holds
+    its last value, and ``op_out`` is then Bad (``status`` if it is Bad already, its substatus
+    kept; else Bad non-specific, 0)."""
     if finite(out):
-        y[OP_OUT] = out
-        ys[OP_OUT] = status
+        y[i_out] = out
+        ys[i_out] = status
     elif (status & 0xC0) == BAD:
-        ys[OP_OUT] = status
+        ys[i_out] = status
     else:
-        ys[OP_OUT] = BAD
+        ys[i_out] = BAD
     if finite(correction):
-        y[CORRECTION] = correction
-    ys[CORRECTION] = GOOD_NC
+        y[i_correction] = correction
+    ys[i_correction] = GOOD_NC
 
 
-def pass_through(block: Block) -> float:
+def pass_through(op_in: float) -> float:
     """``op_out`` before the first scan (issue 11 point 8): ``op_in`` passed through, no
     correction yet (0 if ``op_in`` is not finite)."""
-    op = float(block.u[0])
+    op = float(op_in)
     return op if math.isfinite(op) else 0.0
 
 
 # -- compensator.knocker -----------------------------------------------------------------------
 
-K_AMP, K_WIDTH, K_INTERVAL, K_BAND, K_FROM_PREVIOUS = range(5)
-K_OP_IN, K_ENABLE, K_SP, K_PV = range(4)
-KS_SINCE, KS_REF_PREV, KS_REF_CUR, KS_PULSES, KS_PREV_OK, KS_CUR_OK = range(6)
+KNOCKER_INPUTS = (_OP_IN, _ENABLE, _SP, _PV)
+KNOCKER_OUTPUTS = (_OP_OUT, _CORRECTION)
+#: the coefficient array p (coefficients()); from_previous: 1 = direction_reference previous_pulse
+KNOCKER_COEFFS = ("amplitude", "pulse_width", "interval", "error_band", "from_previous")
+#: the state array x
+KNOCKER_STATES = ("since_pulse", "u_previous_pulse", "u_pulse", "pulses",
+                  "u_previous_pulse_known", "u_pulse_known")
+KP, KX = index(KNOCKER_COEFFS, "KP"), index(KNOCKER_STATES, "KX")
+KU, KY = index(KNOCKER_INPUTS, "KU"), index(KNOCKER_OUTPUTS, "KY")
 
 
 def knocker_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
@@ -267,30 +275,32 @@ def knocker_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: I
     Python floats (plain IEEE arithmetic when interpreted, free when compiled). The references
     u(t_p), u(t_p') are the finite u at the pulse starts; each has a flag that says it is
     known."""
-    op = float(u[K_OP_IN])
+    op = float(u[KU.op_in])
     usable = finite(op)
-    if x[KS_PULSES] == 0.0 or x[KS_SINCE] >= p[K_INTERVAL] - _TOL:  # a new pulse starts
-        x[KS_REF_PREV] = x[KS_REF_CUR]
-        x[KS_PREV_OK] = x[KS_CUR_OK]
+    if x[KX.pulses] == 0.0 or x[KX.since_pulse] >= p[KP.interval] - _TOL:  # a new pulse starts
+        x[KX.u_previous_pulse] = x[KX.u_pulse]
+        x[KX.u_previous_pulse_known] = x[KX.u_pulse_known]
         if usable:  # a non-finite u keeps the last known reference
-            x[KS_REF_CUR] = op
-            x[KS_CUR_OK] = 1.0
-        x[KS_SINCE] = 0.0
-        x[KS_PULSES] = min(x[KS_PULSES] + 1.0, 2.0)
-    ref = float(x[KS_REF_CUR])
-    known = x[KS_CUR_OK] != 0.0
-    if p[K_FROM_PREVIOUS] != 0.0 and x[KS_PULSES] >= 2.0:
-        ref = float(x[KS_REF_PREV])
-        known = x[KS_PREV_OK] != 0.0
+            x[KX.u_pulse] = op
+            x[KX.u_pulse_known] = 1.0
+        x[KX.since_pulse] = 0.0
+        x[KX.pulses] = min(x[KX.pulses] + 1.0, 2.0)
+    ref = float(x[KX.u_pulse])
+    known = x[KX.u_pulse_known] != 0.0
+    if p[KP.from_previous] != 0.0 and x[KX.pulses] >= 2.0:
+        ref = float(x[KX.u_previous_pulse])
+        known = x[KX.u_previous_pulse_known] != 0.0
     kick = 0.0
-    if usable and known and (x[KS_SINCE] < p[K_WIDTH] - _TOL or x[KS_SINCE] == 0.0):
-        kick = float(p[K_AMP]) * sign(op - ref)  # inside the pulse
-    if not switched_on(u[K_ENABLE]):
+    if usable and known and (x[KX.since_pulse] < p[KP.pulse_width] - _TOL
+                             or x[KX.since_pulse] == 0.0):
+        kick = float(p[KP.amplitude]) * sign(op - ref)  # inside the pulse
+    if not switched_on(u[KU.enable]):
         kick = 0.0
-    if p[K_BAND] > 0.0 and abs(float(u[K_SP]) - float(u[K_PV])) <= p[K_BAND]:
+    if p[KP.error_band] > 0.0 and abs(float(u[KU.sp]) - float(u[KU.pv])) <= p[KP.error_band]:
         kick = 0.0
-    x[KS_SINCE] = x[KS_SINCE] + dt
-    put_out(y, ys, op + kick, kick if usable else math.nan, us[K_OP_IN])
+    x[KX.since_pulse] = x[KX.since_pulse] + dt
+    put_out(y, ys, KY.op_out, KY.correction, op + kick, kick if usable else math.nan,
+            us[KU.op_in])
 
 
 @register
@@ -316,45 +326,50 @@ class Knocker(Block):
               "previous pulse start, or since this pulse's start (literal formula) [I] "
               "(spec 2.4)", "choice", choices=("previous_pulse", "pulse_start")),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (_OP_IN, _ENABLE, _SP, _PV)
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (_OP_OUT, _CORRECTION)
-    STATES: ClassVar[tuple[str, ...]] = ("since_pulse", "u_previous_pulse", "u_pulse",
-                                         "pulses", "u_previous_pulse_known", "u_pulse_known")
+    INPUTS: ClassVar[tuple[Port, ...]] = KNOCKER_INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = KNOCKER_OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = KNOCKER_COEFFS
+    STATES: ClassVar[tuple[str, ...]] = KNOCKER_STATES
 
     def initial_outputs(self) -> list[float]:
-        return [pass_through(self), 0.0]
+        return [pass_through(self.u[KU.op_in]), 0.0]
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         if prm["interval"] <= prm["pulse_width"]:
             raise ParameterError(
                 f"{self.kind}: parameter 'interval' = {prm['interval']:g} is out of range: it "
                 f"must be above pulse_width = {prm['pulse_width']:g} s")
-        return [float(prm["amplitude"]), float(prm["pulse_width"]), float(prm["interval"]),
-                float(prm["error_band"]),
-                1.0 if prm["direction_reference"] == "previous_pulse" else 0.0]
+        return {"amplitude": prm["amplitude"], "pulse_width": prm["pulse_width"],
+                "interval": prm["interval"], "error_band": prm["error_band"],
+                "from_previous": 1.0 if prm["direction_reference"] == "previous_pulse"
+                else 0.0}
 
 
 # -- compensator.constant_reinforcement --------------------------------------------------------
 
-C_ALPHA = 0
-C_OP_IN, C_ENABLE = range(2)
-CS_U_PREV, CS_SIGN, CS_STARTED = range(3)
+REINFORCEMENT_INPUTS = (_OP_IN, _ENABLE)
+REINFORCEMENT_OUTPUTS = (_OP_OUT, _CORRECTION)
+REINFORCEMENT_COEFFS = ("alpha",)
+REINFORCEMENT_STATES = ("u_previous", "direction", "started")
+CP, CX = index(REINFORCEMENT_COEFFS, "CP"), index(REINFORCEMENT_STATES, "CX")
+CU, CY = index(REINFORCEMENT_INPUTS, "CU"), index(REINFORCEMENT_OUTPUTS, "CY")
 
 
 def reinforcement_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                          y: FloatArray, ys: IntArray) -> None:
     """One scan of constant reinforcement (spec 2.6, module docstring)."""
-    op = float(u[C_OP_IN])
+    op = float(u[CU.op_in])
     if finite(op):
-        if x[CS_STARTED] != 0.0:
-            s = sign(op - x[CS_U_PREV])
+        if x[CX.started] != 0.0:
+            s = sign(op - x[CX.u_previous])
             if s != 0.0:
-                x[CS_SIGN] = s
-        x[CS_U_PREV] = op
-        x[CS_STARTED] = 1.0
-    bias = float(p[C_ALPHA]) * float(x[CS_SIGN]) if switched_on(u[C_ENABLE]) else 0.0
-    put_out(y, ys, op + bias, bias if finite(op) else math.nan, us[C_OP_IN])
+                x[CX.direction] = s
+        x[CX.u_previous] = op
+        x[CX.started] = 1.0
+    bias = float(p[CP.alpha]) * float(x[CX.direction]) if switched_on(u[CU.enable]) else 0.0
+    put_out(y, ys, CY.op_out, CY.correction, op + bias, bias if finite(op) else math.nan,
+            us[CU.op_in])
 
 
 @register
@@ -370,25 +385,38 @@ class ConstantReinforcement(Block):
         Param("alpha", 1.6, _PCT, "bias α in the direction u moves (spec 2.6; default: just "
               "above S/2 for the S = 3 % valve of spec 2.8)", lo=0.0, lo_open=False),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (_OP_IN, _ENABLE)
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (_OP_OUT, _CORRECTION)
-    STATES: ClassVar[tuple[str, ...]] = ("u_previous", "direction", "started")
+    INPUTS: ClassVar[tuple[Port, ...]] = REINFORCEMENT_INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = REINFORCEMENT_OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = REINFORCEMENT_COEFFS
+    STATES: ClassVar[tuple[str, ...]] = REINFORCEMENT_STATES
 
     def initial_outputs(self) -> list[float]:
-        return [pass_through(self), 0.0]
+        return [pass_through(self.u[CU.op_in]), 0.0]
 
-    def coefficients(self) -> list[float]:
-        return [float(self.params["alpha"])]
+    def coefficients(self) -> dict[str, Any]:
+        return {"alpha": self.params["alpha"]}
 
 
 # -- compensator.two_move ----------------------------------------------------------------------
 
-(T_S, T_J, T_MARGIN, T_MODEL, T_CYCLES, T_CYCLE_BAND, T_GAIN, T_BIAS, T_MOVE_TIME,
- T_RELEASE, T_LO, T_HI, T_AUTO) = range(13)
-T_OP_IN, T_ENABLE, T_SP, T_PV = range(4)
-T_PHASE, T_TARGET = range(2, 4)
-(TS_PHASE, TS_E_SIGN, TS_MEASURING, TS_HALVES, TS_SUM_U, TS_SUM_T, TS_READY, TS_MEAN,
- TS_TARGET, TS_X1, TS_XF, TS_TIMER, TS_SP, TS_LAST_OUT, TS_MEAN_OK, TS_LAST_OK) = range(16)
+TWO_MOVE_INPUTS = (_OP_IN, _ENABLE, _SP, _PV)
+TWO_MOVE_OUTPUTS = (
+    _OP_OUT, _CORRECTION,
+    Port("phase", 0.0, "", "0 pass, 1 move 1, 2 hold (wire to pid.track for a bumpless "
+         "release)"),
+    Port("target", 0.0, _PCT, "y*: the target of the moves (in pass: the current "
+         "estimate; NaN, status Bad, while it is not known)", status=True),
+)
+#: the coefficient array p (coefficients()); model: 1 = target model, auto: 1 = approach auto
+TWO_MOVE_COEFFS = ("s", "j", "margin", "model", "cycles", "cycle_band", "model_gain",
+                   "model_bias", "move_time", "release_band", "op_lo", "op_hi", "auto")
+#: the state array x
+TWO_MOVE_STATES = (
+    "phase", "error_sign", "measuring", "half_cycles", "sum_u_dt", "sum_dt", "ready",
+    "cycle_mean", "target", "x1", "x_final", "timer", "sp_at_moves", "last_out",
+    "cycle_mean_known", "last_out_known")
+TP, TX = index(TWO_MOVE_COEFFS, "TP"), index(TWO_MOVE_STATES, "TX")
+TU, TY = index(TWO_MOVE_INPUTS, "TU"), index(TWO_MOVE_OUTPUTS, "TY")
 PASS, MOVE1, HOLD = 0.0, 1.0, 2.0
 
 
@@ -411,66 +439,66 @@ def two_move_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: 
     """One scan of the two-move compensator (spec 2.5, module docstring). Array elements are
     read into Python floats (plain IEEE arithmetic when interpreted, free when compiled).
     The cycle mean and the last op_out each have a flag that says they are known."""
-    op = float(u[T_OP_IN])
-    sp = float(u[T_SP])
-    e = sp - float(u[T_PV])
+    op = float(u[TU.op_in])
+    sp = float(u[TU.sp])
+    e = sp - float(u[TU.pv])
     measured = finite(e)  # sp and pv finite, and their difference too
-    enabled = switched_on(u[T_ENABLE])
-    lo = float(p[T_LO])
-    hi = float(p[T_HI])
-    phase = x[TS_PHASE]
+    enabled = switched_on(u[TU.enable])
+    lo = float(p[TP.op_lo])
+    hi = float(p[TP.op_hi])
+    phase = x[TX.phase]
     # release? (a non-finite sp is not the setpoint of the moves: it releases too)
-    if phase != PASS and (not enabled or not finite(sp) or sp != x[TS_SP]
-                          or (measured and abs(e) > p[T_RELEASE])):
+    if phase != PASS and (not enabled or not finite(sp) or sp != x[TX.sp_at_moves]
+                          or (measured and abs(e) > p[TP.release_band])):
         phase = PASS
-        x[TS_E_SIGN] = 0.0
-        x[TS_MEASURING] = 0.0
-        x[TS_READY] = 0.0
+        x[TX.error_sign] = 0.0
+        x[TX.measuring] = 0.0
+        x[TX.ready] = 0.0
     if phase == PASS:
         # measure the error cycles: a crossing is a sign change outside ±cycle_band
         s = 0.0
-        if measured and e > p[T_CYCLE_BAND]:
+        if measured and e > p[TP.cycle_band]:
             s = 1.0
-        elif measured and e < -p[T_CYCLE_BAND]:
+        elif measured and e < -p[TP.cycle_band]:
             s = -1.0
-        crossing = s != 0.0 and x[TS_E_SIGN] != 0.0 and s != x[TS_E_SIGN]
+        crossing = s != 0.0 and x[TX.error_sign] != 0.0 and s != x[TX.error_sign]
         if s != 0.0:
-            x[TS_E_SIGN] = s
+            x[TX.error_sign] = s
         if crossing:
-            if x[TS_MEASURING] != 0.0:
-                x[TS_HALVES] += 1.0
-                if x[TS_HALVES] >= 2.0 * p[T_CYCLES] and x[TS_SUM_T] > 0.0:
-                    x[TS_MEAN] = float(x[TS_SUM_U]) / float(x[TS_SUM_T])
-                    x[TS_MEAN_OK] = 1.0
-                    x[TS_READY] = 1.0
-                    x[TS_HALVES] = 0.0
-                    x[TS_SUM_U] = 0.0
-                    x[TS_SUM_T] = 0.0
+            if x[TX.measuring] != 0.0:
+                x[TX.half_cycles] += 1.0
+                if x[TX.half_cycles] >= 2.0 * p[TP.cycles] and x[TX.sum_dt] > 0.0:
+                    x[TX.cycle_mean] = float(x[TX.sum_u_dt]) / float(x[TX.sum_dt])
+                    x[TX.cycle_mean_known] = 1.0
+                    x[TX.ready] = 1.0
+                    x[TX.half_cycles] = 0.0
+                    x[TX.sum_u_dt] = 0.0
+                    x[TX.sum_dt] = 0.0
             else:
-                x[TS_MEASURING] = 1.0
-                x[TS_HALVES] = 0.0
-                x[TS_SUM_U] = 0.0
-                x[TS_SUM_T] = 0.0
-        if x[TS_MEASURING] != 0.0 and finite(op):  # u as the valve sees it
-            x[TS_SUM_U] = float(x[TS_SUM_U]) + clamp(op, lo, hi) * dt
-            x[TS_SUM_T] = float(x[TS_SUM_T]) + dt
-        target = float(x[TS_MEAN])
-        known = x[TS_MEAN_OK] != 0.0
-        if p[T_MODEL] != 0.0:
-            target = model_target(sp, float(p[T_BIAS]), float(p[T_GAIN]))
+                x[TX.measuring] = 1.0
+                x[TX.half_cycles] = 0.0
+                x[TX.sum_u_dt] = 0.0
+                x[TX.sum_dt] = 0.0
+        if x[TX.measuring] != 0.0 and finite(op):  # u as the valve sees it
+            x[TX.sum_u_dt] = float(x[TX.sum_u_dt]) + clamp(op, lo, hi) * dt
+            x[TX.sum_dt] = float(x[TX.sum_dt]) + dt
+        target = float(x[TX.cycle_mean])
+        known = x[TX.cycle_mean_known] != 0.0
+        if p[TP.model] != 0.0:
+            target = model_target(sp, float(p[TP.model_bias]), float(p[TP.model_gain]))
             known = finite(target)
-        x0 = float(x[TS_LAST_OUT]) if x[TS_LAST_OK] != 0.0 else op
-        if enabled and x[TS_READY] != 0.0 and known and finite(sp) and finite(x0):
+        x0 = float(x[TX.last_out]) if x[TX.last_out_known] != 0.0 else op
+        if enabled and x[TX.ready] != 0.0 and known and finite(sp) and finite(x0):
             # the moves start
             x0 = clamp(x0, lo, hi)  # what the valve saw (it clips its input)
-            s_ = float(p[T_S])
-            j = float(p[T_J])
-            m = float(p[T_MARGIN])
+            s_ = float(p[TP.s])
+            j = float(p[TP.j])
+            m = float(p[TP.margin])
             fd = 0.5 * (s_ - j)
             d = sign(target - x0)
             xf = target + d * fd
             x1 = xf - d * (j + m)
-            if not (p[T_AUTO] != 0.0 and d != 0.0 and d * (x1 - x0) >= s_ + j + m
+            if not (p[TP.auto] != 0.0 and d != 0.0 and d * (x1 - x0) >= s_ + j + m
                     and lo <= x1 <= hi and lo <= xf <= hi):
                 d = -1.0 if d >= 0.0 else 1.0  # reverse: move 1 heads past the target
                 xf = target + d * fd
@@ -482,40 +510,40 @@ def two_move_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: 
                     if lo <= x12 <= hi:
                         xf = xf2
                         x1 = x12
-            x[TS_X1] = clamp(x1, lo, hi)
-            x[TS_XF] = clamp(xf, lo, hi)
-            x[TS_TARGET] = target
-            x[TS_SP] = sp
-            x[TS_TIMER] = 0.0
+            x[TX.x1] = clamp(x1, lo, hi)
+            x[TX.x_final] = clamp(xf, lo, hi)
+            x[TX.target] = target
+            x[TX.sp_at_moves] = sp
+            x[TX.timer] = 0.0
             phase = MOVE1
     elif phase == MOVE1:
-        x[TS_TIMER] += dt
-        if x[TS_TIMER] >= p[T_MOVE_TIME] - _TOL:
+        x[TX.timer] += dt
+        if x[TX.timer] >= p[TP.move_time] - _TOL:
             phase = HOLD
-    x[TS_PHASE] = phase
+    x[TX.phase] = phase
     if phase == PASS:
         out = op
-        target = float(x[TS_MEAN])
-        known = x[TS_MEAN_OK] != 0.0
-        if p[T_MODEL] != 0.0:
-            target = model_target(sp, float(p[T_BIAS]), float(p[T_GAIN]))
+        target = float(x[TX.cycle_mean])
+        known = x[TX.cycle_mean_known] != 0.0
+        if p[TP.model] != 0.0:
+            target = model_target(sp, float(p[TP.model_bias]), float(p[TP.model_gain]))
             known = finite(target)
     else:
-        out = float(x[TS_X1]) if phase == MOVE1 else float(x[TS_XF])
-        target = float(x[TS_TARGET])
+        out = float(x[TX.x1]) if phase == MOVE1 else float(x[TX.x_final])
+        target = float(x[TX.target])
         known = True
     if finite(out):
-        x[TS_LAST_OUT] = out
-        x[TS_LAST_OK] = 1.0
-    put_out(y, ys, out, out - op, us[T_OP_IN])
-    y[T_PHASE] = phase
-    ys[T_PHASE] = GOOD_NC
+        x[TX.last_out] = out
+        x[TX.last_out_known] = 1.0
+    put_out(y, ys, TY.op_out, TY.correction, out, out - op, us[TU.op_in])
+    y[TY.phase] = phase
+    ys[TY.phase] = GOOD_NC
     if known:
-        y[T_TARGET] = target
-        ys[T_TARGET] = GOOD_NC
+        y[TY.target] = target
+        ys[TY.target] = GOOD_NC
     else:  # not available
-        y[T_TARGET] = math.nan
-        ys[T_TARGET] = BAD
+        y[TY.target] = math.nan
+        ys[TY.target] = BAD
 
 
 @register
@@ -555,20 +583,12 @@ class TwoMove(Block):
               "both towards the target when it is far enough (spec 2.5 [I])", "choice",
               choices=("reverse", "auto")),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (_OP_IN, _ENABLE, _SP, _PV)
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        _OP_OUT, _CORRECTION,
-        Port("phase", 0.0, "", "0 pass, 1 move 1, 2 hold (wire to pid.track for a bumpless "
-             "release)"),
-        Port("target", 0.0, _PCT, "y*: the target of the moves (in pass: the current "
-             "estimate; NaN, status Bad, while it is not known)", status=True),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "phase", "error_sign", "measuring", "half_cycles", "sum_u_dt", "sum_dt", "ready",
-        "cycle_mean", "target", "x1", "x_final", "timer", "sp_at_moves", "last_out",
-        "cycle_mean_known", "last_out_known")
+    INPUTS: ClassVar[tuple[Port, ...]] = TWO_MOVE_INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = TWO_MOVE_OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = TWO_MOVE_COEFFS
+    STATES: ClassVar[tuple[str, ...]] = TWO_MOVE_STATES
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         if prm["op_lo"] >= prm["op_hi"]:
             raise ParameterError(
@@ -578,21 +598,24 @@ class TwoMove(Block):
             raise ParameterError(
                 f"{self.kind}: parameter 'model_gain' = 0 is out of range: target = model "
                 "divides by it; allowed any non-zero number")
-        return [float(prm["s"]), float(prm["j"]), float(prm["margin"]),
-                1.0 if prm["target"] == "model" else 0.0, float(prm["cycles"]),
-                float(prm["cycle_band"]), float(prm["model_gain"]), float(prm["model_bias"]),
-                float(prm["move_time"]), float(prm["release_band"]), float(prm["op_lo"]),
-                float(prm["op_hi"]), 1.0 if prm["approach"] == "auto" else 0.0]
+        return {"s": prm["s"], "j": prm["j"], "margin": prm["margin"],
+                "model": 1.0 if prm["target"] == "model" else 0.0, "cycles": prm["cycles"],
+                "cycle_band": prm["cycle_band"], "model_gain": prm["model_gain"],
+                "model_bias": prm["model_bias"], "move_time": prm["move_time"],
+                "release_band": prm["release_band"], "op_lo": prm["op_lo"],
+                "op_hi": prm["op_hi"], "auto": 1.0 if prm["approach"] == "auto" else 0.0}
 
     def initial_outputs(self) -> list[float]:
         """Before the first scan: op_in passed through, phase 0 (pass), and y* if it is known
         (target = model: from the initial sp), else NaN (marked Bad by :meth:`reset`)."""
         target = math.nan
-        if self.p[T_MODEL] != 0.0:
-            target = model_target(float(self.u[T_SP]), self.p[T_BIAS], self.p[T_GAIN])
-        return [pass_through(self), 0.0, PASS, target if math.isfinite(target) else math.nan]
+        if self.p[TP.model] != 0.0:
+            target = model_target(float(self.u[TU.sp]), self.p[TP.model_bias],
+                                  self.p[TP.model_gain])
+        return [pass_through(self.u[TU.op_in]), 0.0, PASS,
+                target if math.isfinite(target) else math.nan]
 
     def reset(self) -> None:
         super().reset()
-        if not math.isfinite(self.y[T_TARGET]):
-            self.ys[T_TARGET] = BAD
+        if not math.isfinite(self.y[TY.target]):
+            self.ys[TY.target] = BAD

@@ -86,7 +86,7 @@ def index(entries: Sequence[Entry], typename: str = "Layout") -> Any:
     must be Python identifiers (the kernel writes them as ``P.name``)."""
     at = offsets(entries)
     cls = namedtuple(typename, [_name(e) for e in entries])  # type: ignore[misc]
-    cls._lw_layout = True  # made here (the layout test finds a kernel's names by it)
+    cls._lw_layout = True  # type: ignore[attr-defined] # made here (the layout test finds a kernel's names by it)
     return cls(*at)
 
 
@@ -131,7 +131,7 @@ def pack(entries: Sequence[Entry], values: Mapping[str, Any], what: str,
     return out
 
 
-def unpack(entries: Sequence[Entry], flat: Sequence[float],
+def unpack(entries: Sequence[Entry], flat: Any,
            params: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The inverse of :func:`pack`: name to a float, or to a list for an Array."""
     out: dict[str, Any] = {}

@@ -51,12 +51,12 @@ def output_rows(cls: type[Block]) -> list[tuple[str, str, str, str]]:
     return [(p.name, p.unit, "yes" if p.status else "", p.meaning) for p in cls.OUTPUTS]
 
 
-def layout_rows(entries: tuple[Any, ...]) -> list[tuple[str, str, str]]:
+def layout_rows(entries: tuple[Any, ...]) -> list[tuple[str, ...]]:
     """(index, name, size) for every entry of a layout (COEFFS or STATES); a per-instance
     size is described by the Array's meaning."""
     from loopworks.blocks.layout import Array, offsets
 
-    rows = []
+    rows: list[tuple[str, ...]] = []
     for at, entry in zip(offsets(entries), entries, strict=True):
         if isinstance(entry, Array):
             size = str(entry.size) if isinstance(entry.size, int) else entry.meaning

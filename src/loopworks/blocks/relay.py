@@ -97,6 +97,7 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import Array, index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
@@ -112,7 +113,7 @@ from loopworks.errors import ParameterError
 
 # Phase codes (output ``phase``)
 (IDLE, RUNNING, CONVERGED, TIMEOUT, RUNAWAY, NOT_CONVERGED, NO_OSCILLATION, BAD_INPUT,
- TOO_FAST) = range(9)
+ TOO_FAST) = 0, 1, 2, 3, 4, 5, 6, 7, 8
 PHASE_NAMES = ("idle", "running", "converged", "timeout", "runaway", "not_converged",
                "no_oscillation", "bad_input", "too_fast")
 N_SLOTS = 5  # cycles remembered for the convergence test (stable_cycles ≤ N_SLOTS)
@@ -124,27 +125,56 @@ N_SLOTS = 5  # cycles remembered for the convergence test (stable_cycles ≤ N_S
 #: cycles every 2 scans, the relay chasing its own one-scan delay (issue 11).
 MIN_CYCLE_SCANS = 10
 
-# Coefficient layout (p)
-(D_UP, D_DOWN, HYST, SIGN, LO, HI, U0, TIMEOUT_S, MAX_DEV, MAX_CYC, MAX_HALF, DISCARD, STABLE,
- TOL, BIASED, OFFSET) = range(16)
-# Inputs
-SP, PV, U_IN, ENABLE, CLOCK = range(5)
-# Outputs
-OUT, ACTIVE, INACTIVE, OVERRIDE, RELAY, PHASE, STAGE, SHIFT, CYCLES, PERIOD, AMPLITUDE = range(11)
-# State (x)
-(S_TIME, S_PHASE, S_R, S_U0, S_T0, S_T_SWITCH, S_T_UP, S_N_UP, S_PV_MAX, S_PV_MIN, S_STAGE,
- S_ENABLE_PREV, S_OUT, S_PERIOD, S_AMP) = range(15)
-S_PERIODS = 15                  # N_SLOTS latest periods
-S_AMPS = S_PERIODS + N_SLOTS    # N_SLOTS latest amplitudes
-S_SHIFT = S_AMPS + N_SLOTS      # Δ: the second stage's switching point minus SP
-S_PV_INT = S_SHIFT + 1          # ∫PV dt over the running cycle
-S_OUT_INT = S_PV_INT + 1        # ∫out dt over the running cycle
-S_CYC_TIME = S_OUT_INT + 1      # Σdt over the running cycle
-S_PV_MEANS = S_CYC_TIME + 1     # N_SLOTS latest cycle means of PV
-S_OUT_MEANS = S_PV_MEANS + N_SLOTS  # N_SLOTS latest cycle means of out
-S_HAS_T_UP = S_OUT_MEANS + N_SLOTS  # 1 once t_up holds a switch up of this test
-S_HAS_CYCLE = S_HAS_T_UP + 1        # 1 once period and amplitude hold a full cycle
-N_STATES = S_HAS_CYCLE + 1
+INPUTS = (
+    Port("sp", 0.0, "pv", "setpoint the relay switches around", status=True),
+    Port("pv", 0.0, "pv", "process variable", status=True),
+    Port("u_in", 0.0, "out", "the controller's output, passed through when no test runs",
+         status=True),
+    Port("enable", 0.0, "", "a rise (> 0.5) starts a test; a fall stops it"),
+    Port("clock", math.nan, "s", "time (module time); NaN = the block's own time"),
+)
+OUTPUTS = (
+    Port("out", 0.0, "out", "relay output during the test, else u_in (clamped to "
+         "out_lo..out_hi)", status=True),
+    Port("active", 0.0, "", "1 while the relay drives the loop (controller tracks out)"),
+    Port("inactive", 1.0, "", "1 - active (for S5 auto)", choices=("MAN", "AUTO")),
+    Port("override", math.nan, "out", "out while active, else NaN with status Bad (for E2 "
+         "override)", status=True),
+    Port("relay", 0.0, "", "relay state +1 / -1 while running (on the scan that ends "
+         "the test: the state it switched to), else 0"),
+    Port("phase", 0.0, "", "0 idle, 1 running, 2 converged, 3 timeout, 4 runaway, 5 not "
+         "converged, 6 no oscillation, 7 bad input, 8 too fast (cycles under "
+         f"{MIN_CYCLE_SCANS} scans)"),
+    Port("stage", 0.0, "", "1 symmetric, 2 second (biased and/or offset), 0 not running "
+         "(the ending scan keeps its stage)"),
+    Port("shift", 0.0, "pv", "Δ: the relay's switching point minus SP (0 in the first "
+         "stage)"),
+    Port("cycles", 0.0, "", "cycles completed in the running stage"),
+    Port("period", math.nan, "s", "period of the latest cycle (NaN, status Bad, before the "
+         "first)", status=True),
+    Port("amplitude", math.nan, "pv", "PV amplitude (half peak-to-peak) of the latest "
+         "cycle (NaN, status Bad, before the first)", status=True),
+)
+#: the coefficient array p (coefficients()); sign: +1 reverse, -1 direct; u0: NaN = u_in at
+#: the start; biased: 1 = biased_stage
+COEFFS = ("d_up", "d_down", "hysteresis", "sign", "lo", "hi", "u0", "timeout",
+          "max_deviation", "max_cycles", "max_half_period", "discard_cycles", "stable_cycles",
+          "tolerance", "biased", "offset")
+#: the state array x; the Arrays hold the N_SLOTS latest cycles, oldest first
+STATES = (
+    "time", "phase", "r", "u0", "t0", "t_switch", "t_up", "n_up", "pv_max", "pv_min",
+    "stage", "enable_prev", "out", "period", "amplitude",
+    Array("periods", N_SLOTS, "the latest cycle periods"),
+    Array("amplitudes", N_SLOTS, "the latest cycle PV amplitudes"),
+    "shift",            # Δ: the second stage's switching point minus SP
+    "pv_integral",      # ∫PV dt over the running cycle
+    "out_integral",     # ∫out dt over the running cycle
+    "cycle_time",       # Σdt over the running cycle
+    Array("pv_means", N_SLOTS, "the latest cycle means of PV"),
+    Array("out_means", N_SLOTS, "the latest cycle means of out"),
+    "has_t_up",         # 1 once t_up holds a switch up of this test
+    "has_cycle")        # 1 once period and amplitude hold a full cycle
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 
 @primitive
@@ -175,57 +205,57 @@ def _stationary(x: FloatArray, stable: int, tol: float, d: float, span: float,
     ≤ tol·P̄ + dt, of their amplitudes ≤ tol·ā, of their PV means ≤ (tol + 2dt/P̄)·ā and of
     their output means ≤ tol·d + span·dt/P̄ (span: the output's peak-to-peak)."""
     first = N_SLOTS - stable
-    per = _average(x, S_PERIODS + first, stable)
-    amp = _average(x, S_AMPS + first, stable)
+    per = _average(x, X.periods + first, stable)
+    amp = _average(x, X.amplitudes + first, stable)
     return (per > 0.0 and amp > 0.0
-            and _spread(x, S_PERIODS + first, stable) <= tol * per + dt
-            and _spread(x, S_AMPS + first, stable) <= tol * amp
-            and _spread(x, S_PV_MEANS + first, stable) <= (tol + 2.0 * dt / per) * amp
-            and _spread(x, S_OUT_MEANS + first, stable) <= tol * d + span * dt / per)
+            and _spread(x, X.periods + first, stable) <= tol * per + dt
+            and _spread(x, X.amplitudes + first, stable) <= tol * amp
+            and _spread(x, X.pv_means + first, stable) <= (tol + 2.0 * dt / per) * amp
+            and _spread(x, X.out_means + first, stable) <= tol * d + span * dt / per)
 
 
 def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                  y: FloatArray, ys: IntArray) -> None:
     """One scan of the relay experiment (equations in the module docstring)."""
-    clock = float(u[CLOCK])
-    t = clock if finite(clock) and us[CLOCK] >= UNCERTAIN else float(x[S_TIME])
+    clock = float(u[U.clock])
+    t = clock if finite(clock) and us[U.clock] >= UNCERTAIN else float(x[X.time])
     if finite(t + dt):
-        x[S_TIME] = t + dt
-    enable = float(u[ENABLE]) > 0.5
-    rising = enable and float(x[S_ENABLE_PREV]) < 0.5
-    x[S_ENABLE_PREV] = 1.0 if enable else 0.0
-    sign = float(p[SIGN])
-    sp = float(u[SP])
-    pv = float(u[PV])
-    inputs_ok = (finite(sp) and finite(pv) and finite(sp - pv) and finite(sp + x[S_SHIFT] - pv)
-                 and us[SP] >= UNCERTAIN and us[PV] >= UNCERTAIN)
-    u_in = float(u[U_IN])
-    u_in_ok = finite(u_in) and us[U_IN] >= UNCERTAIN
-    phase = int(x[S_PHASE])
+        x[X.time] = t + dt
+    enable = float(u[U.enable]) > 0.5
+    rising = enable and float(x[X.enable_prev]) < 0.5
+    x[X.enable_prev] = 1.0 if enable else 0.0
+    sign = float(p[P.sign])
+    sp = float(u[U.sp])
+    pv = float(u[U.pv])
+    inputs_ok = (finite(sp) and finite(pv) and finite(sp - pv) and finite(sp + x[X.shift] - pv)
+                 and us[U.sp] >= UNCERTAIN and us[U.pv] >= UNCERTAIN)
+    u_in = float(u[U.u_in])
+    u_in_ok = finite(u_in) and us[U.u_in] >= UNCERTAIN
+    phase = int(x[X.phase])
     if rising and phase != RUNNING:  # a new test
-        u0 = float(p[U0])
+        u0 = float(p[P.u0])
         if not finite(u0):
-            u0 = u_in if u_in_ok else float(x[S_OUT])
-        x[S_U0] = u0
-        x[S_T0] = t
-        x[S_T_SWITCH] = t
-        x[S_HAS_T_UP] = 0.0
-        x[S_N_UP] = 0.0
-        x[S_STAGE] = 1.0
-        x[S_HAS_CYCLE] = 0.0
-        x[S_SHIFT] = 0.0
-        x[S_PV_INT] = 0.0
-        x[S_OUT_INT] = 0.0
-        x[S_CYC_TIME] = 0.0
+            u0 = u_in if u_in_ok else float(x[X.out])
+        x[X.u0] = u0
+        x[X.t0] = t
+        x[X.t_switch] = t
+        x[X.has_t_up] = 0.0
+        x[X.n_up] = 0.0
+        x[X.stage] = 1.0
+        x[X.has_cycle] = 0.0
+        x[X.shift] = 0.0
+        x[X.pv_integral] = 0.0
+        x[X.out_integral] = 0.0
+        x[X.cycle_time] = 0.0
         e0 = sign * (sp - pv) if inputs_ok else 0.0
-        x[S_R] = 1.0 if e0 >= 0.0 else -1.0
-        x[S_PV_MAX] = pv if inputs_ok else 0.0
-        x[S_PV_MIN] = pv if inputs_ok else 0.0
+        x[X.r] = 1.0 if e0 >= 0.0 else -1.0
+        x[X.pv_max] = pv if inputs_ok else 0.0
+        x[X.pv_min] = pv if inputs_ok else 0.0
         phase = RUNNING
     elif not enable and phase != RUNNING:
         phase = IDLE
-    r = float(x[S_R])
-    u0 = float(x[S_U0])
+    r = float(x[X.r])
+    u0 = float(x[X.u0])
     ending = False
     if phase == RUNNING:
         if not enable:
@@ -234,32 +264,32 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
         elif not inputs_ok:
             phase = BAD_INPUT
             ending = True
-        elif abs(sp - pv) > float(p[MAX_DEV]):
+        elif abs(sp - pv) > float(p[P.max_deviation]):
             phase = RUNAWAY
             ending = True
-        elif t - float(x[S_T0]) > float(p[TIMEOUT_S]) + 1e-9:
+        elif t - float(x[X.t0]) > float(p[P.timeout]) + 1e-9:
             phase = TIMEOUT
             ending = True
-        elif t - float(x[S_T_SWITCH]) > float(p[MAX_HALF]) + 1e-9:
+        elif t - float(x[X.t_switch]) > float(p[P.max_half_period]) + 1e-9:
             phase = NO_OSCILLATION
             ending = True
     if phase == RUNNING:
-        e = sign * (sp + float(x[S_SHIFT]) - pv)
-        hyst = float(p[HYST])
+        e = sign * (sp + float(x[X.shift]) - pv)
+        hyst = float(p[P.hysteresis])
         new_r = r
         if e > hyst:
             new_r = 1.0
         elif e < -hyst:
             new_r = -1.0
         if new_r != r:
-            x[S_T_SWITCH] = t
+            x[X.t_switch] = t
             if new_r > 0.0:  # a switch up closes a cycle
-                period = t - float(x[S_T_UP])
-                amp = 0.5 * float(x[S_PV_MAX]) - 0.5 * float(x[S_PV_MIN])
-                cyc = float(x[S_CYC_TIME])
-                pv_mean = float(x[S_PV_INT]) / cyc if cyc > 0.0 else math.nan
-                out_mean = float(x[S_OUT_INT]) / cyc if cyc > 0.0 else math.nan
-                if float(x[S_HAS_T_UP]) < 0.5:
+                period = t - float(x[X.t_up])
+                amp = 0.5 * float(x[X.pv_max]) - 0.5 * float(x[X.pv_min])
+                cyc = float(x[X.cycle_time])
+                pv_mean = float(x[X.pv_integral]) / cyc if cyc > 0.0 else math.nan
+                out_mean = float(x[X.out_integral]) / cyc if cyc > 0.0 else math.nan
+                if float(x[X.has_t_up]) < 0.5:
                     pass  # the first switch up: no full cycle yet
                 elif not (finite(period) and finite(amp) and finite(pv_mean)
                           and finite(out_mean)):
@@ -268,111 +298,111 @@ def relay_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: Int
                 else:
                     # shift the cycle memories and store this cycle
                     for i in range(N_SLOTS - 1):
-                        x[S_PERIODS + i] = x[S_PERIODS + i + 1]
-                        x[S_AMPS + i] = x[S_AMPS + i + 1]
-                        x[S_PV_MEANS + i] = x[S_PV_MEANS + i + 1]
-                        x[S_OUT_MEANS + i] = x[S_OUT_MEANS + i + 1]
-                    x[S_PERIODS + N_SLOTS - 1] = period
-                    x[S_AMPS + N_SLOTS - 1] = amp
-                    x[S_PV_MEANS + N_SLOTS - 1] = pv_mean
-                    x[S_OUT_MEANS + N_SLOTS - 1] = out_mean
-                    x[S_PERIOD] = period
-                    x[S_AMP] = amp
-                    x[S_HAS_CYCLE] = 1.0
-                    x[S_N_UP] = float(x[S_N_UP]) + 1.0
-                    n = int(x[S_N_UP])
-                    stable = int(p[STABLE])
-                    d_down = float(p[D_DOWN]) if float(x[S_STAGE]) > 1.5 \
-                        or float(p[BIASED]) < 0.5 else float(p[D_UP])
-                    if (n >= int(p[DISCARD]) + stable
-                            and _stationary(x, stable, float(p[TOL]), float(p[D_UP]),
-                                            float(p[D_UP]) + d_down, dt)):
-                        first = S_PERIODS + N_SLOTS - stable
-                        shift = float(p[OFFSET]) * _average(x, S_AMPS + N_SLOTS - stable,
+                        x[X.periods + i] = x[X.periods + i + 1]
+                        x[X.amplitudes + i] = x[X.amplitudes + i + 1]
+                        x[X.pv_means + i] = x[X.pv_means + i + 1]
+                        x[X.out_means + i] = x[X.out_means + i + 1]
+                    x[X.periods + N_SLOTS - 1] = period
+                    x[X.amplitudes + N_SLOTS - 1] = amp
+                    x[X.pv_means + N_SLOTS - 1] = pv_mean
+                    x[X.out_means + N_SLOTS - 1] = out_mean
+                    x[X.period] = period
+                    x[X.amplitude] = amp
+                    x[X.has_cycle] = 1.0
+                    x[X.n_up] = float(x[X.n_up]) + 1.0
+                    n = int(x[X.n_up])
+                    stable = int(p[P.stable_cycles])
+                    d_down = float(p[P.d_down]) if float(x[X.stage]) > 1.5 \
+                        or float(p[P.biased]) < 0.5 else float(p[P.d_up])
+                    if (n >= int(p[P.discard_cycles]) + stable
+                            and _stationary(x, stable, float(p[P.tolerance]), float(p[P.d_up]),
+                                            float(p[P.d_up]) + d_down, dt)):
+                        first = X.periods + N_SLOTS - stable
+                        shift = float(p[P.offset]) * _average(x, X.amplitudes + N_SLOTS - stable,
                                                             stable)
                         if _average(x, first, stable) < (MIN_CYCLE_SCANS - 0.5) * dt:
                             phase = TOO_FAST
                             ending = True
-                        elif float(p[BIASED]) > 0.5 and float(x[S_STAGE]) < 1.5:
+                        elif float(p[P.biased]) > 0.5 and float(x[X.stage]) < 1.5:
                             if finite(shift):
-                                x[S_STAGE] = 2.0  # the second stage starts with this cycle
-                                x[S_N_UP] = 0.0
-                                x[S_SHIFT] = shift  # Δ = offset · (mean stable amplitude)
+                                x[X.stage] = 2.0  # the second stage starts with this cycle
+                                x[X.n_up] = 0.0
+                                x[X.shift] = shift  # Δ = offset · (mean stable amplitude)
                             else:
                                 phase = BAD_INPUT
                                 ending = True
                         else:
                             phase = CONVERGED
                             ending = True
-                    elif n >= int(p[MAX_CYC]):
+                    elif n >= int(p[P.max_cycles]):
                         phase = NOT_CONVERGED
                         ending = True
-                x[S_T_UP] = t
-                x[S_HAS_T_UP] = 1.0
-                x[S_PV_MAX] = pv
-                x[S_PV_MIN] = pv
-                x[S_PV_INT] = 0.0
-                x[S_OUT_INT] = 0.0
-                x[S_CYC_TIME] = 0.0
+                x[X.t_up] = t
+                x[X.has_t_up] = 1.0
+                x[X.pv_max] = pv
+                x[X.pv_min] = pv
+                x[X.pv_integral] = 0.0
+                x[X.out_integral] = 0.0
+                x[X.cycle_time] = 0.0
             r = new_r
-            x[S_R] = r
+            x[X.r] = r
     if (phase == RUNNING or ending) and finite(pv):
-        x[S_PV_MAX] = max(float(x[S_PV_MAX]), pv)
-        x[S_PV_MIN] = min(float(x[S_PV_MIN]), pv)
-    lo = float(p[LO])
-    hi = float(p[HI])
+        x[X.pv_max] = max(float(x[X.pv_max]), pv)
+        x[X.pv_min] = min(float(x[X.pv_min]), pv)
+    lo = float(p[P.lo])
+    hi = float(p[P.hi])
     if ending:
         out = clamp(u0, lo, hi)
         active = True
-        x[S_R] = 0.0
+        x[X.r] = 0.0
     elif phase == RUNNING:
-        d_down = float(p[D_DOWN]) if float(x[S_STAGE]) > 1.5 or float(p[BIASED]) < 0.5 \
-            else float(p[D_UP])
-        out = clamp(u0 + float(p[D_UP]) if r > 0.0 else u0 - d_down, lo, hi)
+        d_down = float(p[P.d_down]) if float(x[X.stage]) > 1.5 or float(p[P.biased]) < 0.5 \
+            else float(p[P.d_up])
+        out = clamp(u0 + float(p[P.d_up]) if r > 0.0 else u0 - d_down, lo, hi)
         active = True
         # the cycle's integrals (zero-order hold: this scan's PV and output last dt)
-        pv_int = float(x[S_PV_INT]) + pv * dt
-        out_int = float(x[S_OUT_INT]) + out * dt
+        pv_int = float(x[X.pv_integral]) + pv * dt
+        out_int = float(x[X.out_integral]) + out * dt
         if finite(pv_int) and finite(out_int):
-            x[S_PV_INT] = pv_int
-            x[S_OUT_INT] = out_int
-            x[S_CYC_TIME] = float(x[S_CYC_TIME]) + dt
+            x[X.pv_integral] = pv_int
+            x[X.out_integral] = out_int
+            x[X.cycle_time] = float(x[X.cycle_time]) + dt
         else:  # the PV left the range of the arithmetic
             phase = BAD_INPUT
             out = clamp(u0, lo, hi)
-            x[S_R] = 0.0
+            x[X.r] = 0.0
     else:  # passing u_in through, within the output limits; a non-finite u_in: the last out
-        out = clamp(u_in, lo, hi) if finite(u_in) else float(x[S_OUT])
+        out = clamp(u_in, lo, hi) if finite(u_in) else float(x[X.out])
         active = False
-    x[S_PHASE] = float(phase)
+    x[X.phase] = float(phase)
     if finite(out):
-        x[S_OUT] = out
+        x[X.out] = out
     running = active  # RUNNING, or the scan that ends the test
-    y[OUT] = out
+    y[Y.out] = out
     if active:
-        ys[OUT] = GOOD_NC | CONSTANT
+        ys[Y.out] = GOOD_NC | CONSTANT
     elif not finite(u_in):
-        ys[OUT] = us[U_IN] if us[U_IN] < UNCERTAIN else BAD_NON_SPECIFIC
+        ys[Y.out] = us[U.u_in] if us[U.u_in] < UNCERTAIN else BAD_NON_SPECIFIC
     elif u_in > hi:  # passed through with its status, limit bits where clamped
-        ys[OUT] = (us[U_IN] & 0xFC) | HIGH_LIMITED
+        ys[Y.out] = (us[U.u_in] & 0xFC) | HIGH_LIMITED
     elif u_in < lo:
-        ys[OUT] = (us[U_IN] & 0xFC) | LOW_LIMITED
+        ys[Y.out] = (us[U.u_in] & 0xFC) | LOW_LIMITED
     else:
-        ys[OUT] = us[U_IN]
-    y[ACTIVE] = 1.0 if active else 0.0
-    y[INACTIVE] = 0.0 if active else 1.0
-    y[OVERRIDE] = out if active else math.nan
-    y[RELAY] = r if running else 0.0
-    y[PHASE] = float(phase)
-    y[STAGE] = float(x[S_STAGE]) if running else 0.0
-    y[SHIFT] = float(x[S_SHIFT]) if running else 0.0
-    y[CYCLES] = float(x[S_N_UP])
-    have = float(x[S_HAS_CYCLE]) > 0.5
-    y[PERIOD] = float(x[S_PERIOD]) if have else math.nan
-    y[AMPLITUDE] = float(x[S_AMP]) if have else math.nan
-    for i in range(ACTIVE, AMPLITUDE + 1):
+        ys[Y.out] = us[U.u_in]
+    y[Y.active] = 1.0 if active else 0.0
+    y[Y.inactive] = 0.0 if active else 1.0
+    y[Y.override] = out if active else math.nan
+    y[Y.relay] = r if running else 0.0
+    y[Y.phase] = float(phase)
+    y[Y.stage] = float(x[X.stage]) if running else 0.0
+    y[Y.shift] = float(x[X.shift]) if running else 0.0
+    y[Y.cycles] = float(x[X.n_up])
+    have = float(x[X.has_cycle]) > 0.5
+    y[Y.period] = float(x[X.period]) if have else math.nan
+    y[Y.amplitude] = float(x[X.amplitude]) if have else math.nan
+    for i in range(Y.active, Y.amplitude + 1):
         ys[i] = GOOD_NC
-    for i in (OVERRIDE, PERIOD, AMPLITUDE):  # NaN = not available: Bad
+    for i in (Y.override, Y.period, Y.amplitude):  # NaN = not available: Bad
         if not finite(float(y[i])):
             ys[i] = BAD_NON_SPECIFIC
 
@@ -422,45 +452,12 @@ class Relay(Block):
         Param("offset", 0.0, "", "second stage: the relay switches around SP + Δ, Δ = offset × "
               "the first stage's PV amplitude a (signed; 0 = around SP)"),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("sp", 0.0, "pv", "setpoint the relay switches around", status=True),
-        Port("pv", 0.0, "pv", "process variable", status=True),
-        Port("u_in", 0.0, "out", "the controller's output, passed through when no test runs",
-             status=True),
-        Port("enable", 0.0, "", "a rise (> 0.5) starts a test; a fall stops it"),
-        Port("clock", math.nan, "s", "time (module time); NaN = the block's own time"),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("out", 0.0, "out", "relay output during the test, else u_in (clamped to "
-             "out_lo..out_hi)", status=True),
-        Port("active", 0.0, "", "1 while the relay drives the loop (controller tracks out)"),
-        Port("inactive", 1.0, "", "1 - active (for S5 auto)", choices=("MAN", "AUTO")),
-        Port("override", math.nan, "out", "out while active, else NaN with status Bad (for E2 "
-             "override)", status=True),
-        Port("relay", 0.0, "", "relay state +1 / -1 while running (on the scan that ends "
-             "the test: the state it switched to), else 0"),
-        Port("phase", 0.0, "", "0 idle, 1 running, 2 converged, 3 timeout, 4 runaway, 5 not "
-             "converged, 6 no oscillation, 7 bad input, 8 too fast (cycles under "
-             f"{MIN_CYCLE_SCANS} scans)"),
-        Port("stage", 0.0, "", "1 symmetric, 2 second (biased and/or offset), 0 not running "
-             "(the ending scan keeps its stage)"),
-        Port("shift", 0.0, "pv", "Δ: the relay's switching point minus SP (0 in the first "
-             "stage)"),
-        Port("cycles", 0.0, "", "cycles completed in the running stage"),
-        Port("period", math.nan, "s", "period of the latest cycle (NaN, status Bad, before the "
-             "first)", status=True),
-        Port("amplitude", math.nan, "pv", "PV amplitude (half peak-to-peak) of the latest "
-             "cycle (NaN, status Bad, before the first)", status=True),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "time", "phase", "r", "u0", "t0", "t_switch", "t_up", "n_up", "pv_max", "pv_min",
-        "stage", "enable_prev", "out", "period", "amplitude",
-        *(f"period_{i}" for i in range(N_SLOTS)), *(f"amplitude_{i}" for i in range(N_SLOTS)),
-        "shift", "pv_integral", "out_integral", "cycle_time",
-        *(f"pv_mean_{i}" for i in range(N_SLOTS)), *(f"out_mean_{i}" for i in range(N_SLOTS)),
-        "has_t_up", "has_cycle")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[Any, ...]] = STATES
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         lo, hi = float(prm["out_lo"]), float(prm["out_hi"])
         if not lo < hi:
@@ -473,20 +470,21 @@ class Relay(Block):
                 f"relay: parameter 'amplitude_down' = {d_down:g} must differ from amplitude "
                 f"= {d_up:g}, or 'offset' must be non-zero, when biased_stage is on (the "
                 "second stage must move the mean output)")
-        return [d_up, d_down, float(prm["hysteresis"]),
-                1.0 if prm["action"] == "reverse" else -1.0, lo, hi,
-                math.nan if prm["u0"] is None else float(prm["u0"]),
-                float(prm["timeout"]), float(prm["max_deviation"]), float(prm["max_cycles"]),
-                float(prm["max_half_period"]), float(prm["discard_cycles"]),
-                float(prm["stable_cycles"]), float(prm["tolerance"]),
-                1.0 if prm["biased_stage"] else 0.0, float(prm["offset"])]
+        return {"d_up": d_up, "d_down": d_down, "hysteresis": prm["hysteresis"],
+                "sign": 1.0 if prm["action"] == "reverse" else -1.0, "lo": lo, "hi": hi,
+                "u0": math.nan if prm["u0"] is None else float(prm["u0"]),
+                "timeout": prm["timeout"], "max_deviation": prm["max_deviation"],
+                "max_cycles": prm["max_cycles"], "max_half_period": prm["max_half_period"],
+                "discard_cycles": prm["discard_cycles"], "stable_cycles": prm["stable_cycles"],
+                "tolerance": prm["tolerance"], "biased": 1.0 if prm["biased_stage"] else 0.0,
+                "offset": prm["offset"]}
 
     def initial_state(self) -> list[float]:
-        return [0.0] * N_STATES  # every state finite (kernel.guarded_scan)
+        return [0.0] * self.n_x  # every state finite (kernel.guarded_scan)
 
     def reset(self) -> None:
         super().reset()
-        for i in (OVERRIDE, PERIOD, AMPLITUDE):  # NaN before the first scan: Bad
+        for i in (Y.override, Y.period, Y.amplitude):  # NaN before the first scan: Bad
             self.ys[i] = BAD_NON_SPECIFIC
 
     def initial_outputs(self) -> list[float]:

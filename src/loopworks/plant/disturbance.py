@@ -90,12 +90,14 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import finite
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD, BAD_NON_SPECIFIC, GOOD_NC
 from loopworks.errors import ParameterError
 from loopworks.plant.sensor import (
+    RNG_SLOTS,
     STREAM_DISTURBANCE,
     TWO_PI,
     at_or_after,
@@ -104,31 +106,40 @@ from loopworks.plant.sensor import (
     scan_time,
 )
 
-# Coefficient layout (p)
-(BIAS, STEP_SIZE, STEP_TIME, RAMP_RATE, RAMP_START, RAMP_END, WALK_STD, WALK_START, WALK_TAU,
- SINE_AMP, SINE_PERIOD, SINE_PHASE, SINE_START) = range(13)
-# Inputs, outputs
-U, CLOCK = range(2)
-Y, D = range(2)
-# State (x): own time, walk value, generator
-S_TIME, S_WALK, S_RNG = range(3)
+INPUTS = (
+    Port("u", 0.0, "u", "the signal the disturbance is added to; unwired = 0", status=True),
+    Port("clock", math.nan, "s", "time (module time / replay t); NaN = the block's own "
+         "time"),
+)
+OUTPUTS = (
+    Port("y", 0.0, "u", "u + d, with the status of u", status=True),
+    Port("d", 0.0, "u", "the disturbance alone (Good; Bad only when its arithmetic "
+         "leaves the float range)", status=True),
+)
+#: the coefficient array p (coefficients())
+COEFFS = ("bias", "step_size", "step_time", "ramp_rate", "ramp_start", "ramp_end",
+          "walk_std", "walk_start", "walk_tau", "sine_amp", "sine_period", "sine_phase",
+          "sine_start")
+#: the state array x: own time, walk value, generator (RNG_SLOTS words from rng_s10)
+STATES = ("time", "walk", "rng_s10", "rng_s11", "rng_s12", "rng_s20", "rng_s21", "rng_s22")
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 
 @primitive
 def disturbance(p: FloatArray, t: float, walk: float) -> float:
     """d(t) with the walk's value ``walk`` (module docstring); NaN where the arithmetic leaves
     the float range."""
-    d = float(p[BIAS])
-    if at_or_after(t, p[STEP_TIME]):
-        d += float(p[STEP_SIZE])
-    rate = float(p[RAMP_RATE])
-    if rate != 0.0 and at_or_after(t, p[RAMP_START]):
-        d += rate * max(min(t, float(p[RAMP_END])) - float(p[RAMP_START]), 0.0)
+    d = float(p[P.bias])
+    if at_or_after(t, p[P.step_time]):
+        d += float(p[P.step_size])
+    rate = float(p[P.ramp_rate])
+    if rate != 0.0 and at_or_after(t, p[P.ramp_start]):
+        d += rate * max(min(t, float(p[P.ramp_end])) - float(p[P.ramp_start]), 0.0)
     d += walk  # w(t): the walk at the start of this scan
-    amplitude = float(p[SINE_AMP])
-    if amplitude != 0.0 and at_or_after(t, p[SINE_START]):
-        angle = (TWO_PI * (t - float(p[SINE_START])) / float(p[SINE_PERIOD])
-                 + float(p[SINE_PHASE]))
+    amplitude = float(p[P.sine_amp])
+    if amplitude != 0.0 and at_or_after(t, p[P.sine_start]):
+        angle = (TWO_PI * (t - float(p[P.sine_start])) / float(p[P.sine_period])
+                 + float(p[P.sine_phase]))
         if finite(angle):
             d += amplitude * math.sin(angle)
         else:  # sin(±inf) is NaN compiled but an error in Python: NaN in both
@@ -140,34 +151,34 @@ def disturbance(p: FloatArray, t: float, walk: float) -> float:
 def publish(u: FloatArray, us: IntArray, y: FloatArray, ys: IntArray, d: float) -> None:
     """y = u + d with the status of u (Bad non-specific when the sum is not finite), and d
     (Good, or Bad when NaN)."""
-    total = float(u[U]) + d
-    status = us[U]
+    total = float(u[U.u]) + d
+    status = us[U.u]
     if not finite(total) and (status & 0xC0) != BAD:
         status = BAD_NON_SPECIFIC
-    y[Y] = total
-    ys[Y] = status
-    y[D] = d
-    ys[D] = GOOD_NC if finite(d) else BAD_NON_SPECIFIC
+    y[Y.y] = total
+    ys[Y.y] = status
+    y[Y.d] = d
+    ys[Y.d] = GOOD_NC if finite(d) else BAD_NON_SPECIFIC
 
 
 def load_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                 y: FloatArray, ys: IntArray) -> None:
     """One scan: d(t) from the components, y = u + d (equations in the module docstring).
     Array elements are read into Python floats (plain IEEE arithmetic when interpreted)."""
-    t = scan_time(float(u[CLOCK]), x, S_TIME, dt)
-    walk = float(x[S_WALK])
+    t = scan_time(float(u[U.clock]), x, X.time, dt)
+    walk = float(x[X.walk])
     d = disturbance(p, t, walk)
-    sigma = float(p[WALK_STD])
-    if sigma > 0.0 and at_or_after(t, p[WALK_START]):
-        n = rng_normal(x, S_RNG)  # drawn on every such scan: the stream never shifts
-        tau = float(p[WALK_TAU])
+    sigma = float(p[P.walk_std])
+    if sigma > 0.0 and at_or_after(t, p[P.walk_start]):
+        n = rng_normal(x, X.rng_s10)  # drawn on every such scan: the stream never shifts
+        tau = float(p[P.walk_tau])
         if finite(tau):  # Ornstein-Uhlenbeck, exact step
             a = math.exp(-dt / tau)
             step = a * walk + sigma * math.sqrt(0.5 * tau * (1.0 - a * a)) * n
         else:  # Wiener process, exact step
             step = walk + sigma * math.sqrt(dt) * n
         if finite(step):
-            x[S_WALK] = step
+            x[X.walk] = step
     publish(u, us, y, ys, d)
 
 
@@ -201,34 +212,32 @@ class Load(Block):
         Param("sine_phase", 0.0, "deg", "phase of the sinusoid at sine_start"),
         Param("sine_start", 0.0, "s", "time the sinusoid starts (0 before)"),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("u", 0.0, "u", "the signal the disturbance is added to; unwired = 0", status=True),
-        Port("clock", math.nan, "s", "time (module time / replay t); NaN = the block's own "
-             "time"),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("y", 0.0, "u", "u + d, with the status of u", status=True),
-        Port("d", 0.0, "u", "the disturbance alone (Good; Bad only when its arithmetic "
-             "leaves the float range)", status=True),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "time", "walk", "rng_s10", "rng_s11", "rng_s12", "rng_s20", "rng_s21", "rng_s22")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         if prm["ramp_end"] < prm["ramp_start"]:
             raise ParameterError(
                 f"{self.kind}: parameter 'ramp_end' = {prm['ramp_end']:g} is out of range: it "
                 f"must be >= ramp_start = {prm['ramp_start']:g}")
-        return [float(prm["bias"]), float(prm["step_size"]), float(prm["step_time"]),
-                float(prm["ramp_rate"]), float(prm["ramp_start"]), float(prm["ramp_end"]),
-                float(prm["walk_std"]), float(prm["walk_start"]),
-                float(prm["walk_time_constant"]), float(prm["sine_amplitude"]),
-                float(prm["sine_period"]), math.radians(float(prm["sine_phase"])),
-                float(prm["sine_start"])]
+        return {"bias": float(prm["bias"]), "step_size": float(prm["step_size"]),
+                "step_time": float(prm["step_time"]), "ramp_rate": float(prm["ramp_rate"]),
+                "ramp_start": float(prm["ramp_start"]), "ramp_end": float(prm["ramp_end"]),
+                "walk_std": float(prm["walk_std"]), "walk_start": float(prm["walk_start"]),
+                "walk_tau": float(prm["walk_time_constant"]),
+                "sine_amp": float(prm["sine_amplitude"]),
+                "sine_period": float(prm["sine_period"]),
+                "sine_phase": math.radians(float(prm["sine_phase"])),
+                "sine_start": float(prm["sine_start"])}
 
     def initial_state(self) -> list[float]:
-        return [0.0, 0.0, *rng_seed_state(int(self.params["seed"]), STREAM_DISTURBANCE)]
+        x = [0.0] * self.n_x
+        x[X.rng_s10:X.rng_s10 + RNG_SLOTS] = rng_seed_state(int(self.params["seed"]),
+                                                            STREAM_DISTURBANCE)
+        return x
 
     def reset(self) -> None:
         super().reset()
@@ -238,6 +247,6 @@ class Load(Block):
         """Publish the outputs before the first scan: t = 0 (or the latched clock) and the
         ``u`` latched now (module docstring). A module that settles its wires calls it
         again."""
-        clock = float(self.u[CLOCK])
-        t = clock if finite(clock) else float(self.x[S_TIME])
-        publish(self.u, self.us, self.y, self.ys, disturbance(self.p, t, float(self.x[S_WALK])))
+        clock = float(self.u[U.clock])
+        t = clock if finite(clock) else float(self.x[X.time])
+        publish(self.u, self.us, self.y, self.ys, disturbance(self.p, t, float(self.x[X.walk])))

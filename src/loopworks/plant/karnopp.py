@@ -138,21 +138,21 @@ import numpy as np
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite, sign
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD_CONFIGURATION_ERROR
 from loopworks.errors import ParameterError
 from loopworks.plant.valve import (
-    C_Y0,
     CHAR_EQUAL,
     CHAR_LINEAR,
-    FLOW,
-    M0,
-    OP,
-    POS,
-    S_INIT,
-    S_POS,
+    COMMON_COEFFS,
+    COMMON_STATES,
+    INPUTS,
+    OUTPUTS,
+    U,
+    Y,
     flow_of,
     hold,
     op_in,
@@ -161,11 +161,14 @@ from loopworks.plant.valve import (
     sj_from_resolution_deadband,
 )
 
-# p: the common valve part (valve.C_*), then
-(P_M, P_K, P_SA, P_F0, P_XMIN, P_XMAX, P_PMIN, P_DP, P_FC, P_FS, P_FV, P_VS, P_TAU, P_DV,
- P_H, P_NMAX) = range(M0, M0 + 16)
-# x: init, position (%), then
-(S_X, S_V, S_P, S_STUCK, S_FRICTION) = range(2, 7)
+#: the coefficient array p: the common valve part, then the actuator, friction and
+#: integration coefficients (dp = p_max - p_min, h = substep, n_max = max_substeps)
+COEFFS = (*COMMON_COEFFS, "m", "k", "sa", "f0", "x_min", "x_max", "p_min", "dp", "f_c", "f_s",
+          "f_v", "v_s", "tau", "dv", "h", "n_max")
+#: the state array x: init, position (%), then stem position x (m), velocity v (m/s),
+#: actuator pressure p (Pa), the stuck flag and the friction force (N)
+STATES = (*COMMON_STATES, "x", "v", "p", "stuck", "friction")
+P, X = index(COEFFS, "P"), index(STATES, "X")
 
 
 def forces_from_sj(s: float, j: float, sa: float, dp: float,
@@ -203,50 +206,50 @@ def holds(f_r: float, xs: float, f_s: float, x_min: float, x_max: float) -> bool
 @primitive
 def karnopp_init(p: FloatArray, x: FloatArray, p_op: float, op: float) -> None:
     """First op: P = P_op and the stem at rest where the spring balances the actuator."""
-    k = p[P_K]
+    k = p[P.k]
     if k > 0.0:
-        xs = clamp((p[P_SA] * p_op - p[P_F0]) / k, p[P_XMIN], p[P_XMAX])
+        xs = clamp((p[P.sa] * p_op - p[P.f0]) / k, p[P.x_min], p[P.x_max])
     else:
-        xs = p[P_XMIN] + (p[P_XMAX] - p[P_XMIN]) * op / 100.0
-    x[S_X] = xs
-    x[S_V] = 0.0
-    x[S_P] = p_op
-    x[S_STUCK] = 1.0
-    x[S_FRICTION] = clamp(p[P_SA] * p_op - p[P_F0] - k * xs, -p[P_FS], p[P_FS])
-    x[S_INIT] = 1.0
+        xs = p[P.x_min] + (p[P.x_max] - p[P.x_min]) * op / 100.0
+    x[X.x] = xs
+    x[X.v] = 0.0
+    x[X.p] = p_op
+    x[X.stuck] = 1.0
+    x[X.friction] = clamp(p[P.sa] * p_op - p[P.f0] - k * xs, -p[P.f_s], p[P.f_s])
+    x[X.init] = 1.0
 
 
 @primitive
 def karnopp_advance(dt: float, p: FloatArray, x: FloatArray, p_op: float) -> None:
     """Integrate one scan of length dt with op held (module docstring, Integration)."""
-    m = p[P_M]
-    k = p[P_K]
-    sa = p[P_SA]
-    f0 = p[P_F0]
-    x_min = p[P_XMIN]
-    x_max = p[P_XMAX]
-    f_c = p[P_FC]
-    f_s = p[P_FS]
-    f_v = p[P_FV]
-    v_s = p[P_VS]
-    tau = p[P_TAU]
-    dv = p[P_DV]
-    xs = x[S_X]
-    v = x[S_V]
-    pr = x[S_P]
-    if x[S_STUCK] != 0.0:  # a whole scan stuck: one exact step of the lag
+    m = p[P.m]
+    k = p[P.k]
+    sa = p[P.sa]
+    f0 = p[P.f0]
+    x_min = p[P.x_min]
+    x_max = p[P.x_max]
+    f_c = p[P.f_c]
+    f_s = p[P.f_s]
+    f_v = p[P.f_v]
+    v_s = p[P.v_s]
+    tau = p[P.tau]
+    dv = p[P.dv]
+    xs = x[X.x]
+    v = x[X.v]
+    pr = x[X.p]
+    if x[X.stuck] != 0.0:  # a whole scan stuck: one exact step of the lag
         p_end = p_op
         if tau > 0.0:
             p_end = p_op + (pr - p_op) * math.exp(-dt / tau)
         f_end = sa * p_end - f0 - k * xs
         if (holds(sa * pr - f0 - k * xs, xs, f_s, x_min, x_max)
                 and holds(f_end, xs, f_s, x_min, x_max)):
-            x[S_P] = p_end
-            x[S_FRICTION] = clamp(f_end, -f_s, f_s)
+            x[X.p] = p_end
+            x[X.friction] = clamp(f_end, -f_s, f_s)
             return
-    ratio = dt / p[P_H]
-    n = int(p[P_NMAX])
-    if ratio < p[P_NMAX]:  # compared as floats first: no int overflow for a huge dt
+    ratio = dt / p[P.h]
+    n = int(p[P.n_max])
+    if ratio < p[P.n_max]:  # compared as floats first: no int overflow for a huge dt
         n = max(1, math.ceil(ratio))
     h = dt / n
     lag = 0.0
@@ -255,8 +258,8 @@ def karnopp_advance(dt: float, p: FloatArray, x: FloatArray, p_op: float) -> Non
     den = m + h * f_v
     if h * h * k > 2.0 * m + h * f_v:  # beyond half the symplectic stability bound
         den = den + h * h * k
-    stuck = x[S_STUCK]
-    friction = x[S_FRICTION]
+    stuck = x[X.stuck]
+    friction = x[X.friction]
     for _ in range(n):
         pr = p_op + (pr - p_op) * lag
         f_r = sa * pr - f0 - k * xs
@@ -288,39 +291,39 @@ def karnopp_advance(dt: float, p: FloatArray, x: FloatArray, p_op: float) -> Non
             xs = x_max
             v_new = 0.0
         v = v_new
-    x[S_X] = xs
-    x[S_V] = v
-    x[S_P] = pr
-    x[S_STUCK] = stuck
-    x[S_FRICTION] = friction
+    x[X.x] = xs
+    x[X.v] = v
+    x[X.p] = pr
+    x[X.stuck] = stuck
+    x[X.friction] = friction
 
 
 def karnopp_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                    y: FloatArray, ys: IntArray) -> None:
     """One scan of ``valve.karnopp`` (module docstring)."""
-    op = op_in(p, u[OP], us[OP])
+    op = op_in(p, u[U.op], us[U.op], P)
     if math.isnan(op):
-        hold(p, x, y, ys)
+        hold(p, x, y, ys, P, X)
         return
-    p_op = p[P_PMIN] + p[P_DP] * op / 100.0
-    saved = (x[S_X], x[S_V], x[S_P], x[S_STUCK], x[S_FRICTION], x[S_INIT])
-    if x[S_INIT] == 0.0:
+    p_op = p[P.p_min] + p[P.dp] * op / 100.0
+    saved = (x[X.x], x[X.v], x[X.p], x[X.stuck], x[X.friction], x[X.init])
+    if x[X.init] == 0.0:
         karnopp_init(p, x, p_op, op)
     else:
         karnopp_advance(dt, p, x, p_op)
-    if not (finite(x[S_X]) and finite(x[S_V]) and finite(x[S_P]) and finite(x[S_FRICTION])):
-        x[S_X], x[S_V], x[S_P], x[S_STUCK], x[S_FRICTION], x[S_INIT] = saved
-        ys[POS] = BAD_CONFIGURATION_ERROR
-        ys[FLOW] = BAD_CONFIGURATION_ERROR
+    if not (finite(x[X.x]) and finite(x[X.v]) and finite(x[X.p]) and finite(x[X.friction])):
+        x[X.x], x[X.v], x[X.p], x[X.stuck], x[X.friction], x[X.init] = saved
+        ys[Y.position] = BAD_CONFIGURATION_ERROR
+        ys[Y.flow] = BAD_CONFIGURATION_ERROR
         return
     # x is within [x_min, x_max]: the clamp only removes rounding (100.00000000000003)
-    pos = clamp(100.0 * ((x[S_X] - p[P_XMIN]) / (p[P_XMAX] - p[P_XMIN])), 0.0, 100.0)
-    x[S_POS] = pos
-    y[POS] = pos
-    y[FLOW] = flow_of(p, pos)
-    status = op_status(u[OP], us[OP])
-    ys[POS] = status
-    ys[FLOW] = status
+    pos = clamp(100.0 * ((x[X.x] - p[P.x_min]) / (p[P.x_max] - p[P.x_min])), 0.0, 100.0)
+    x[X.position] = pos
+    y[Y.position] = pos
+    y[Y.flow] = flow_of(p, pos, P)
+    status = op_status(u[U.op], us[U.op])
+    ys[Y.position] = status
+    ys[Y.flow] = status
 
 
 _SJ_SETS: tuple[tuple[str, str], ...] = (("f_s", "f_c"), ("s", "j"), ("resolution", "deadband"))
@@ -392,16 +395,10 @@ class Karnopp(Block):
         Param("fail_op", 0.0, "%", "op the actuator fails to when bad_op = fail", lo=0.0,
               hi=100.0, lo_open=False, hi_open=False),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("op", 0.0, "%", "valve input: controller output, % of span (clipped to 0..100)",
-             status=True),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("position", 0.0, "%", "stem position, % of travel", status=True),
-        Port("flow", 0.0, "%", "relative flow coefficient from the inherent characteristic, % "
-             "of full open", status=True),
-    )
-    STATES: ClassVar[tuple[str, ...]] = ("init", "position", "x", "v", "p", "stuck", "friction")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS  # the valves' ports
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
     def friction_forces(self) -> tuple[float, float]:
         """(Fs, Fc) in N from whichever parameter set was given (module docstring)."""
@@ -438,7 +435,7 @@ class Karnopp(Block):
         dp = float(prm["p_max"]) - float(prm["p_min"])
         return forces_from_sj(s, j, float(prm["sa"]), dp, mapping)
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, float]:
         prm: dict[str, Any] = self.params
         x_min, x_max = float(prm["x_min"]), float(prm["x_max"])
         if not x_max > x_min:
@@ -463,27 +460,31 @@ class Karnopp(Block):
                 raise ParameterError(
                     f"valve.karnopp: parameter 'sa' = {float(prm['sa']):g} m² is too small: "
                     f"the pressure that holds the stem at y0 = {y0:g} % is not finite")
-        common = [math.inf,
-                  CHAR_EQUAL if prm["characteristic"] == "equal_percentage" else CHAR_LINEAR,
-                  math.log(float(prm["rangeability"])),
-                  1.0 if prm["bad_op"] == "fail" else 0.0, float(prm["fail_op"]), 0.0, y0]
-        return [*common, float(prm["m"]), float(prm["k"]), float(prm["sa"]),
-                float(prm["f_init"]), x_min, x_max, p_min, p_max - p_min, f_c, f_s,
-                float(prm["f_v"]), float(prm["v_s"]), float(prm["tau_ip"]), float(prm["dv"]),
-                float(prm["substep"]), float(prm["max_substeps"])]
+        # the common valve part: no stroke limit and no start direction (the physics has both)
+        return {"rate": math.inf,
+                "char": CHAR_EQUAL if prm["characteristic"] == "equal_percentage"
+                else CHAR_LINEAR,
+                "lnr": math.log(float(prm["rangeability"])),
+                "bad_fail": 1.0 if prm["bad_op"] == "fail" else 0.0,
+                "fail_op": float(prm["fail_op"]), "start": 0.0, "y0": y0,
+                "m": float(prm["m"]), "k": float(prm["k"]), "sa": float(prm["sa"]),
+                "f0": float(prm["f_init"]), "x_min": x_min, "x_max": x_max, "p_min": p_min,
+                "dp": p_max - p_min, "f_c": f_c, "f_s": f_s, "f_v": float(prm["f_v"]),
+                "v_s": float(prm["v_s"]), "tau": float(prm["tau_ip"]), "dv": float(prm["dv"]),
+                "h": float(prm["substep"]), "n_max": float(prm["max_substeps"])}
 
     def initial_state(self) -> list[float]:
-        x = np.zeros(len(self.STATES))  # no y0: init = 0 until the first op, every state finite
-        y0 = self.p[C_Y0]
+        x = np.zeros(self.n_x)  # no y0: init = 0 until the first op, every state finite
+        y0 = self.p[P.y0]
         if math.isnan(y0):
             return [float(v) for v in x]
         p = self.p
-        xs = p[P_XMIN] + (p[P_XMAX] - p[P_XMIN]) * y0 / 100.0
-        x[S_X] = xs
-        x[S_P] = (p[P_K] * xs + p[P_F0]) / p[P_SA]
-        x[S_STUCK] = 1.0
-        x[S_INIT] = 1.0
-        x[S_POS] = y0
+        xs = p[P.x_min] + (p[P.x_max] - p[P.x_min]) * y0 / 100.0
+        x[X.x] = xs
+        x[X.p] = (p[P.k] * xs + p[P.f0]) / p[P.sa]
+        x[X.stuck] = 1.0
+        x[X.init] = 1.0
+        x[X.position] = y0
         return [float(v) for v in x]
 
     def reset(self) -> None:

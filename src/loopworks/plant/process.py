@@ -155,10 +155,14 @@ or state is ever NaN or infinite.
 ### State (``state_dict()``, ``load_state()``)
 
 fopdt/sopdt/ipdt: ``y``; ``lag1`` (sopdt's first lag; equal to y for fopdt, 0 for ipdt);
-``u_held`` (the last good input); the line: ``line_head``, ``line_count``, ``line_run_dt``,
-``line_run_len`` and the ring slots ``line_u_i``/``line_dt_i``. process.tf: ``y``,
-``u_held``, ``xi_i`` (the state vector ξ, deviation from the steady state), ``work_i``
-(scratch of the update, no meaning between scans) and the line.
+``u_held`` (the last good input); ``line``, the delay line as one list of
+4 + 2·delay_capacity numbers: head (the ring slot of the newest entry), count (the entries
+recorded), run_dt and run_len (the newest run_len entries lasted run_dt), then the inputs of
+the ring slots and their durations. process.tf: ``y``, ``u_held`` and ``xi_line``: the state
+vector ξ (max_order numbers, deviation from the steady state), the scratch of the update
+(max_order, no meaning between scans), then the line. A state saved by an earlier loopworks,
+with the line as separate names (``line_head``, ``line_u_0``, ...), is refused with an
+InputError.
 
 ### Options and decisions
 
@@ -208,15 +212,25 @@ import re
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
+from loopworks.blocks import layout
 from loopworks.blocks.block import Block, Outputs
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import Array, index
 from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.primitives import finite, lag_step
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD, BAD_CONFIGURATION_ERROR, BAD_NON_SPECIFIC, GOOD_NC
 from loopworks.errors import InputError, ParameterError
 
-GAIN, TAU, Y0 = range(3)
+# Every process kind has one input u and one output y, so one U and one Y serve them all
+# (PROCESS_INPUTS and PROCESS_OUTPUTS below are these ports with an operating point)
+FIRST_ORDER_INPUTS = (Port("u", 0.0, "u", "process input", status=True),)
+FIRST_ORDER_OUTPUTS = (Port("y", 0.0, "y", "process output", status=True),)
+#: process.first_order: the coefficient array p and the state array x
+FIRST_ORDER_COEFFS = ("gain", "tau", "y0")
+FIRST_ORDER_STATES = ("y",)
+PF, XF = index(FIRST_ORDER_COEFFS, "PF"), index(FIRST_ORDER_STATES, "XF")
+U, Y = index(FIRST_ORDER_INPUTS, "U"), index(FIRST_ORDER_OUTPUTS, "Y")
 
 #: the largest magnitude of an input's contribution to a model (module docstring, Bad input)
 MODEL_RANGE = 1e150
@@ -234,12 +248,12 @@ def first_order_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, u
                        y: FloatArray, ys: IntArray) -> None:
     """One scan of T·dy/dt = K·u - y (module docstring). The state stays a weighted mean of
     y0 and targets K·u within MODEL_RANGE, so it cannot overflow."""
-    if not input_good(u[0], us[0], 0.0, p[GAIN]):
-        ys[0] = BAD_NON_SPECIFIC
+    if not input_good(u[U.u], us[U.u], 0.0, p[PF.gain]):
+        ys[Y.y] = BAD_NON_SPECIFIC
     else:
-        x[0] = lag_step(x[0], p[GAIN] * u[0], dt, p[TAU])
-        ys[0] = GOOD_NC
-    y[0] = x[0]
+        x[XF.y] = lag_step(x[XF.y], p[PF.gain] * u[U.u], dt, p[PF.tau])
+        ys[Y.y] = GOOD_NC
+    y[Y.y] = x[XF.y]
 
 
 @register
@@ -254,20 +268,23 @@ class FirstOrder(Block):
               lo_open=False),
         Param("y0", 0.0, "y", "initial output"),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (Port("u", 0.0, "u", "process input", status=True),)
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (Port("y", 0.0, "y", "process output", status=True),)
-    STATES: ClassVar[tuple[str, ...]] = ("y",)
+    INPUTS: ClassVar[tuple[Port, ...]] = FIRST_ORDER_INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = FIRST_ORDER_OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = FIRST_ORDER_COEFFS
+    STATES: ClassVar[tuple[str, ...]] = FIRST_ORDER_STATES
 
-    def coefficients(self) -> list[float]:
-        return [float(self.params["gain"]), float(self.params["time_constant"]),
-                float(self.params["y0"])]
+    def coefficients(self) -> dict[str, float]:
+        return {"gain": float(self.params["gain"]), "tau": float(self.params["time_constant"]),
+                "y0": float(self.params["y0"])}
 
     def initial_state(self) -> list[float]:
-        return [self.p[Y0]]
+        x = [0.0] * self.n_x
+        x[XF.y] = self.p[PF.y0]
+        return x
 
     def reset(self) -> None:
         super().reset()
-        self.y[0] = self.p[Y0]
+        self.y[Y.y] = self.p[PF.y0]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -280,11 +297,27 @@ DT_RTOL = 1e-6
 HOLD_INPUT, FREEZE = 0.0, 1.0
 
 
-# The delay line lives in the state array from index ``base``: [head, count, run_dt, run_len,
-# value_0 .. value_{cap-1}, dt_0 .. dt_{cap-1}], a ring of the last ``cap`` scans' inputs and
-# durations. ``head`` is the slot of the newest entry, ``count`` how many are recorded (at
-# most cap); the newest ``run_len`` entries all lasted exactly ``run_dt`` (the fast path).
-LINE_HEAD, LINE_COUNT, LINE_RUN_DT, LINE_RUN_LEN, LINE_DATA = range(5)
+# The delay line lives in the state array from index ``base``: a ring of the last ``cap``
+# scans' inputs and durations. ``head`` is the slot of the newest entry, ``count`` how many
+# are recorded (at most cap); the newest ``run_len`` entries all lasted exactly ``run_dt``
+# (the fast path); ``data`` holds value_0 .. value_{cap-1}, then dt_0 .. dt_{cap-1}.
+LINE_ENTRIES = ("head", "count", "run_dt", "run_len",
+                Array("data", lambda prm: 2 * int(prm["delay_capacity"]), "2·delay_capacity"))
+LINE = index(LINE_ENTRIES, "Line")
+# The line primitives serve two kinds' kernels, whose lines start at different indices (XD.line,
+# XT.xi_line + 2·max_order): they take the start as ``base`` and read the offsets within the
+# line as plain ints taken from LINE (test_layout accepts in a kernel only the layouts of its
+# kind's own four declarations, and LINE is a sub-layout within one of their entries).
+LINE_HEAD = LINE.head
+LINE_COUNT = LINE.count
+LINE_RUN_DT = LINE.run_dt
+LINE_RUN_LEN = LINE.run_len
+LINE_DATA = LINE.data
+
+
+def line_size(cap: int) -> int:
+    """The number of floats a line of ``cap`` scans takes (4 + 2·cap)."""
+    return layout.size(LINE_ENTRIES, {"delay_capacity": cap})
 
 
 @primitive
@@ -333,7 +366,9 @@ def line_push(x: FloatArray, base: int, cap: int, value: float, dt: float) -> No
 
 def line_initial(cap: int, u0: float) -> list[float]:
     """An empty line (the history before it is u0): head at the last slot, no entries."""
-    return [cap - 1.0, 0.0, 0.0, 0.0, *([u0] * cap), *([0.0] * cap)]
+    return layout.pack(LINE_ENTRIES, {"head": cap - 1.0, "count": 0.0, "run_dt": 0.0,
+                                      "run_len": 0.0, "data": [u0] * cap + [0.0] * cap},
+                       "delay line", {"delay_capacity": cap})
 
 
 @primitive
@@ -353,58 +388,64 @@ def lag2_gain(h: float, t1: float, t2: float) -> float:
     return b * math.exp(-min(a, b)) * phi(-abs(a - b))
 
 
-# Lag/integrator kernel layout. p:
-MODEL, KGAIN, T1, T2, U0, BIAS, THETA, CAP, BAD_MODE, YINIT = range(10)
+# fopdt, sopdt and ipdt: one kernel. p: the model (LAG or INTEGRATING), K, T1, T2, u0, the
+# bias b = y0 - K·u0, θ, delay_capacity, bad_input (HOLD_INPUT or FREEZE), y0
+DEAD_TIME_COEFFS = ("model", "gain", "t1", "t2", "u0", "bias", "theta", "cap", "bad_mode",
+                    "y_init")
 LAG, INTEGRATING = 0.0, 1.0
-# x: output, first lag (sopdt; = y for fopdt), last good input, then the delay line
-S_Y, S_X1, S_HELD, S_LINE = range(4)
+# x: output, first lag (sopdt; = y for fopdt, 0 for ipdt), last good input, the delay line
+DEAD_TIME_STATES = ("y", "lag1", "u_held",
+                    Array("line", lambda prm: line_size(int(prm["delay_capacity"])),
+                          "4 + 2·delay_capacity"))
+PD, XD = index(DEAD_TIME_COEFFS, "PD"), index(DEAD_TIME_STATES, "XD")
 
 
 @primitive
 def lag2_step(x: FloatArray, target: float, h: float, t1: float, t2: float) -> None:
-    """Exact step of two lags in series towards a held ``target``: x[S_X1] (T1) feeds
-    x[S_Y] (T2); T2 = 0: one lag (x[S_Y] = x[S_X1]); T1 = 0: the target feeds the second."""
-    x1 = x[S_X1]
+    """Exact step of two lags in series towards a held ``target``: x[XD.lag1] (T1) feeds
+    x[XD.y] (T2); T2 = 0: one lag (x[XD.y] = x[XD.lag1]); T1 = 0: the target feeds the
+    second."""
+    x1 = x[XD.lag1]
     x1_new = lag_step(x1, target, h, t1)
     if t2 <= 0.0:
-        x[S_Y] = x1_new
+        x[XD.y] = x1_new
     elif t1 <= 0.0:
-        x[S_Y] = lag_step(x[S_Y], target, h, t2)
+        x[XD.y] = lag_step(x[XD.y], target, h, t2)
     else:
-        x[S_Y] = lag_step(x[S_Y], target, h, t2) + (x1 - target) * lag2_gain(h, t1, t2)
-    x[S_X1] = x1_new
+        x[XD.y] = lag_step(x[XD.y], target, h, t2) + (x1 - target) * lag2_gain(h, t1, t2)
+    x[XD.lag1] = x1_new
 
 
 @primitive
 def plant_advance(p: FloatArray, x: FloatArray, w: float, h: float) -> None:
     """Advance the plant over a duration h of constant delayed input w (exact)."""
-    if p[MODEL] == INTEGRATING:
-        x[S_Y] = x[S_Y] + p[KGAIN] * (w - p[U0]) * h
+    if p[PD.model] == INTEGRATING:
+        x[XD.y] = x[XD.y] + p[PD.gain] * (w - p[PD.u0]) * h
     else:
-        lag2_step(x, p[KGAIN] * w + p[BIAS], h, p[T1], p[T2])
+        lag2_step(x, p[PD.gain] * w + p[PD.bias], h, p[PD.t1], p[PD.t2])
 
 
 def dead_time_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                      y: FloatArray, ys: IntArray) -> None:
     """One scan of fopdt/sopdt/ipdt: the delayed input's pieces in (t_{k-1} - θ, t_k - θ],
     oldest first, each an exact step (module docstring)."""
-    good = input_good(u[0], us[0], p[U0], p[KGAIN])
-    if not good and p[BAD_MODE] == FREEZE:
-        y[0] = x[S_Y]
-        ys[0] = BAD_NON_SPECIFIC
+    good = input_good(u[U.u], us[U.u], p[PD.u0], p[PD.gain])
+    if not good and p[PD.bad_mode] == FREEZE:
+        y[Y.y] = x[XD.y]
+        ys[Y.y] = BAD_NON_SPECIFIC
         return
-    v = u[0] if good else x[S_HELD]
-    y_old = x[S_Y]
-    x1_old = x[S_X1]
-    cap = int(p[CAP])
-    theta = p[THETA]
-    u0 = p[U0]
-    count = int(x[S_LINE + LINE_COUNT])
+    v = u[U.u] if good else x[XD.u_held]
+    y_old = x[XD.y]
+    x1_old = x[XD.lag1]
+    cap = int(p[PD.cap])
+    theta = p[PD.theta]
+    u0 = p[PD.u0]
+    count = int(x[XD.line + LINE_COUNT])
     # Fast path: every scan the window touches lasted this dt, so θ = (n + f)·dt gives the
     # pieces directly: f·dt of the input n + 1 scans back, then (1 - f)·dt of n back.
     ratio = theta / dt
-    run = x[S_LINE + LINE_RUN_LEN]
-    if dt == x[S_LINE + LINE_RUN_DT] and ratio < cap + 2.0:
+    run = x[XD.line + LINE_RUN_LEN]
+    if dt == x[XD.line + LINE_RUN_DT] and ratio < cap + 2.0:
         n = math.floor(ratio + DELAY_TOL * (ratio + 1.0))
         f = ratio - n
         if f <= DELAY_TOL * (ratio + 1.0):
@@ -412,15 +453,15 @@ def dead_time_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us:
         need = n + 1 if f > 0.0 else n
         if need <= run or run >= count:
             if need > count and count >= cap:  # that part of the history is no longer kept
-                y[0] = x[S_Y]
-                ys[0] = BAD_CONFIGURATION_ERROR
+                y[Y.y] = x[XD.y]
+                ys[Y.y] = BAD_CONFIGURATION_ERROR
                 return
             if f > 0.0:
-                plant_advance(p, x, line_value(x, S_LINE, cap, n + 1, u0), f * dt)
-                plant_advance(p, x, v if n == 0 else line_value(x, S_LINE, cap, n, u0),
+                plant_advance(p, x, line_value(x, XD.line, cap, n + 1, u0), f * dt)
+                plant_advance(p, x, v if n == 0 else line_value(x, XD.line, cap, n, u0),
                               dt - f * dt)
             else:
-                plant_advance(p, x, v if n == 0 else line_value(x, S_LINE, cap, n, u0), dt)
+                plant_advance(p, x, v if n == 0 else line_value(x, XD.line, cap, n, u0), dt)
             end_scan(x, y, ys, v, dt, cap, good, y_old, x1_old)
             return
     # General path (dt has varied): walk the recorded durations.
@@ -435,15 +476,15 @@ def dead_time_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us:
         j += 1
         a += d
         if j > count and count >= cap:  # that part of the history is no longer kept
-            y[0] = x[S_Y]
-            ys[0] = BAD_CONFIGURATION_ERROR
+            y[Y.y] = x[XD.y]
+            ys[Y.y] = BAD_CONFIGURATION_ERROR
             return
-        d = line_duration(x, S_LINE, cap, j)
+        d = line_duration(x, XD.line, cap, j)
     # 2. the pieces, oldest first; the last one ends exactly at t_k - θ
     remaining = dt
     while True:
         last = j == 0 or a <= theta + tol
-        w = v if j == 0 else line_value(x, S_LINE, cap, j, u0)
+        w = v if j == 0 else line_value(x, XD.line, cap, j, u0)
         if last:
             plant_advance(p, x, w, remaining)
             break
@@ -454,7 +495,7 @@ def dead_time_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us:
             plant_advance(p, x, w, h)
             remaining -= h
         j -= 1
-        d = dt if j == 0 else line_duration(x, S_LINE, cap, j)
+        d = dt if j == 0 else line_duration(x, XD.line, cap, j)
         a -= d
     end_scan(x, y, ys, v, dt, cap, good, y_old, x1_old)
 
@@ -464,24 +505,25 @@ def end_scan(x: FloatArray, y: FloatArray, ys: IntArray, v: float, dt: float, ca
              good: bool, y_old: float, x1_old: float) -> None:
     """Finish a scan of fopdt/sopdt/ipdt: record the input in the line and publish y; a
     result outside the float range skips the scan instead (module docstring, Bad input)."""
-    if not (finite(x[S_Y]) and finite(x[S_X1])):
-        x[S_Y] = y_old
-        x[S_X1] = x1_old
-        y[0] = y_old
-        ys[0] = BAD_NON_SPECIFIC
+    if not (finite(x[XD.y]) and finite(x[XD.lag1])):
+        x[XD.y] = y_old
+        x[XD.lag1] = x1_old
+        y[Y.y] = y_old
+        ys[Y.y] = BAD_NON_SPECIFIC
         return
     if good:
-        x[S_HELD] = v
-    line_push(x, S_LINE, cap, v, dt)
-    y[0] = x[S_Y]
-    ys[0] = GOOD_NC if good else BAD_NON_SPECIFIC
+        x[XD.u_held] = v
+    line_push(x, XD.line, cap, v, dt)
+    y[Y.y] = x[XD.y]
+    ys[Y.y] = GOOD_NC if good else BAD_NON_SPECIFIC
 
 
 # ---------------------------------------------------------------------------------------------
 # Blocks
 
-U_PORT = Port("u", 0.0, "u", "process input (starts at u0)", status=True)
-Y_PORT = Port("y", 0.0, "y", "process output (starts at y0)", status=True)
+#: the ports of the kinds with an operating point (the index U, Y of first_order's)
+PROCESS_INPUTS = (Port("u", 0.0, "u", "process input (starts at u0)", status=True),)
+PROCESS_OUTPUTS = (Port("y", 0.0, "y", "process output (starts at y0)", status=True),)
 
 
 def _common_params(u0_meaning: str, y0_meaning: str, y0_default: str) -> tuple[Param, ...]:
@@ -501,28 +543,25 @@ def _common_params(u0_meaning: str, y0_meaning: str, y0_default: str) -> tuple[P
 
 class _LineProcess(Block):
     """Shared machinery of the plants with a delay line: a per-instance state layout sized
-    by ``delay_capacity``, the steady-state start, and the dt checks of ``step()``."""
+    by ``delay_capacity`` (its last entry), the steady-state start, and the dt checks of
+    ``step()``."""
 
     FIXED_LAYOUT = False  # the state size follows delay_capacity (and max_order)
     LAYOUT_PARAMS: ClassVar[tuple[str, ...]] = ("delay_capacity",)
 
     def __init__(self, *, jit: bool | None = None, **params: Any) -> None:
-        params = {k: _list_as_text(v) for k, v in params.items()}
-        checked = validate(self.kind, self.PARAMS, params)
-        self.__dict__["STATES"] = self.state_names(checked)
-        super().__init__(jit=jit, **params)
+        super().__init__(jit=jit, **{k: _list_as_text(v) for k, v in params.items()})
 
-    @classmethod
-    def state_names(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
-        """The names of the state array for these parameters."""
-        raise NotImplementedError  # pragma: no cover - abstract
-
-    @staticmethod
-    def line_names(cap: int) -> tuple[str, ...]:
-        """State names of a delay line of ``cap`` scans (ring slots, not ages)."""
-        return ("line_head", "line_count", "line_run_dt", "line_run_len",
-                *(f"line_u_{i}" for i in range(cap)),
-                *(f"line_dt_{i}" for i in range(cap)))
+    def load_state(self, saved: Mapping[str, Any]) -> None:
+        """Restore what :meth:`Block.state_dict` saved (see :meth:`Block.load_state`)."""
+        state = saved.get("state")
+        if isinstance(state, Mapping) and "line_head" in state:
+            # saved before the line was one entry: a short message instead of 2000 names
+            raise InputError(
+                f"{self.kind}: saved state has the delay line as separate names (line_head, "
+                "line_u_0, ...), the layout of an earlier loopworks; this version keeps it "
+                f"as one entry: state names {', '.join(layout.entries_of(self.STATES))}")
+        super().load_state(saved)
 
     def initial_output(self) -> float:
         """y at the steady state the block starts in."""
@@ -530,8 +569,8 @@ class _LineProcess(Block):
 
     def reset(self) -> None:
         super().reset()
-        self.u[0] = self.params["u0"]
-        self.y[0] = self.initial_output()
+        self.u[U.u] = self.params["u0"]
+        self.y[Y.y] = self.initial_output()
 
     def check_dt(self, dt: float) -> None:
         """Raise InputError if a scan of ``dt`` s cannot run (the kernel would skip it)."""
@@ -568,10 +607,10 @@ class _DeadTimeProcess(_LineProcess):
 
     kernel = staticmethod(dead_time_kernel)
     MODEL_CODE: ClassVar[float] = LAG
-
-    @classmethod
-    def state_names(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
-        return ("y", "lag1", "u_held", *cls.line_names(int(params["delay_capacity"])))
+    INPUTS: ClassVar[tuple[Port, ...]] = PROCESS_INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = PROCESS_OUTPUTS
+    COEFFS: ClassVar[tuple[Any, ...]] = DEAD_TIME_COEFFS
+    STATES: ClassVar[tuple[Any, ...]] = DEAD_TIME_STATES
 
     def lag(self) -> tuple[float, float, float]:
         """(K, T1, T2) of the kind."""
@@ -585,21 +624,26 @@ class _DeadTimeProcess(_LineProcess):
             return 0.0
         return self.lag()[0] * float(self.params["u0"])
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, float]:
         k, t1, t2 = self.lag()
         u0 = float(self.params["u0"])
         y0 = self.initial_output()
         bias = 0.0 if self.MODEL_CODE == INTEGRATING else y0 - k * u0
-        return [self.MODEL_CODE, k, t1, t2, u0, bias, float(self.params["dead_time"]),
-                float(self.params["delay_capacity"]),
-                FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT, y0]
+        return {"model": self.MODEL_CODE, "gain": k, "t1": t1, "t2": t2, "u0": u0,
+                "bias": bias, "theta": float(self.params["dead_time"]),
+                "cap": float(self.params["delay_capacity"]),
+                "bad_mode": FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT,
+                "y_init": y0}
 
     def initial_state(self) -> list[float]:
-        cap = int(self.params["delay_capacity"])
         y0 = self.initial_output()
         u0 = float(self.params["u0"])
-        lag1 = 0.0 if self.MODEL_CODE == INTEGRATING else y0
-        return [y0, lag1, u0, *line_initial(cap, u0)]
+        x = [0.0] * self.n_x
+        x[XD.y] = y0
+        x[XD.lag1] = 0.0 if self.MODEL_CODE == INTEGRATING else y0
+        x[XD.u_held] = u0
+        x[XD.line:] = line_initial(int(self.params["delay_capacity"]), u0)
+        return x
 
 
 _GAIN = Param("gain", 1.0, "y/u", "steady-state gain K", lo=-math.inf)
@@ -619,9 +663,6 @@ class FOPDT(_DeadTimeProcess):
               lo_open=False),
         *_common_params(_STEADY_U0, _STEADY_Y0, "gain·u0"),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (U_PORT,)
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (Y_PORT,)
-    STATES: ClassVar[tuple[str, ...]] = ("y", "lag1", "u_held", *_LineProcess.line_names(1000))
 
     def lag(self) -> tuple[float, float, float]:
         return float(self.params["gain"]), float(self.params["time_constant"]), 0.0
@@ -642,9 +683,6 @@ class SOPDT(_DeadTimeProcess):
               lo=0.0, lo_open=False),
         *_common_params(_STEADY_U0, _STEADY_Y0, "gain·u0"),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (U_PORT,)
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (Y_PORT,)
-    STATES: ClassVar[tuple[str, ...]] = FOPDT.STATES
 
     def lag(self) -> tuple[float, float, float]:
         return (float(self.params["gain"]), float(self.params["time_constant_1"]),
@@ -664,9 +702,6 @@ class IPDT(_DeadTimeProcess):
         *_common_params("balancing input (input bias): y is steady while u = u0; fills the "
                         "delay line, the u input starts there", "initial output", "0"),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (U_PORT,)
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (Y_PORT,)
-    STATES: ClassVar[tuple[str, ...]] = FOPDT.STATES
 
     def lag(self) -> tuple[float, float, float]:
         return float(self.params["gain"]), 0.0, 0.0
@@ -675,64 +710,77 @@ class IPDT(_DeadTimeProcess):
 # ---------------------------------------------------------------------------------------------
 # process.tf
 
-# p layout: header, then C' (nmax), Φ (nmax·nmax, row-major), Γ1 (nmax), Γ0 (nmax)
-(TF_TS, TF_ORDER, TF_NMAX, TF_U0, TF_Y0, TF_NDELAY, TF_CAP, TF_BAD_MODE, TF_E1, TF_E0,
- TF_SCALE, TF_HEAD) = range(12)
-# x layout: output, last good input, ξ (nmax), work (nmax), then the delay line
-X_Y, X_HELD, X_XI = range(3)
+
+def _nmax(prm: Mapping[str, Any]) -> int:
+    """max_order: the order the layouts of process.tf have room for."""
+    return int(prm["max_order"])
+
+
+# p: sample time, order, max_order, u0, y0, the delay n (scans), delay_capacity, bad_input,
+# E1 = CΓ1, E0 = CΓ0 + D, the input's largest coefficient, then the matrices: C' (nmax),
+# Φ (nmax·nmax, row-major), Γ1 (nmax), Γ0 (nmax), nmax = max_order
+TF_COEFFS = ("ts", "order", "nmax", "u0", "y0", "ndelay", "cap", "bad_mode", "e1", "e0",
+             "scale", Array("matrices", lambda prm: _nmax(prm) * (_nmax(prm) + 3),
+                            "max_order·(max_order + 3)"))
+# x: output, last good input, then ξ (nmax), work (nmax) and the delay line
+TF_STATES = ("y", "u_held",
+             Array("xi_line", lambda prm: 2 * _nmax(prm) + line_size(int(prm["delay_capacity"])),
+                   "2·max_order + 4 + 2·delay_capacity"))
+PT, XT = index(TF_COEFFS, "PT"), index(TF_STATES, "XT")
 
 
 def tf_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
               y: FloatArray, ys: IntArray) -> None:
     """One scan of the discretised transfer function (module docstring)."""
-    ts = p[TF_TS]
+    ts = p[PT.ts]
     if not abs(dt - ts) <= DT_RTOL * ts:  # not the scan time it was discretised for
-        y[0] = x[X_Y]
-        ys[0] = BAD_CONFIGURATION_ERROR
+        y[Y.y] = x[XT.y]
+        ys[Y.y] = BAD_CONFIGURATION_ERROR
         return
-    good = input_good(u[0], us[0], p[TF_U0], p[TF_SCALE])
-    if not good and p[TF_BAD_MODE] == FREEZE:
-        y[0] = x[X_Y]
-        ys[0] = BAD_NON_SPECIFIC
+    good = input_good(u[U.u], us[U.u], p[PT.u0], p[PT.scale])
+    if not good and p[PT.bad_mode] == FREEZE:
+        y[Y.y] = x[XT.y]
+        ys[Y.y] = BAD_NON_SPECIFIC
         return
-    v = u[0] if good else x[X_HELD]
-    order = int(p[TF_ORDER])
-    nmax = int(p[TF_NMAX])
-    n = int(p[TF_NDELAY])
-    cap = int(p[TF_CAP])
-    u0 = p[TF_U0]
-    work = X_XI + nmax
-    line = X_XI + 2 * nmax
-    c_row = TF_HEAD
-    phi_at = TF_HEAD + nmax
+    v = u[U.u] if good else x[XT.u_held]
+    order = int(p[PT.order])
+    nmax = int(p[PT.nmax])
+    n = int(p[PT.ndelay])
+    cap = int(p[PT.cap])
+    u0 = p[PT.u0]
+    xi = XT.xi_line  # ξ (nmax), then work (nmax), then the delay line
+    work = xi + nmax
+    line = xi + 2 * nmax
+    c_row = PT.matrices
+    phi_at = PT.matrices + nmax
     g1_at = phi_at + nmax * nmax
     g0_at = g1_at + nmax
     w_new = (v if n == 0 else line_value(x, line, cap, n, u0)) - u0
     w_old = line_value(x, line, cap, n + 1, u0) - u0
-    out = p[TF_Y0] + p[TF_E1] * w_old + p[TF_E0] * w_new
+    out = p[PT.y0] + p[PT.e1] * w_old + p[PT.e0] * w_new
     for i in range(order):
-        out += p[c_row + i] * x[X_XI + i]
+        out += p[c_row + i] * x[xi + i]
     sound = finite(out)
     for i in range(order):
         s = p[g1_at + i] * w_old + p[g0_at + i] * w_new
         for jj in range(order):
-            s += p[phi_at + i * nmax + jj] * x[X_XI + jj]
+            s += p[phi_at + i * nmax + jj] * x[xi + jj]
         x[work + i] = s
         sound = sound and finite(s)
     if not sound:  # the model left the float range: skip the scan (module docstring)
         for i in range(order):
             x[work + i] = 0.0
-        y[0] = x[X_Y]
-        ys[0] = BAD_NON_SPECIFIC
+        y[Y.y] = x[XT.y]
+        ys[Y.y] = BAD_NON_SPECIFIC
         return
     for i in range(order):
-        x[X_XI + i] = x[work + i]
+        x[xi + i] = x[work + i]
     if good:
-        x[X_HELD] = v
+        x[XT.u_held] = v
     line_push(x, line, cap, v, dt)
-    x[X_Y] = out
-    y[0] = out
-    ys[0] = GOOD_NC if good else BAD_NON_SPECIFIC
+    x[XT.y] = out
+    y[Y.y] = out
+    ys[Y.y] = GOOD_NC if good else BAD_NON_SPECIFIC
 
 
 def _list_as_text(value: Any) -> Any:
@@ -791,18 +839,10 @@ class TransferFunction(_LineProcess):
               "good input (hold_input) or skip the scan (freeze); y is Bad either way",
               type="choice", choices=("hold_input", "freeze")),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (U_PORT,)
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (Y_PORT,)
-    STATES: ClassVar[tuple[str, ...]] = (
-        "y", "u_held", *(f"xi_{i}" for i in range(8)), *(f"work_{i}" for i in range(8)),
-        *_LineProcess.line_names(1000))
-
-    @classmethod
-    def state_names(cls, params: Mapping[str, Any]) -> tuple[str, ...]:
-        nmax = int(params["max_order"])
-        return ("y", "u_held", *(f"xi_{i}" for i in range(nmax)),
-                *(f"work_{i}" for i in range(nmax)),
-                *cls.line_names(int(params["delay_capacity"])))
+    INPUTS: ClassVar[tuple[Port, ...]] = PROCESS_INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = PROCESS_OUTPUTS
+    COEFFS: ClassVar[tuple[Any, ...]] = TF_COEFFS
+    STATES: ClassVar[tuple[Any, ...]] = TF_STATES
 
     def _model(self) -> tuple[list[float], list[float]]:
         """(num, den) normalised: leading zeros of num dropped, den[0] = 1; checked."""
@@ -861,7 +901,7 @@ class TransferFunction(_LineProcess):
                 f"delay_capacity ≥ {need}")
         return n, f
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         ts_given = self.params["sample_time"]
         if ts_given is None:
             raise ParameterError(
@@ -883,11 +923,13 @@ class TransferFunction(_LineProcess):
             e1, e0 = self._discretise(num, den, ts, f, cprime, phi_m, g1, g0)
         # the input's largest coefficient: (u - u0) times it must stay within MODEL_RANGE
         scale = max(1.0, abs(e1), abs(e0), *(abs(g) for g in g1), *(abs(g) for g in g0))
-        values = [ts, float(order), float(nmax), float(self.params["u0"]), self.initial_output(),
-                  float(n), float(self.params["delay_capacity"]),
-                  FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT, e1, e0, scale,
-                  *cprime, *phi_m, *g1, *g0]
-        if not all(math.isfinite(v) for v in values):
+        values: dict[str, Any] = {
+            "ts": ts, "order": float(order), "nmax": float(nmax), "u0": float(self.params["u0"]),
+            "y0": self.initial_output(), "ndelay": float(n),
+            "cap": float(self.params["delay_capacity"]),
+            "bad_mode": FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT,
+            "e1": e1, "e0": e0, "scale": scale, "matrices": [*cprime, *phi_m, *g1, *g0]}
+        if not all(math.isfinite(v) for v in layout.pack(TF_COEFFS, values, self.kind)):
             raise ParameterError(
                 f"{self.kind}: num = {self.params['num']!r}, den = {self.params['den']!r} at "
                 f"sample_time = {ts:g} s give non-finite discrete coefficients")
@@ -929,10 +971,13 @@ class TransferFunction(_LineProcess):
         return e1, e0
 
     def initial_state(self) -> list[float]:
-        nmax = int(self.params["max_order"])
-        cap = int(self.params["delay_capacity"])
         u0 = float(self.params["u0"])
-        return [self.initial_output(), u0, *([0.0] * (2 * nmax)), *line_initial(cap, u0)]
+        x = [0.0] * self.n_x  # ξ = 0: the steady state at u0
+        x[XT.y] = self.initial_output()
+        x[XT.u_held] = u0
+        x[XT.xi_line + 2 * _nmax(self.params):] = line_initial(
+            int(self.params["delay_capacity"]), u0)
+        return x
 
     def check_dt(self, dt: float) -> None:
         """Raise InputError unless dt is the ``sample_time`` the block was discretised for."""

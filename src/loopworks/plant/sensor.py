@@ -124,6 +124,7 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import finite, lag_step
 from loopworks.blocks.registry import register
@@ -249,17 +250,27 @@ def scan_time(clock: float, x: FloatArray, i: int, dt: float) -> float:
 
 # -- sensor.transmitter ------------------------------------------------------------------------
 
-# Coefficient layout (p)
-(GAIN, OFFSET, TAU, NOISE, QUANTUM, PV_LO, PV_HI, RANGE_GOOD, FAILURE, F_START, F_END,
- F_STATUS) = range(12)
-# Failure modes (p[FAILURE])
-NONE, STUCK, BAD_MODE, NAN_MODE = range(4)
+# Failure modes (p[P.failure]): FAILURES[mode]
+NONE, STUCK, BAD_MODE, NAN_MODE = 0, 1, 2, 3
 FAILURES = ("none", "stuck", "bad", "nan")
-# Inputs, outputs
-Y, CLOCK = range(2)
-PV = 0
-# State (x): the lag, its started flag, the PV held for failures, the time, the generator
-S_LAG, S_STARTED, S_HELD, S_HELD_OK, S_TIME, S_RNG = range(6)
+
+INPUTS = (
+    Port("y", 0.0, "y", "the true process variable (process output)", status=True),
+    Port("clock", math.nan, "s", "time for the failure window (module time / replay t); "
+         "NaN = the block's own time"),
+)
+OUTPUTS = (
+    Port("pv", 0.0, "pv", "the measurement", status=True),
+)
+#: the coefficient array p (coefficients())
+COEFFS = ("gain", "offset", "tau", "noise", "quantum", "pv_lo", "pv_hi", "range_good",
+          "failure", "f_start", "f_end", "f_status")
+#: the state array x: the lag, its started flag, the PV held for failures, the time, the
+#: generator (RNG_SLOTS words from rng_s10, read by rng_normal(x, X.rng_s10))
+STATES = ("lag", "started", "held", "held_ok", "time",
+          "rng_s10", "rng_s11", "rng_s12", "rng_s20", "rng_s21", "rng_s22")
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
+
 
 @primitive
 def usable(reading: float, status: int) -> bool:
@@ -272,18 +283,18 @@ def shaped(p: FloatArray, value: float, status_in: int) -> tuple[float, int]:
     """(pv, status) of a measured value: quantised (q > 0), then limited to pv_lo..pv_hi with
     the limit bits and the range status; Good, or the Uncertain input's byte (limit bits
     cleared)."""
-    q = float(p[QUANTUM])
+    q = float(p[P.quantum])
     if q > 0.0:
         value = quantise(value, q)
     status = GOOD_NC
     if (status_in & 0xC0) == UNCERTAIN:
         status = status_in & 0xFC
-    base = GOOD_NC if p[RANGE_GOOD] != 0.0 else UNCERTAIN_EU_RANGE_VIOLATION
-    if value > p[PV_HI]:
-        value = float(p[PV_HI])
+    base = GOOD_NC if p[P.range_good] != 0.0 else UNCERTAIN_EU_RANGE_VIOLATION
+    if value > p[P.pv_hi]:
+        value = float(p[P.pv_hi])
         status = base | HIGH_LIMITED
-    elif value < p[PV_LO]:
-        value = float(p[PV_LO])
+    elif value < p[P.pv_lo]:
+        value = float(p[P.pv_lo])
         status = base | LOW_LIMITED
     return value, status
 
@@ -293,39 +304,39 @@ def transmitter_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, u
     """One scan of the transmitter (equations in the module docstring)."""
     # array elements are read into Python floats: plain IEEE arithmetic when interpreted (no
     # numpy warnings on inf - inf), free when compiled
-    t = scan_time(float(u[CLOCK]), x, S_TIME, dt)
+    t = scan_time(float(u[U.clock]), x, X.time, dt)
     noise = 0.0
-    if p[NOISE] > 0.0:  # one normal every scan: scan k always gets the k-th number
-        noise = float(p[NOISE]) * rng_normal(x, S_RNG)
-    status_in = us[Y]
-    reading = float(p[GAIN]) * float(u[Y]) + float(p[OFFSET])
+    if p[P.noise] > 0.0:  # one normal every scan: scan k always gets the k-th number
+        noise = float(p[P.noise]) * rng_normal(x, X.rng_s10)
+    status_in = us[U.y]
+    reading = float(p[P.gain]) * float(u[U.y]) + float(p[P.offset])
     value = math.nan
     status = BAD_NON_SPECIFIC
     if usable(reading, status_in):
-        if x[S_STARTED] == 0.0:  # starts settled at the first good measurement
-            x[S_LAG] = reading
-            x[S_STARTED] = 1.0
+        if x[X.started] == 0.0:  # starts settled at the first good measurement
+            x[X.lag] = reading
+            x[X.started] = 1.0
         else:  # a weighted mean of readings within MODEL_RANGE: finite
-            x[S_LAG] = lag_step(x[S_LAG], reading, dt, p[TAU])
-        value = float(x[S_LAG]) + noise
+            x[X.lag] = lag_step(x[X.lag], reading, dt, p[P.tau])
+        value = float(x[X.lag]) + noise
         if finite(value):
             value, status = shaped(p, value, status_in)
     if not finite(value):  # hold, like the lag; before any scan, the published start
-        value = float(x[S_HELD]) if x[S_HELD_OK] != 0.0 else float(y[PV])
+        value = float(x[X.held]) if x[X.held_ok] != 0.0 else float(y[Y.pv])
         status = status_in if (status_in & 0xC0) == BAD else BAD_NON_SPECIFIC
-    mode = p[FAILURE]
-    failed = mode != NONE and at_or_after(t, p[F_START]) and not at_or_after(t, p[F_END])
+    mode = p[P.failure]
+    failed = mode != NONE and at_or_after(t, p[P.f_start]) and not at_or_after(t, p[P.f_end])
     if failed:
-        if x[S_HELD_OK] == 0.0:  # failed from the first scan: freeze this scan's reading
-            x[S_HELD] = value
-            x[S_HELD_OK] = 1.0
-        value = math.nan if mode == NAN_MODE else float(x[S_HELD])
-        status = int(p[F_STATUS])
+        if x[X.held_ok] == 0.0:  # failed from the first scan: freeze this scan's reading
+            x[X.held] = value
+            x[X.held_ok] = 1.0
+        value = math.nan if mode == NAN_MODE else float(x[X.held])
+        status = int(p[P.f_status])
     else:
-        x[S_HELD] = value
-        x[S_HELD_OK] = 1.0
-    y[PV] = value
-    ys[PV] = status
+        x[X.held] = value
+        x[X.held_ok] = 1.0
+    y[Y.pv] = value
+    ys[Y.pv] = status
 
 
 _DEFAULT_STATUS = {"none": GOOD_NC, "stuck": GOOD_NC, "bad": BAD_SENSOR_FAILURE,
@@ -368,19 +379,12 @@ class Transmitter(Block):
               "status, 0..63)", "int", lo=0.0, hi=255.0, lo_open=False, hi_open=False,
               default_text="stuck 128, bad 16 (0x10), nan 0"),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("y", 0.0, "y", "the true process variable (process output)", status=True),
-        Port("clock", math.nan, "s", "time for the failure window (module time / replay t); "
-             "NaN = the block's own time"),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("pv", 0.0, "pv", "the measurement", status=True),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "lag", "started", "held", "held_ok", "time",
-        "rng_s10", "rng_s11", "rng_s12", "rng_s20", "rng_s21", "rng_s22")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         if prm["pv_lo"] >= prm["pv_hi"]:
             raise ParameterError(
@@ -398,15 +402,20 @@ class Transmitter(Block):
                 f"{self.kind}: parameter 'failure_status' = {int(status)} is out of range for "
                 "failure = 'nan': a NaN value is Bad, so its status must be Bad, 0..63 "
                 "(issue 11 point 1)")
-        return [float(prm["gain"]), float(prm["offset"]), float(prm["time_constant"]),
-                float(prm["noise_std"]), float(prm["quantum"]), float(prm["pv_lo"]),
-                float(prm["pv_hi"]), 1.0 if prm["range_status"] == "good" else 0.0,
-                float(FAILURES.index(prm["failure"])), float(prm["failure_start"]),
-                float(prm["failure_end"]), float(status)]
+        return {"gain": float(prm["gain"]), "offset": float(prm["offset"]),
+                "tau": float(prm["time_constant"]), "noise": float(prm["noise_std"]),
+                "quantum": float(prm["quantum"]), "pv_lo": float(prm["pv_lo"]),
+                "pv_hi": float(prm["pv_hi"]),
+                "range_good": 1.0 if prm["range_status"] == "good" else 0.0,
+                "failure": float(FAILURES.index(prm["failure"])),
+                "f_start": float(prm["failure_start"]), "f_end": float(prm["failure_end"]),
+                "f_status": float(status)}
 
     def initial_state(self) -> list[float]:
-        return [0.0, 0.0, 0.0, 0.0, 0.0,
-                *rng_seed_state(int(self.params["seed"]), STREAM_SENSOR)]
+        x = [0.0] * self.n_x
+        x[X.rng_s10:X.rng_s10 + RNG_SLOTS] = rng_seed_state(int(self.params["seed"]),
+                                                            STREAM_SENSOR)
+        return x
 
     def reset(self) -> None:
         super().reset()
@@ -417,9 +426,9 @@ class Transmitter(Block):
         (module docstring): calibrated, quantised and limited, no noise; 0 with Bad status
         when that ``y`` is unusable. A module that settles its wires calls it again."""
         p = self.p
-        reading = float(p[GAIN]) * float(self.u[Y]) + float(p[OFFSET])
-        status_in = int(self.us[Y])
+        reading = float(p[P.gain]) * float(self.u[U.y]) + float(p[P.offset])
+        status_in = int(self.us[U.y])
         if usable(reading, status_in):
-            self.y[PV], self.ys[PV] = shaped(p, reading, status_in)
+            self.y[Y.pv], self.ys[Y.pv] = shaped(p, reading, status_in)
         else:
-            self.y[PV], self.ys[PV] = 0.0, BAD_NON_SPECIFIC
+            self.y[Y.pv], self.ys[Y.pv] = 0.0, BAD_NON_SPECIFIC

@@ -183,6 +183,7 @@ import numpy as np
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite, sign
 from loopworks.blocks.registry import register
@@ -226,34 +227,61 @@ def breakaway_band(resolution: float, deadband: float) -> float:
     return resolution + 0.5 * deadband
 
 
+_PCT = "%"
+
+
 # -- coefficient and state layout -----------------------------------------------------------------
 
-# p: common part first, then the model's coefficients from M0
-C_RATE, C_CHAR, C_LNR, C_BADFAIL, C_FAIL_OP, C_START, C_Y0 = range(7)
-M0 = 7
-# Choudhury / Kano / He model coefficients
-P_S, P_J, P_FS, P_FD = M0, M0 + 1, M0 + 2, M0 + 3
-# backlash half width b/2, resolution r, quantiser q
-P_BAND = M0
-CHAR_LINEAR, CHAR_EQUAL = 0.0, 1.0
-# x: common part first
-S_INIT, S_POS = 0, 1
-X0 = 2
-# inputs / outputs
-OP = 0
-POS, FLOW = 0, 1
+CHAR_LINEAR, CHAR_EQUAL = 0.0, 1.0  # values of the coefficient char
+
+INPUTS = (
+    Port("op", 0.0, _PCT, "valve input: controller output, % of span (clipped to 0..100)",
+         status=True),
+)
+OUTPUTS = (
+    Port("position", 0.0, _PCT, "stem position, % of travel", status=True),
+    Port("flow", 0.0, _PCT, "relative flow coefficient from the inherent characteristic, % of "
+         "full open", status=True),
+)
+U, Y = index(INPUTS, "U"), index(OUTPUTS, "Y")
+
+#: every valve kind's coefficients begin with these (valve.karnopp's too): stroke rate,
+#: characteristic, ln(rangeability), bad_op = fail, fail_op, start direction, y0 (NaN: none)
+COMMON_COEFFS = ("rate", "char", "lnr", "bad_fail", "fail_op", "start", "y0")
+#: every valve kind's states begin with these: initialised flag, stem position
+COMMON_STATES = ("init", "position")
+# The shared primitives below read only these names, through the layouts the calling kernel
+# passes (arguments P and X: its own kind's, as every kernel indexes only its kind's layouts);
+# Python code that serves every kind reads them through PC and XC.
+PC, XC = index(COMMON_COEFFS, "PC"), index(COMMON_STATES, "XC")
+
+#: Choudhury, Kano and He: the stiction as S, J and as He's bands fs, fd
+STICTION_COEFFS = (*COMMON_COEFFS, "s", "j", "fs", "fd")
+CHOUDHURY_STATES = (*COMMON_STATES, "x_prev", "v_prev", "y", "stuck", "xss")
+KANO_STATES = (*COMMON_STATES, "u_prev", "du_prev", "stp", "d", "us", "y")
+HE_STATES = (*COMMON_STATES, "u_prev", "u_r", "y")
+#: backlash (half width b/2), resolution (r) and quantiser (q)
+BACKLASH_COEFFS = (*COMMON_COEFFS, "half_width")
+RESOLUTION_COEFFS = (*COMMON_COEFFS, "r")
+QUANTISER_COEFFS = (*COMMON_COEFFS, "q")
+MODEL_STATES = (*COMMON_STATES, "y")  # y: the model's output before the stroke limit
+PS, PB, PR, PQ = (index(STICTION_COEFFS, "PS"), index(BACKLASH_COEFFS, "PB"),
+                  index(RESOLUTION_COEFFS, "PR"), index(QUANTISER_COEFFS, "PQ"))
+XCH, XKA, XHE, XM = (index(CHOUDHURY_STATES, "XCH"), index(KANO_STATES, "XKA"),
+                     index(HE_STATES, "XHE"), index(MODEL_STATES, "XM"))
 
 
 # -- shared primitives ----------------------------------------------------------------------------
 
 
 @primitive
-def op_in(p: FloatArray, op: float, status: int) -> float:
+def op_in(p: FloatArray, op: float, status: int, P: Any) -> float:
     """The op sample the model acts on: clipped to [0, 100] (spec 1.2 step 1); for a Bad or
-    non-finite op ``fail_op`` (bad_op = fail) or NaN (hold: skip the sample)."""
+    non-finite op ``fail_op`` (bad_op = fail) or NaN (hold: skip the sample). ``P``: the
+    calling kind's coefficient layout (it begins with COMMON_COEFFS)."""
     if not finite(op) or (status & 0xC0) == BAD:
-        if p[C_BADFAIL] != 0.0:
-            return float(p[C_FAIL_OP])
+        if p[P.bad_fail] != 0.0:
+            return float(p[P.fail_op])
         return math.nan
     return clamp(op, 0.0, 100.0)
 
@@ -281,86 +309,87 @@ def op_status(op: float, status: int) -> int:
 
 
 @primitive
-def flow_of(p: FloatArray, position: float) -> float:
+def flow_of(p: FloatArray, position: float, P: Any) -> float:
     """Inherent characteristic: linear f = position; equal percentage f = 100·R^(l - 1),
-    l = position/100, R the rangeability (ISA-75.11.01 ideal curve)."""
-    if p[C_CHAR] == CHAR_EQUAL:
-        return 100.0 * math.exp((position / 100.0 - 1.0) * p[C_LNR])
+    l = position/100, R the rangeability (ISA-75.11.01 ideal curve). ``P``: the calling
+    kind's coefficient layout."""
+    if p[P.char] == CHAR_EQUAL:
+        return 100.0 * math.exp((position / 100.0 - 1.0) * p[P.lnr])
     return position
 
 
 @primitive
-def hold(p: FloatArray, x: FloatArray, y: FloatArray, ys: IntArray) -> None:
+def hold(p: FloatArray, x: FloatArray, y: FloatArray, ys: IntArray, P: Any, X: Any) -> None:
     """bad_op = hold: outputs frozen at the last position, status Bad. Before the first good
-    sample (no y0) that is the start value published before the first scan."""
-    pos = x[S_POS] if x[S_INIT] != 0.0 else y[POS]
-    y[POS] = pos
-    y[FLOW] = flow_of(p, pos)
-    ys[POS] = BAD_NON_SPECIFIC
-    ys[FLOW] = BAD_NON_SPECIFIC
+    sample (no y0) that is the start value published before the first scan. ``P``, ``X``: the
+    calling kind's layouts (they begin with COMMON_COEFFS, COMMON_STATES)."""
+    pos = x[X.position] if x[X.init] != 0.0 else y[Y.position]
+    y[Y.position] = pos
+    y[Y.flow] = flow_of(p, pos, P)
+    ys[Y.position] = BAD_NON_SPECIFIC
+    ys[Y.flow] = BAD_NON_SPECIFIC
 
 
 @primitive
 def finish(dt: float, p: FloatArray, x: FloatArray, y: FloatArray, ys: IntArray, ym: float,
-           status: int, first: bool) -> None:
+           status: int, first: bool, P: Any, X: Any) -> None:
     """Output stage: clip the model's y to [0, 100], stroke towards it at most stroke_rate·dt,
     then the characteristic. ``first``: the sample that initialised the valve (no y0) sets the
-    stem there (no stroke from nowhere)."""
+    stem there (no stroke from nowhere). ``P``, ``X``: the calling kind's layouts."""
     target = clamp(ym, 0.0, 100.0)
-    pos = x[S_POS]
+    pos = x[X.position]
     if first:
         pos = target
     else:
-        step = p[C_RATE] * dt
+        step = p[P.rate] * dt
         if abs(target - pos) <= step:
             pos = target
         elif target > pos:
             pos = pos + step
         else:
             pos = pos - step
-    x[S_POS] = pos
-    y[POS] = pos
-    y[FLOW] = flow_of(p, pos)
-    ys[POS] = status
-    ys[FLOW] = status
+    x[X.position] = pos
+    y[Y.position] = pos
+    y[Y.flow] = flow_of(p, pos, P)
+    ys[Y.position] = status
+    ys[Y.flow] = status
 
 
 # -- Choudhury (spec 1.2) -------------------------------------------------------------------------
 
-(CH_XPREV, CH_VPREV, CH_Y, CH_I, CH_XSS) = range(X0, X0 + 5)
 
 
 @primitive
 def choudhury_init(p: FloatArray, x: FloatArray, x_prev: float, y: float) -> None:
     """Start state: at rest (I = 1, v_prev = 0, xss = x_prev) or moving in direction
     ``start`` (I = 0, v_prev = ±1)."""
-    d = p[C_START]
-    x[CH_XPREV] = x_prev
-    x[CH_Y] = y
-    x[CH_XSS] = x_prev
-    x[CH_VPREV] = d
-    x[CH_I] = 1.0 if d == 0.0 else 0.0
-    x[S_INIT] = 1.0
+    d = p[PS.start]
+    x[XCH.x_prev] = x_prev
+    x[XCH.y] = y
+    x[XCH.xss] = x_prev
+    x[XCH.v_prev] = d
+    x[XCH.stuck] = 1.0 if d == 0.0 else 0.0
+    x[XCH.init] = 1.0
 
 
 @primitive
 def choudhury_step(p: FloatArray, x: FloatArray, xk: float) -> float:
     """One sample of spec 1.2 steps 2-5 (module docstring); returns y."""
-    fs = p[P_FS]
-    fd = p[P_FD]
-    x_prev = x[CH_XPREV]
+    fs = p[PS.fs]
+    fd = p[PS.fd]
+    x_prev = x[XCH.x_prev]
     v = xk - x_prev
     s = sign(v)
-    s_prev = sign(x[CH_VPREV])
-    y: float = x[CH_Y]
-    stuck = x[CH_I] != 0.0
+    s_prev = sign(x[XCH.v_prev])
+    y: float = x[XCH.y]
+    stuck = x[XCH.stuck] != 0.0
     if s == s_prev:
         if not stuck:
             y = xk - s * fd
         else:
-            xss = x[CH_XSS]
+            xss = x[XCH.xss]
             if sign(xk - xss) * sign(xss - y) == 1.0:  # resume in the old direction
-                if abs(xk - xss) > p[P_J]:
+                if abs(xk - xss) > p[PS.j]:
                     stuck = False
                     y = xk - s * fd
             elif abs(xk - y) > fs:  # a reversal
@@ -368,7 +397,7 @@ def choudhury_step(p: FloatArray, x: FloatArray, xk: float) -> float:
                 y = xk - s * fd
     else:
         if not stuck:
-            x[CH_XSS] = x_prev
+            x[XCH.xss] = x_prev
         if s == 0.0:
             stuck = True
         elif abs(xk - y) > fs:
@@ -376,200 +405,196 @@ def choudhury_step(p: FloatArray, x: FloatArray, xk: float) -> float:
             y = xk - s * fd
         else:
             stuck = True
-    x[CH_XPREV] = xk
-    x[CH_VPREV] = v
-    x[CH_Y] = y
-    x[CH_I] = 1.0 if stuck else 0.0
+    x[XCH.x_prev] = xk
+    x[XCH.v_prev] = v
+    x[XCH.y] = y
+    x[XCH.stuck] = 1.0 if stuck else 0.0
     return y
 
 
 def choudhury_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                      y: FloatArray, ys: IntArray) -> None:
     """One scan of ``valve.choudhury`` (spec 1.2)."""
-    xk = op_in(p, u[OP], us[OP])
+    xk = op_in(p, u[U.op], us[U.op], PS)
     if math.isnan(xk):
-        hold(p, x, y, ys)
+        hold(p, x, y, ys, PS, XCH)
         return
-    first = x[S_INIT] == 0.0
+    first = x[XCH.init] == 0.0
     if first:
-        choudhury_init(p, x, xk, xk - p[C_START] * p[P_FD])
-        ym = x[CH_Y]
+        choudhury_init(p, x, xk, xk - p[PS.start] * p[PS.fd])
+        ym = x[XCH.y]
     else:
         ym = choudhury_step(p, x, xk)
-    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]), first)
+    finish(dt, p, x, y, ys, ym, op_status(u[U.op], us[U.op]), first, PS, XCH)
 
 
 # -- Kano (spec 1.3) ------------------------------------------------------------------------------
 
-(KA_UPREV, KA_DUPREV, KA_STP, KA_D, KA_US, KA_Y) = range(X0, X0 + 6)
 
 
 @primitive
 def kano_init(p: FloatArray, x: FloatArray, u_prev: float, y: float) -> None:
     """Start state: at rest (stp = 1, d = +1, us = y + fd, du_prev = 0; spec 1.8) or moving in
     direction ``start`` (stp = 0, d = du_prev = ±1, us = u_prev)."""
-    d = p[C_START]
-    x[KA_UPREV] = u_prev
-    x[KA_Y] = y
+    d = p[PS.start]
+    x[XKA.u_prev] = u_prev
+    x[XKA.y] = y
     if d == 0.0:
-        x[KA_STP] = 1.0
-        x[KA_D] = 1.0
-        x[KA_US] = y + p[P_FD]
-        x[KA_DUPREV] = 0.0
+        x[XKA.stp] = 1.0
+        x[XKA.d] = 1.0
+        x[XKA.us] = y + p[PS.fd]
+        x[XKA.du_prev] = 0.0
     else:
-        x[KA_STP] = 0.0
-        x[KA_D] = d
-        x[KA_US] = u_prev
-        x[KA_DUPREV] = d
-    x[S_INIT] = 1.0
+        x[XKA.stp] = 0.0
+        x[XKA.d] = d
+        x[XKA.us] = u_prev
+        x[XKA.du_prev] = d
+    x[XKA.init] = 1.0
 
 
 @primitive
 def kano_step(p: FloatArray, x: FloatArray, uk: float) -> float:
     """One sample of the spec 1.3 pseudo-code; returns y."""
-    fd = p[P_FD]
-    u_prev = x[KA_UPREV]
+    fd = p[PS.fd]
+    u_prev = x[XKA.u_prev]
     du = uk - u_prev
-    stp = x[KA_STP]
-    d = x[KA_D]
-    y: float = x[KA_Y]
-    if du * x[KA_DUPREV] <= 0.0 and stp == 0.0:  # input reversed or paused while moving
-        x[KA_US] = u_prev
+    stp = x[XKA.stp]
+    d = x[XKA.d]
+    y: float = x[XKA.y]
+    if du * x[XKA.du_prev] <= 0.0 and stp == 0.0:  # input reversed or paused while moving
+        x[XKA.us] = u_prev
         stp = 1.0
-    us = x[KA_US]
+    us = x[XKA.us]
     if stp == 0.0:
         y = uk - d * fd
-    elif -d * (uk - us) > p[P_S]:
+    elif -d * (uk - us) > p[PS.s]:
         d = -d
         y = uk - d * fd
         stp = 0.0
-    elif d * (uk - us) > p[P_J]:
+    elif d * (uk - us) > p[PS.j]:
         y = uk - d * fd
         stp = 0.0
-    x[KA_STP] = stp
-    x[KA_D] = d
-    x[KA_Y] = y
-    x[KA_DUPREV] = du
-    x[KA_UPREV] = uk
+    x[XKA.stp] = stp
+    x[XKA.d] = d
+    x[XKA.y] = y
+    x[XKA.du_prev] = du
+    x[XKA.u_prev] = uk
     return y
 
 
 def kano_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                 y: FloatArray, ys: IntArray) -> None:
     """One scan of ``valve.kano`` (spec 1.3)."""
-    uk = op_in(p, u[OP], us[OP])
+    uk = op_in(p, u[U.op], us[U.op], PS)
     if math.isnan(uk):
-        hold(p, x, y, ys)
+        hold(p, x, y, ys, PS, XKA)
         return
-    first = x[S_INIT] == 0.0
+    first = x[XKA.init] == 0.0
     if first:
-        kano_init(p, x, uk, uk - p[C_START] * p[P_FD])
-        ym = x[KA_Y]
+        kano_init(p, x, uk, uk - p[PS.start] * p[PS.fd])
+        ym = x[XKA.y]
     else:
         ym = kano_step(p, x, uk)
-    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]), first)
+    finish(dt, p, x, y, ys, ym, op_status(u[U.op], us[U.op]), first, PS, XKA)
 
 
 # -- He (spec 1.4) --------------------------------------------------------------------------------
 
-(HE_UPREV, HE_UR, HE_Y) = range(X0, X0 + 3)
 
 
 @primitive
 def he_init(p: FloatArray, x: FloatArray, u_prev: float, y: float) -> None:
     """Start state: u_r = 0 at rest, ±fd moving (``sim_he()`` with a direction)."""
-    x[HE_UPREV] = u_prev
-    x[HE_Y] = y
-    x[HE_UR] = p[C_START] * p[P_FD]
-    x[S_INIT] = 1.0
+    x[XHE.u_prev] = u_prev
+    x[XHE.y] = y
+    x[XHE.u_r] = p[PS.start] * p[PS.fd]
+    x[XHE.init] = 1.0
 
 
 @primitive
 def he_step(p: FloatArray, x: FloatArray, uk: float) -> float:
     """One sample of the spec 1.4 model; returns y."""
-    cum = x[HE_UR] + (uk - x[HE_UPREV])
-    y: float = x[HE_Y]
-    if abs(cum) > p[P_FS]:
+    cum = x[XHE.u_r] + (uk - x[XHE.u_prev])
+    y: float = x[XHE.y]
+    if abs(cum) > p[PS.fs]:
         sg = sign(cum)
-        y = uk - sg * p[P_FD]
-        x[HE_UR] = sg * p[P_FD]
+        y = uk - sg * p[PS.fd]
+        x[XHE.u_r] = sg * p[PS.fd]
     else:
-        x[HE_UR] = cum
-    x[HE_Y] = y
-    x[HE_UPREV] = uk
+        x[XHE.u_r] = cum
+    x[XHE.y] = y
+    x[XHE.u_prev] = uk
     return y
 
 
 def he_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
               y: FloatArray, ys: IntArray) -> None:
     """One scan of ``valve.he`` (spec 1.4)."""
-    uk = op_in(p, u[OP], us[OP])
+    uk = op_in(p, u[U.op], us[U.op], PS)
     if math.isnan(uk):
-        hold(p, x, y, ys)
+        hold(p, x, y, ys, PS, XHE)
         return
-    first = x[S_INIT] == 0.0
+    first = x[XHE.init] == 0.0
     if first:
-        he_init(p, x, uk, uk - p[C_START] * p[P_FD])
-        ym = x[HE_Y]
+        he_init(p, x, uk, uk - p[PS.start] * p[PS.fd])
+        ym = x[XHE.y]
     else:
         ym = he_step(p, x, uk)
-    finish(dt, p, x, y, ys, ym, op_status(u[OP], us[OP]), first)
+    finish(dt, p, x, y, ys, ym, op_status(u[U.op], us[U.op]), first, PS, XHE)
 
 
 # -- backlash, resolution, quantiser (spec 1.5) ---------------------------------------------------
 
-Y_MODEL = X0
 
 
 def backlash_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                     y: FloatArray, ys: IntArray) -> None:
     """One scan of ``valve.backlash`` (spec 1.5)."""
-    xk = op_in(p, u[OP], us[OP])
+    xk = op_in(p, u[U.op], us[U.op], PB)
     if math.isnan(xk):
-        hold(p, x, y, ys)
+        hold(p, x, y, ys, PB, XM)
         return
-    half = p[P_BAND]
-    first = x[S_INIT] == 0.0
+    half = p[PB.half_width]
+    first = x[XM.init] == 0.0
     if first:
-        x[Y_MODEL] = xk - p[C_START] * half
-        x[S_INIT] = 1.0
-    elif xk - x[Y_MODEL] > half:
-        x[Y_MODEL] = xk - half
-    elif xk - x[Y_MODEL] < -half:
-        x[Y_MODEL] = xk + half
-    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]), first)
+        x[XM.y] = xk - p[PB.start] * half
+        x[XM.init] = 1.0
+    elif xk - x[XM.y] > half:
+        x[XM.y] = xk - half
+    elif xk - x[XM.y] < -half:
+        x[XM.y] = xk + half
+    finish(dt, p, x, y, ys, x[XM.y], op_status(u[U.op], us[U.op]), first, PB, XM)
 
 
 def resolution_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                       y: FloatArray, ys: IntArray) -> None:
     """One scan of ``valve.resolution`` (spec 1.5)."""
-    xk = op_in(p, u[OP], us[OP])
+    xk = op_in(p, u[U.op], us[U.op], PR)
     if math.isnan(xk):
-        hold(p, x, y, ys)
+        hold(p, x, y, ys, PR, XM)
         return
-    first = x[S_INIT] == 0.0
-    if first or abs(xk - x[Y_MODEL]) > p[P_BAND]:
-        x[Y_MODEL] = xk
-        x[S_INIT] = 1.0
-    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]), first)
+    first = x[XM.init] == 0.0
+    if first or abs(xk - x[XM.y]) > p[PR.r]:
+        x[XM.y] = xk
+        x[XM.init] = 1.0
+    finish(dt, p, x, y, ys, x[XM.y], op_status(u[U.op], us[U.op]), first, PR, XM)
 
 
 def quantiser_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                      y: FloatArray, ys: IntArray) -> None:
     """One scan of ``valve.quantiser`` (spec 1.5): y = q·floor(x/q + 1/2)."""
-    xk = op_in(p, u[OP], us[OP])
+    xk = op_in(p, u[U.op], us[U.op], PQ)
     if math.isnan(xk):
-        hold(p, x, y, ys)
+        hold(p, x, y, ys, PQ, XM)
         return
-    first = x[S_INIT] == 0.0
-    x[Y_MODEL] = quantise(xk, p[P_BAND])
-    x[S_INIT] = 1.0
-    finish(dt, p, x, y, ys, x[Y_MODEL], op_status(u[OP], us[OP]), first)
+    first = x[XM.init] == 0.0
+    x[XM.y] = quantise(xk, p[PQ.q])
+    x[XM.init] = 1.0
+    finish(dt, p, x, y, ys, x[XM.y], op_status(u[U.op], us[U.op]), first, PQ, XM)
 
 
 # -- block classes --------------------------------------------------------------------------------
 
-_PCT = "%"
 _START = {"rest": 0.0, "moving_up": 1.0, "moving_down": -1.0}
 
 COMMON_PARAMS: tuple[Param, ...] = (
@@ -610,16 +635,6 @@ STICTION_PARAMS: tuple[Param, ...] = (
           default_text="-"),
 )
 
-_VALVE_PORTS_IN: tuple[Port, ...] = (
-    Port("op", 0.0, _PCT, "valve input: controller output, % of span (clipped to 0..100)",
-         status=True),
-)
-_VALVE_PORTS_OUT: tuple[Port, ...] = (
-    Port("position", 0.0, _PCT, "stem position, % of travel", status=True),
-    Port("flow", 0.0, _PCT, "relative flow coefficient from the inherent characteristic, % of "
-         "full open", status=True),
-)
-
 _SETS: tuple[tuple[str, str], ...] = (("s", "j"), ("resolution", "deadband"), ("fs", "fd"))
 
 
@@ -654,32 +669,33 @@ def stiction_sj(kind: str, params: dict[str, Any], given: set[str]) -> tuple[flo
 class _Valve(Block):
     """Common parameters, ports, initial state and output stage of the data-driven valves."""
 
-    INPUTS: ClassVar[tuple[Port, ...]] = _VALVE_PORTS_IN
-    OUTPUTS: ClassVar[tuple[Port, ...]] = _VALVE_PORTS_OUT
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
     HAS_START: ClassVar[bool] = False
 
-    def common(self) -> list[float]:
-        """The common part of ``p`` (C_* layout)."""
+    def common(self) -> dict[str, float]:
+        """The coefficients every valve begins with (COMMON_COEFFS)."""
         prm = self.params
         y0 = math.nan if prm["y0"] is None else float(prm["y0"])
         start = _START[str(prm["start"])] if self.HAS_START else 0.0
-        return [float(prm["stroke_rate"]),
-                CHAR_EQUAL if prm["characteristic"] == "equal_percentage" else CHAR_LINEAR,
-                math.log(float(prm["rangeability"])),
-                1.0 if prm["bad_op"] == "fail" else 0.0,
-                float(prm["fail_op"]), start, y0]
+        return {"rate": float(prm["stroke_rate"]),
+                "char": CHAR_EQUAL if prm["characteristic"] == "equal_percentage"
+                else CHAR_LINEAR,
+                "lnr": math.log(float(prm["rangeability"])),
+                "bad_fail": 1.0 if prm["bad_op"] == "fail" else 0.0,
+                "fail_op": float(prm["fail_op"]), "start": start, "y0": y0}
 
     def model_init(self, x: FloatArray, y0: float) -> None:
         """Set the model state for a valve at y0 before the first sample (``y0`` given)."""
-        x[Y_MODEL] = y0
-        x[S_INIT] = 1.0
+        x[XM.y] = y0
+        x[XM.init] = 1.0
 
     def initial_state(self) -> list[float]:
-        x = np.zeros(len(self.STATES))  # no y0: init = 0 until the first op, every state finite
-        y0 = self.p[C_Y0]
+        x = np.zeros(self.n_x)  # no y0: init = 0 until the first op, every state finite
+        y0 = self.p[PC.y0]
         if not math.isnan(y0):
             self.model_init(x, y0)
-            x[S_POS] = y0
+            x[XC.position] = y0
         return [float(v) for v in x]
 
     def reset(self) -> None:
@@ -697,10 +713,10 @@ def publish_start(block: Block) -> None:
     (Good), or without y0 the outputs its first scan gives for the op latched now, computed
     on copies of its arrays (the valve initialised at rest at that op; Bad if that op is Bad
     and bad_op = hold)."""
-    y0 = block.p[C_Y0]
+    y0 = block.p[PC.y0]
     if not math.isnan(y0):
-        block.y[POS] = y0
-        block.y[FLOW] = flow_of(block.p, y0)
+        block.y[Y.position] = y0
+        block.y[Y.flow] = flow_of(block.p, y0, PC)
         block.ys[:] = GOOD_NC
         return
     y = np.zeros(len(block.y))
@@ -716,10 +732,12 @@ class _StictionValve(_Valve):
     PARAMS: ClassVar[tuple[Param, ...]] = (*STICTION_PARAMS, START_PARAM, *COMMON_PARAMS)
     HAS_START: ClassVar[bool] = True
 
-    def coefficients(self) -> list[float]:
+    COEFFS: ClassVar[tuple[str, ...]] = STICTION_COEFFS
+
+    def coefficients(self) -> dict[str, float]:
         s, j = stiction_sj(self.kind, self.params, set(self.given))
         fs, fd = bands_from_sj(s, j)
-        return [*self.common(), s, j, fs, fd]
+        return {**self.common(), "s": s, "j": j, "fs": fs, "fd": fd}
 
 
 @register
@@ -729,11 +747,10 @@ class Choudhury(_StictionValve):
     kind = "valve.choudhury"
     summary = "valve stiction, Choudhury-Shah-Thornhill S/J model (plant-and-tuning 1.2)"
     kernel = staticmethod(choudhury_kernel)
-    STATES: ClassVar[tuple[str, ...]] = ("init", "position", "x_prev", "v_prev", "y", "stuck",
-                                         "xss")
+    STATES: ClassVar[tuple[str, ...]] = CHOUDHURY_STATES
 
     def model_init(self, x: FloatArray, y0: float) -> None:
-        choudhury_init(self.p, x, y0 + self.p[C_START] * self.p[P_FD], y0)
+        choudhury_init(self.p, x, y0 + self.p[PS.start] * self.p[PS.fd], y0)
 
 
 @register
@@ -743,11 +760,10 @@ class Kano(_StictionValve):
     kind = "valve.kano"
     summary = "valve stiction, Kano et al. model (plant-and-tuning 1.3)"
     kernel = staticmethod(kano_kernel)
-    STATES: ClassVar[tuple[str, ...]] = ("init", "position", "u_prev", "du_prev", "stp", "d",
-                                         "us", "y")
+    STATES: ClassVar[tuple[str, ...]] = KANO_STATES
 
     def model_init(self, x: FloatArray, y0: float) -> None:
-        kano_init(self.p, x, y0 + self.p[C_START] * self.p[P_FD], y0)
+        kano_init(self.p, x, y0 + self.p[PS.start] * self.p[PS.fd], y0)
 
 
 @register
@@ -757,10 +773,10 @@ class He(_StictionValve):
     kind = "valve.he"
     summary = "valve stiction, He et al. fs/fd model (plant-and-tuning 1.4)"
     kernel = staticmethod(he_kernel)
-    STATES: ClassVar[tuple[str, ...]] = ("init", "position", "u_prev", "u_r", "y")
+    STATES: ClassVar[tuple[str, ...]] = HE_STATES
 
     def model_init(self, x: FloatArray, y0: float) -> None:
-        he_init(self.p, x, y0 + self.p[C_START] * self.p[P_FD], y0)
+        he_init(self.p, x, y0 + self.p[PS.start] * self.p[PS.fd], y0)
 
 
 @register
@@ -779,10 +795,11 @@ class Backlash(_Valve):
               choices=("rest", "moving_up", "moving_down")),
         *COMMON_PARAMS,
     )
-    STATES: ClassVar[tuple[str, ...]] = ("init", "position", "y")
+    COEFFS: ClassVar[tuple[str, ...]] = BACKLASH_COEFFS
+    STATES: ClassVar[tuple[str, ...]] = MODEL_STATES
 
-    def coefficients(self) -> list[float]:
-        return [*self.common(), float(self.params["b"]) / 2.0]
+    def coefficients(self) -> dict[str, float]:
+        return {**self.common(), "half_width": float(self.params["b"]) / 2.0}
 
 
 @register
@@ -799,10 +816,11 @@ class Resolution(_Valve):
               lo_open=False),
         *COMMON_PARAMS,
     )
-    STATES: ClassVar[tuple[str, ...]] = ("init", "position", "y")
+    COEFFS: ClassVar[tuple[str, ...]] = RESOLUTION_COEFFS
+    STATES: ClassVar[tuple[str, ...]] = MODEL_STATES
 
-    def coefficients(self) -> list[float]:
-        return [*self.common(), float(self.params["r"])]
+    def coefficients(self) -> dict[str, float]:
+        return {**self.common(), "r": float(self.params["r"])}
 
 
 @register
@@ -817,11 +835,12 @@ class Quantiser(_Valve):
               lo=0.0),
         *COMMON_PARAMS,
     )
-    STATES: ClassVar[tuple[str, ...]] = ("init", "position", "y")
+    COEFFS: ClassVar[tuple[str, ...]] = QUANTISER_COEFFS
+    STATES: ClassVar[tuple[str, ...]] = MODEL_STATES
 
-    def coefficients(self) -> list[float]:
-        return [*self.common(), float(self.params["q"])]
+    def coefficients(self) -> dict[str, float]:
+        return {**self.common(), "q": float(self.params["q"])}
 
     def model_init(self, x: FloatArray, y0: float) -> None:
-        x[Y_MODEL] = y0  # the quantiser has no memory: y0 is only the start of the stroke
-        x[S_INIT] = 1.0
+        x[XM.y] = y0  # the quantiser has no memory: y0 is only the start of the stroke
+        x[XM.init] = 1.0

@@ -44,6 +44,19 @@ Outputs: ``out`` = override, else F (after the filter); ``pid_out`` = OUT (the P
 stored output, before the filter); ``p_adj``, ``i_adj``, ``d_adj`` = the adjustments of the
 latest PID update (held between updates).
 
+Retuning (issue 12 point 4)
+---------------------------
+
+The PID cell is incremental (spec 3.3: each update computes three adjustments and adds them to
+the previous output; spec 7: velocity form, anti-windup inherent): P acts on the change of the
+error since the previous update, I on the current error, D (default form) on its second
+difference, and OUT_{k-1} is the stored output. A change of ``kp``, ``ki``, ``kd`` or
+``throttling_range`` (``set_params`` between scans) therefore does not bump the output: the next
+update adds the adjustments of the new settings to the stored output. At a steady error Padj =
+Dadj = 0, so OUT moves by ki_new·e only. This is the vendor's law, bumpless by construction, so
+there is no ``retune`` option. ``output_at_setpoint`` only places the start-up output (spec 3.9):
+changing it later moves nothing.
+
 Timing: how the update schedules run on arbitrary scans
 -------------------------------------------------------
 
@@ -164,6 +177,7 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.pid import measured
 from loopworks.blocks.primitives import clamp, finite
@@ -181,20 +195,33 @@ from loopworks.blocks.status import (
 )
 from loopworks.errors import InputError, ParameterError
 
-# Coefficient layout (p)
-(TR, KP, KI, KD, LO, HI, MAE, UPDATE, FPERIOD, FFRAC, SIGN, I_NORM, D_FORM, D_NORM,
- STARTUP, OLD_OUT, OVR_UPDATES, OVR_LO, OVR_HI, BAD_INPUT, FAILSAFE) = range(21)
 D_SECOND_DIFFERENCE, D_AS_PRINTED = 0.0, 1.0
 STARTUP_ZERO, STARTUP_CURRENT = 0.0, 1.0
 OLD_UNFILTERED, OLD_FILTERED = 0.0, 1.0
 BAD_HOLD, BAD_FAILSAFE = 0.0, 1.0
-# Inputs (u, us)
-PV, SP, OVERRIDE = range(3)
-# Outputs (y, ys)
-OUT, PID_OUT, P_ADJ, I_ADJ, D_ADJ = range(5)
-# State (x)
-(S_OUT, S_F, S_E1, S_E2, S_PADJ, S_IADJ, S_DADJ, S_PID_TIMER, S_FILTER_TIMER, S_SINCE, S_T1,
- S_UPDATED, S_STARTED) = range(13)
+_PCT = "%"
+
+INPUTS = (
+    Port("pv", 0.0, "EU", "control input (process variable)", status=True),
+    Port("sp", 0.0, "EU", "setpoint", status=True),
+    Port("override", math.nan, _PCT, "forced output; NaN = no override (spec 3.7)",
+         status=True),
+)
+OUTPUTS = (
+    Port("out", 0.0, _PCT, "output after the Filter and Override cells", status=True),
+    Port("pid_out", 0.0, _PCT, "PID cell output OUT (before the filter)"),
+    Port("p_adj", 0.0, _PCT, "P adjustment of the latest update"),
+    Port("i_adj", 0.0, _PCT, "I adjustment of the latest update"),
+    Port("d_adj", 0.0, _PCT, "D adjustment of the latest update"),
+)
+#: the coefficient array p (coefficients())
+COEFFS = ("tr", "kp", "ki", "kd", "lo", "hi", "mae", "update", "fperiod", "ffrac", "sign",
+          "i_norm", "d_form", "d_norm", "startup", "old_out", "ovr_updates", "ovr_lo", "ovr_hi",
+          "bad_input", "failsafe")
+#: the state array x
+STATES = ("pid_output", "filter_output", "e1", "e2", "p_adj", "i_adj", "d_adj", "pid_timer",
+          "filter_timer", "since_update", "t1", "updated", "started")
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 DUE_TOLERANCE = 1e-9  # relative: a timer within 1e-9·interval of the interval is due
 
@@ -222,99 +249,100 @@ def advance_timer(elapsed: float, dt: float, interval: float) -> float:
 def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                   y: FloatArray, ys: IntArray) -> None:
     """One scan of the E2 PID, Filter and Override cells (equations in the module docstring)."""
-    lo = p[LO]
-    hi = p[HI]
-    interval = p[UPDATE]
-    period = p[FPERIOD]
+    lo = p[P.lo]
+    hi = p[P.hi]
+    interval = p[P.update]
+    period = p[P.fperiod]
     # -- timers (spec 3.3, 3.6): the first scan runs both cells, later scans when due ---------
-    if x[S_STARTED] == 0.0:
-        x[S_STARTED] = 1.0
+    if x[X.started] == 0.0:
+        x[X.started] = 1.0
         pid_due = True
         filter_due = True
-        x[S_PID_TIMER] = 0.0
-        x[S_FILTER_TIMER] = 0.0
+        x[X.pid_timer] = 0.0
+        x[X.filter_timer] = 0.0
     else:
-        x[S_SINCE] = x[S_SINCE] + dt
-        pid_due = timer_due(x[S_PID_TIMER] + dt, interval)
-        x[S_PID_TIMER] = advance_timer(x[S_PID_TIMER], dt, interval)
+        x[X.since_update] = x[X.since_update] + dt
+        pid_due = timer_due(x[X.pid_timer] + dt, interval)
+        x[X.pid_timer] = advance_timer(x[X.pid_timer], dt, interval)
         filter_due = False
         if period > 0.0:
-            filter_due = timer_due(x[S_FILTER_TIMER] + dt, period)
-            x[S_FILTER_TIMER] = advance_timer(x[S_FILTER_TIMER], dt, period)
+            filter_due = timer_due(x[X.filter_timer] + dt, period)
+            x[X.filter_timer] = advance_timer(x[X.filter_timer], dt, period)
     # -- input quality (no status in the E2: NaN/inf or a Bad status byte = bad input, [A]) ----
-    pv = u[PV]
-    sp = u[SP]
-    q_pv = us[PV] & 0xC0
-    q_sp = us[SP] & 0xC0
-    bad = not measured(pv, us[PV]) or not measured(sp, us[SP])  # beyond ±1e12 EU too
+    pv = u[U.pv]
+    sp = u[U.sp]
+    q_pv = us[U.pv] & 0xC0
+    q_sp = us[U.sp] & 0xC0
+    bad = not measured(pv, us[U.pv]) or not measured(sp, us[U.sp])  # beyond ±1e12 EU too
     e = 0.0
     if not bad:  # spec 3.3: e = input - setpoint [A]
-        e = p[SIGN] * (pv - sp)
+        e = p[P.sign] * (pv - sp)
     # -- PID cell (spec 3.3-3.5) ----------------------------------------------------------------
     if pid_due and not bad:
-        if x[S_UPDATED] == 0.0:  # first update: no measured times yet (spec 3.9 [?])
-            if p[STARTUP] == STARTUP_CURRENT:
-                x[S_E1] = e
-                x[S_E2] = e
+        if x[X.updated] == 0.0:  # first update: no measured times yet (spec 3.9 [?])
+            if p[P.startup] == STARTUP_CURRENT:
+                x[X.e1] = e
+                x[X.e2] = e
             t1 = interval
             t2 = interval
         else:
-            t1 = x[S_SINCE]
-            t2 = x[S_T1]
-        e1 = x[S_E1]
-        e2 = x[S_E2]
-        padj = p[KP] * (e - e1) * 100.0 / p[TR]
+            t1 = x[X.since_update]
+            t2 = x[X.t1]
+        e1 = x[X.e1]
+        e2 = x[X.e2]
+        padj = p[P.kp] * (e - e1) * 100.0 / p[P.tr]
         iadj = 0.0
-        if abs(e) > p[MAE]:  # spec 3.5: no I adjustment while abs(e) <= MAE
-            iadj = p[KI] * e
-            if p[I_NORM] != 0.0:
-                iadj = iadj * 100.0 / p[TR]
-        if p[D_FORM] == D_AS_PRINTED:  # times in minutes, as printed (026-1614 p.D-4):
+        if abs(e) > p[P.mae]:  # spec 3.5: no I adjustment while abs(e) <= MAE
+            iadj = p[P.ki] * e
+            if p[P.i_norm] != 0.0:
+                iadj = iadj * 100.0 / p[P.tr]
+        if p[P.d_form] == D_AS_PRINTED:  # times in minutes, as printed (026-1614 p.D-4):
             # e/(t/60) written 60·e/t, so that a zero error is 0 for any t > 0
-            dadj = p[KD] * (e - 2.0 * (60.0 * e1 / t1) + 60.0 * e2 / t2)
+            dadj = p[P.kd] * (e - 2.0 * (60.0 * e1 / t1) + 60.0 * e2 / t2)
         else:
-            dadj = p[KD] * (e - 2.0 * e1 + e2)
-        if p[D_NORM] != 0.0:
-            dadj = dadj * 100.0 / p[TR]
-        old = x[S_OUT]
-        if p[OLD_OUT] == OLD_FILTERED:
-            old = clamp(x[S_F], lo, hi)
+            dadj = p[P.kd] * (e - 2.0 * e1 + e2)
+        if p[P.d_norm] != 0.0:
+            dadj = dadj * 100.0 / p[P.tr]
+        old = x[X.pid_output]
+        if p[P.old_out] == OLD_FILTERED:
+            old = clamp(x[X.filter_output], lo, hi)
         v = old + padj + iadj + dadj
         if not finite(padj + iadj + dadj + v):  # overflow (extreme gains): skip, as bad input
             bad = True
         else:
-            x[S_OUT] = clamp(v, lo, hi)  # spec 3.4: increments past a clamp are lost
-            x[S_E2] = e1
-            x[S_E1] = e
-            x[S_T1] = t1
-            x[S_SINCE] = 0.0
-            x[S_UPDATED] = 1.0
-            x[S_PADJ] = padj
-            x[S_IADJ] = iadj
-            x[S_DADJ] = dadj
+            x[X.pid_output] = clamp(v, lo, hi)  # spec 3.4: increments past a clamp are lost
+            x[X.e2] = e1
+            x[X.e1] = e
+            x[X.t1] = t1
+            x[X.since_update] = 0.0
+            x[X.updated] = 1.0
+            x[X.p_adj] = padj
+            x[X.i_adj] = iadj
+            x[X.d_adj] = dadj
     # -- Filter cell (spec 3.6) -------------------------------------------------------------------
     if period > 0.0:
         if filter_due:
-            x[S_F] = x[S_F] + p[FFRAC] * (x[S_OUT] - x[S_F])
+            x[X.filter_output] = (x[X.filter_output]
+                                  + p[P.ffrac] * (x[X.pid_output] - x[X.filter_output]))
     else:
-        x[S_F] = x[S_OUT]
+        x[X.filter_output] = x[X.pid_output]
     # -- Override cell (spec 3.7) and status ------------------------------------------------------
-    ov = u[OVERRIDE]
-    if finite(ov) and (us[OVERRIDE] & 0xC0) != BAD:
-        out = clamp(ov, p[OVR_LO], p[OVR_HI])
+    ov = u[U.override]
+    if finite(ov) and (us[U.override] & 0xC0) != BAD:
+        out = clamp(ov, p[P.ovr_lo], p[P.ovr_hi])
         status = GOOD_NC | CONSTANT
-        if p[OVR_UPDATES] != 0.0:
-            x[S_OUT] = clamp(ov, lo, hi)
-            x[S_F] = out
+        if p[P.ovr_updates] != 0.0:
+            x[X.pid_output] = clamp(ov, lo, hi)
+            x[X.filter_output] = out
     elif bad:
-        if p[BAD_INPUT] == BAD_FAILSAFE:
-            out = p[FAILSAFE]
+        if p[P.bad_input] == BAD_FAILSAFE:
+            out = p[P.failsafe]
             status = UNCERTAIN_SUBSTITUTE | CONSTANT
         else:
-            out = x[S_F]
+            out = x[X.filter_output]
             status = UNCERTAIN_LAST_USABLE_VALUE | CONSTANT
     else:
-        out = x[S_F]
+        out = x[X.filter_output]
         status = GOOD_NC
         if q_pv == UNCERTAIN or q_sp == UNCERTAIN:
             status = UNCERTAIN_NON_SPECIFIC
@@ -322,12 +350,12 @@ def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
             status = status | HIGH_LIMITED
         elif out <= lo:
             status = status | LOW_LIMITED
-    y[OUT] = out
-    ys[OUT] = status
-    y[PID_OUT] = x[S_OUT]
-    y[P_ADJ] = x[S_PADJ]
-    y[I_ADJ] = x[S_IADJ]
-    y[D_ADJ] = x[S_DADJ]
+    y[Y.out] = out
+    ys[Y.out] = status
+    y[Y.pid_out] = x[X.pid_output]
+    y[Y.p_adj] = x[X.p_adj]
+    y[Y.i_adj] = x[X.i_adj]
+    y[Y.d_adj] = x[X.d_adj]
 
 
 def pwm_times(percent: float, period: float) -> tuple[float, float]:
@@ -342,9 +370,6 @@ def pwm_times(percent: float, period: float) -> tuple[float, float]:
         raise InputError("e2 pwm: percent = nan is not a number")
     on = period * min(max(percent, 0.0), 100.0) / 100.0
     return on, period - on
-
-
-_PCT = "%"
 
 
 @register
@@ -420,24 +445,12 @@ class E2PID(Block):
               "out while pv/sp is bad and bad_input = failsafe [A] (the E2 has no status, spec 7)",
               lo=0.0, hi=100.0, lo_open=False, hi_open=False),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("pv", 0.0, "EU", "control input (process variable)", status=True),
-        Port("sp", 0.0, "EU", "setpoint", status=True),
-        Port("override", math.nan, _PCT, "forced output; NaN = no override (spec 3.7)",
-             status=True),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("out", 0.0, _PCT, "output after the Filter and Override cells", status=True),
-        Port("pid_out", 0.0, _PCT, "PID cell output OUT (before the filter)"),
-        Port("p_adj", 0.0, _PCT, "P adjustment of the latest update"),
-        Port("i_adj", 0.0, _PCT, "I adjustment of the latest update"),
-        Port("d_adj", 0.0, _PCT, "D adjustment of the latest update"),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "pid_output", "filter_output", "e1", "e2", "p_adj", "i_adj", "d_adj", "pid_timer",
-        "filter_timer", "since_update", "t1", "updated", "started")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, float]:
         prm: dict[str, Any] = self.params
         lo, hi = float(prm["output_min"]), float(prm["output_max"])
         if not lo < hi:
@@ -455,38 +468,39 @@ class E2PID(Block):
             raise ParameterError(
                 f"e2.pid: parameter 'initial_output' = {float(init):g} is out of range: "
                 f"allowed [{lo:g}, {hi:g}] % (output_min..output_max)")
-        c = [0.0] * 21
-        c[TR] = float(prm["throttling_range"])
-        c[KP], c[KI], c[KD] = float(prm["kp"]), float(prm["ki"]), float(prm["kd"])
-        c[LO], c[HI] = lo, hi
-        c[MAE] = float(prm["min_accumulated_error"])
-        c[UPDATE] = float(prm["update_interval"])
-        c[FPERIOD] = float(prm["filter_period"])
-        c[FFRAC] = float(prm["filter_percentage"]) / 100.0
-        c[SIGN] = 1.0 if prm["error_sign"] == "input_minus_setpoint" else -1.0
-        c[I_NORM] = 1.0 if prm["i_tr_normalise"] else 0.0
-        c[D_FORM] = D_AS_PRINTED if prm["d_form"] == "as_printed" else D_SECOND_DIFFERENCE
-        c[D_NORM] = 1.0 if prm["d_tr_normalise"] else 0.0
-        c[STARTUP] = STARTUP_CURRENT if prm["startup_errors"] == "current" else STARTUP_ZERO
-        c[OLD_OUT] = OLD_FILTERED if prm["old_output"] == "filtered" else OLD_UNFILTERED
-        c[OVR_UPDATES] = 1.0 if prm["override_updates_pid"] else 0.0
-        c[OVR_LO], c[OVR_HI] = (lo, hi) if prm["override_limits"] == "output_limits" \
+        ovr_lo, ovr_hi = (lo, hi) if prm["override_limits"] == "output_limits" \
             else (0.0, 100.0)
-        c[BAD_INPUT] = BAD_FAILSAFE if prm["bad_input"] == "failsafe" else BAD_HOLD
-        c[FAILSAFE] = float(prm["failsafe_output"])
-        return c
+        return {"tr": float(prm["throttling_range"]),
+                "kp": float(prm["kp"]), "ki": float(prm["ki"]), "kd": float(prm["kd"]),
+                "lo": lo, "hi": hi,
+                "mae": float(prm["min_accumulated_error"]),
+                "update": float(prm["update_interval"]),
+                "fperiod": float(prm["filter_period"]),
+                "ffrac": float(prm["filter_percentage"]) / 100.0,
+                "sign": 1.0 if prm["error_sign"] == "input_minus_setpoint" else -1.0,
+                "i_norm": 1.0 if prm["i_tr_normalise"] else 0.0,
+                "d_form": D_AS_PRINTED if prm["d_form"] == "as_printed"
+                else D_SECOND_DIFFERENCE,
+                "d_norm": 1.0 if prm["d_tr_normalise"] else 0.0,
+                "startup": STARTUP_CURRENT if prm["startup_errors"] == "current"
+                else STARTUP_ZERO,
+                "old_out": OLD_FILTERED if prm["old_output"] == "filtered" else OLD_UNFILTERED,
+                "ovr_updates": 1.0 if prm["override_updates_pid"] else 0.0,
+                "ovr_lo": ovr_lo, "ovr_hi": ovr_hi,
+                "bad_input": BAD_FAILSAFE if prm["bad_input"] == "failsafe" else BAD_HOLD,
+                "failsafe": float(prm["failsafe_output"])}
 
     def initial_state(self) -> list[float]:
         """OUT = F = initial_output (default Output at Setpoint, clamped); e₋₁ = e₋₂ = 0."""
-        x = [0.0] * len(self.STATES)
+        x = [0.0] * self.n_x
         init = self.params["initial_output"]
         start = float(self.params["output_at_setpoint"]) if init is None else float(init)
-        start = min(max(start, self.p[LO]), self.p[HI])
-        x[S_OUT] = start
-        x[S_F] = start
-        x[S_T1] = self.p[UPDATE]
+        start = min(max(start, self.p[P.lo]), self.p[P.hi])
+        x[X.pid_output] = start
+        x[X.filter_output] = start
+        x[X.t1] = self.p[P.update]
         return x
 
     def initial_outputs(self) -> list[float]:
         """Before the first scan: out = pid_out = the start-up output, no adjustments."""
-        return [float(self.x[S_F]), float(self.x[S_OUT]), 0.0, 0.0, 0.0]
+        return [float(self.x[X.filter_output]), float(self.x[X.pid_output]), 0.0, 0.0, 0.0]

@@ -160,6 +160,35 @@ Vendor behaviour reproduced
   the whole gap). A NaN or infinite ``man``/``up``/``dn`` (no BOOL) does the same; a NaN
   ``enable`` is no power flow. The block never raises at run time.
 
+Retuning in Auto
+----------------
+
+A parameter change between sweeps (``set_params``: a scenario event, ``tune``, an operator)
+keeps the state and takes effect at the next solution. The law is positional with an
+accumulated integral (spec 1.6, 1.7 steps 8-9), so the vendor's own behaviour is what that law
+gives: a change of Kp/Kc (word 6), of the action (Config bit 0) or of the dead band steps the
+output by the change of P = w6·e_db/100; Ki/Ti and Kd/Td act on increments (ΔI, Δ/dt) and do
+not step it. The integral (words 21-22, 27) is stored in CV counts, with Kc applied to each
+increment in PID_ISA (ΔI = Kc·e·dt/Ti, spec 1.5 [D]; the back-calculations of spec 1.7 steps
+9-11 set it in counts, the same words for both instructions), so a Kc change does not rescale
+the past integral: a PID_ISA Kc step moves the output by ΔKc·e_db (and later increments by
+ΔKc·e·dt/Ti), not by ΔKc·I/Kc. Neither the spec (1.6-1.10, 8) nor seed 003 says that the block
+compensates a retune, so ``retune = "vendor"`` is the default.
+
+``retune = "bumpless"``: while the block is in Auto (powered, solved before, no parameter error,
+and Manual off for the next solution: the MAN input, or word 15 bit 1 under Override), a change
+of word 6, Config bit 0 or the dead band moves the integral by P_old - P_new, both at the SP and
+PV the next solution reads from the latched inputs (DiscretePIDs.jl ``set_K!``; Åström &
+Hägglund 2006, sec. 3.5). In native arithmetic P is a whole count under either tuning, so the
+correction is a whole count added to words 21-22, word 27 (the remainder) untouched: the stored
+integral moves by exactly P_old - P_new (unless it saturates at the 32-bit limit). The next
+solution's output at the same SP and PV then equals the old tuning's exactly with
+``rounding = "floor"``, and within one count with ``"truncate"``: the whole part of the integral
+is truncated toward zero, and trunc(I + n) = trunc(I) + n - 1 or + 1 when the correction n
+carries an integral with a remainder across zero. In float arithmetic the correction is exact
+to float64 rounding. In Manual the integral is back-calculated every solution (spec 1.7 step
+9), so nothing is done.
+
 Options for the spec's [A]/[?] points
 -------------------------------------
 
@@ -200,6 +229,9 @@ Options for the spec's [A]/[?] points
 * The dead band's bit-3 wording in the manual can be read against the table of spec 1.3;
   ``deadband_subtract`` follows the table (the edge is subtracted outside the band) [?, spec 1.7
   step 6].
+* ``retune`` = ``"vendor"``: a change of word 6, Config bit 0 or the dead band in Auto steps the
+  output as the law gives; ``"bumpless"`` moves the integral by P_old - P_new (above) [A, spec
+  silent; spec 1.6].
 
 Worked example
 --------------
@@ -240,26 +272,53 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite, lag_step
 from loopworks.blocks.registry import block_class, register
 from loopworks.blocks.status import BAD, GOOD_NC
 from loopworks.errors import ParameterError
 
-# Coefficient layout (p)
-(ISA, NATIVE, PERIOD, DB_POS, DB_NEG, G6, G7, G8, BIAS, UPPER, LOWER, SLEW, DIRECT, INVERT,
- D_ON_PV, DB_SUB, ARW_HOLD, D_FILT, TF, UNITS, UNIT_MUL, UNIT_DIV, QUANT, FLOOR, STAGED,
- OVR_SPPV, TRACK_CV, LAST0, LOAD_CLOCK, PARAM_ERR, IGNORE_STATUS, SLEW_CARRY, SAT_SUM,
- PRIME_D) = range(34)
-N_COEFFS = 34
-# Inputs (u, us)
-SP, PV, MAN, UP, DN, ENABLE, CLOCK, MANUAL_COMMAND, CONTROL_WORD, INTERNAL_SP, INTERNAL_PV = \
-    range(11)
-# Outputs (y, ys)
-CV, OUTPUT, OK = range(3)
-# State (x), named after the reference-array words they hold
-(W14, W15, W16, W17, W18, W19, W20, W21, W27, W23, W24, S_CLOCK, S_DF, S_STARTED, S_CV,
- S_SOLVED) = range(16)
+INPUTS: tuple[Port, ...] = (
+    Port("sp", 0.0, "counts", "SP operand: setpoint, same scaling as PV (spec 1.1)",
+         status=True),
+    Port("pv", 0.0, "counts", "PV operand: process variable (spec 1.1)", status=True),
+    Port("man", 0.0, "", "MAN: 1 = Manual mode (spec 1.1)"),
+    Port("up", 0.0, "", "UP: in Manual raise CV 1 count per solution (spec 1.1)"),
+    Port("dn", 0.0, "", "DN: in Manual lower CV 1 count per solution (spec 1.1)"),
+    Port("enable", 1.0, "", "power flow in: the block runs only while 1 (spec 1.1)"),
+    Port("clock", math.nan, "s", "controller clock (module time / replay t); NaN = advance an "
+         "own clock by dt (spec 1.7 step 3)"),
+    Port("manual_command", math.nan, "counts", "program write into word 14 (Manual Command) "
+         "each sweep; NaN = no write (spec 1.2)"),
+    Port("control_word", math.nan, "", "HMI write into word 15 (bit 0 Override, 1 Manual, "
+         "3 UP, 4 DN); NaN = no write (spec 1.4)"),
+    Port("internal_sp", math.nan, "counts", "write into word 16, the SP used under Override; "
+         "NaN = no write (spec 1.4)"),
+    Port("internal_pv", math.nan, "counts", "write into word 18, the PV used under Override; "
+         "NaN = no write (spec 1.4)"),
+)
+OUTPUTS: tuple[Port, ...] = (
+    Port("cv", 0.0, "counts", "CV: the output after polarity (spec 1.1)"),
+    Port("output", 0.0, "counts", "word 19: the output before the polarity inversion "
+         "(spec 1.2)"),
+    Port("ok", 0.0, "", "ok power flow out: 1 = executed without a parameter error "
+         "(spec 1.1)"),
+)
+#: the coefficient array p (coefficients()): the words 3-13 as the kernel uses them, and the
+#: switches of the options
+COEFFS: tuple[str, ...] = (
+    "isa", "native", "period", "db_pos", "db_neg", "g6", "g7", "g8", "bias", "upper", "lower",
+    "slew", "direct", "invert", "d_on_pv", "db_sub", "arw_hold", "d_filt", "tf", "units",
+    "unit_mul", "unit_div", "quant", "floor", "staged", "ovr_sppv", "track_cv", "last0",
+    "load_clock", "param_err", "ignore_status", "slew_carry", "sat_sum", "prime_d")
+#: the state array x, named after the reference-array words they hold (words 14-27) and the
+#: block's own memories
+STATES: tuple[str, ...] = (
+    "manual_command", "control_word", "internal_sp", "internal_cv", "internal_pv", "output",
+    "diff_storage", "integral", "int_remainder", "slew_storage", "last_solution", "clock",
+    "d_filter", "started", "cv", "solved")
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 TICKS_PER_S = 10_000.0  # the controller clock has 100 µs resolution (spec 1.5)
 #: the finest integral_resolution is 1/MAX_UNITS of a count
@@ -324,201 +383,223 @@ def _bit(word: float, weight: float) -> bool:
 @primitive
 def _hold(x: FloatArray, y: FloatArray, ok: float) -> None:
     """No solution this sweep: CV and word 19 keep their values."""
-    y[CV] = x[S_CV]
-    y[OUTPUT] = x[W19]
-    y[OK] = ok
+    y[Y.cv] = x[X.cv]
+    y[Y.output] = x[X.output]
+    y[Y.ok] = ok
+
+
+@primitive
+def _error(p: FloatArray, sp: float, pv: float) -> float:
+    """e = SP - PV ("reverse acting"), or PV - SP with Config bit 0 (spec 1.7 step 5)."""
+    return pv - sp if p[P.direct] != 0.0 else sp - pv
+
+
+@primitive
+def _dead_band(p: FloatArray, e: float) -> float:
+    """The error after the dead band (spec 1.7 step 6): 0 strictly inside DB-..DB+, else e,
+    or with Config bit 3 e less the edge it passed."""
+    db_pos: float = p[P.db_pos]
+    db_neg: float = p[P.db_neg]
+    if db_neg < e and e < db_pos:
+        return 0.0
+    if p[P.db_sub] == 0.0:
+        return e
+    if e >= db_pos:
+        return e - db_pos
+    return e - db_neg
+
+
+@primitive
+def _p_term(p: FloatArray, e_db: float) -> float:
+    """P = Kp·e_db (ISA: Kc·e_db): native w6·e_db/100 divided per ``rounding``, a whole count
+    (spec 1.5); float Kp·e_db."""
+    gain: float = p[P.g6]
+    if p[P.native] != 0.0:
+        return _div(gain * e_db, 100.0, p[P.floor])
+    return gain * e_db
 
 
 def ge_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                   y: FloatArray, ys: IntArray) -> None:
     """One PLC sweep of the GE PID (spec 1.7; equations in the module docstring)."""
-    ys[CV] = GOOD_NC
-    ys[OUTPUT] = GOOD_NC
-    ys[OK] = GOOD_NC
-    native = p[NATIVE]
-    floor_mode = p[FLOOR]
+    ys[Y.cv] = GOOD_NC
+    ys[Y.output] = GOOD_NC
+    ys[Y.ok] = GOOD_NC
+    native = p[P.native]
+    floor_mode = p[P.floor]
     # Writes of the program / HMI into the array (every sweep, before the block runs). A value
     # that is not a 16-bit word (NaN: no write; inf, out of range) never reaches the array.
-    if _is_word(u[MANUAL_COMMAND], WORD_MIN, WORD_MAX, native):
-        x[W14] = _word(u[MANUAL_COMMAND], native)
-    if _is_word(u[CONTROL_WORD], WORD_MIN, 65535.0, 1.0):
-        cw = _round_away(u[CONTROL_WORD])
-        x[W15] = cw + 65536.0 if cw < 0.0 else cw
-    if _is_word(u[INTERNAL_SP], WORD_MIN, WORD_MAX, native):
-        x[W16] = _word(u[INTERNAL_SP], native)
-    if _is_word(u[INTERNAL_PV], WORD_MIN, WORD_MAX, native):
-        x[W18] = _word(u[INTERNAL_PV], native)
+    if _is_word(u[U.manual_command], WORD_MIN, WORD_MAX, native):
+        x[X.manual_command] = _word(u[U.manual_command], native)
+    if _is_word(u[U.control_word], WORD_MIN, 65535.0, 1.0):
+        cw = _round_away(u[U.control_word])
+        x[X.control_word] = cw + 65536.0 if cw < 0.0 else cw
+    if _is_word(u[U.internal_sp], WORD_MIN, WORD_MAX, native):
+        x[X.internal_sp] = _word(u[U.internal_sp], native)
+    if _is_word(u[U.internal_pv], WORD_MIN, WORD_MAX, native):
+        x[X.internal_pv] = _word(u[U.internal_pv], native)
     # The controller clock (spec 1.7 step 3): the clock input, else the block's own clock.
-    clock = u[CLOCK]
-    clock = clamp(clock, 0.0, CLOCK_MAX_S) if finite(clock) else min(x[S_CLOCK] + dt,
+    clock = u[U.clock]
+    clock = clamp(clock, 0.0, CLOCK_MAX_S) if finite(clock) else min(x[X.clock] + dt,
                                                                      CLOCK_MAX_S)
-    x[S_CLOCK] = clock
+    x[X.clock] = clock
     now = float(math.floor(clock * TICKS_PER_S + 0.5))
-    if x[S_STARTED] == 0.0:
-        x[S_STARTED] = 1.0
-        if p[LOAD_CLOCK] != 0.0:  # SVC_REQ 16/51 before enabling: no first-solution step
-            x[W24] = now
+    if x[X.started] == 0.0:
+        x[X.started] = 1.0
+        if p[P.load_clock] != 0.0:  # SVC_REQ 16/51 before enabling: no first-solution step
+            x[X.last_solution] = now
     # 1. power flow; 2. parameter check (spec 1.7)
-    enabled = u[ENABLE] > 0.5
-    if not enabled or p[PARAM_ERR] != 0.0:
+    enabled = u[U.enable] > 0.5
+    if not enabled or p[P.param_err] != 0.0:
         _hold(x, y, 0.0)
         return
     # 3. timing: solve only when max(sample period, 10 ms) has elapsed
-    elapsed = now - x[W24]
-    if elapsed < p[PERIOD]:
+    elapsed = now - x[X.last_solution]
+    if elapsed < p[P.period]:
         _hold(x, y, 1.0)
         return
     dt_ticks = elapsed
     # 4. inputs: MAN/UP/DN from the operands, or from word 15 under Override (spec 1.4)
-    override = _bit(x[W15], 1.0)
+    override = _bit(x[X.control_word], 1.0)
     if override:
-        man = _bit(x[W15], 2.0)
-        up = _bit(x[W15], 8.0)
-        dn = _bit(x[W15], 16.0)
+        man = _bit(x[X.control_word], 2.0)
+        up = _bit(x[X.control_word], 8.0)
+        dn = _bit(x[X.control_word], 16.0)
     else:
-        if not (finite(u[MAN]) and finite(u[UP]) and finite(u[DN])):  # no BOOL: Bad input
+        if not (finite(u[U.man]) and finite(u[U.up]) and finite(u[U.dn])):  # no BOOL: Bad input
             _hold(x, y, 0.0)
             return
-        man = u[MAN] > 0.5
-        up = u[UP] > 0.5
-        dn = u[DN] > 0.5
-    if override and p[OVR_SPPV] != 0.0:
-        sp = x[W16]
-        pv = x[W18]
+        man = u[U.man] > 0.5
+        up = u[U.up] > 0.5
+        dn = u[U.dn] > 0.5
+    if override and p[P.ovr_sppv] != 0.0:
+        sp = x[X.internal_sp]
+        pv = x[X.internal_pv]
     else:
-        sp = u[SP]
-        pv = u[PV]
+        sp = u[U.sp]
+        pv = u[U.pv]
         # an SP or PV that is no INT operand (NaN, inf, beyond 16 bits) is Bad input
         bad = (not _is_word(sp, WORD_MIN, WORD_MAX, native)
                or not _is_word(pv, WORD_MIN, WORD_MAX, native))
-        if p[IGNORE_STATUS] == 0.0 and ((us[SP] & 0xC0) == BAD or (us[PV] & 0xC0) == BAD):
+        if p[P.ignore_status] == 0.0 and ((us[U.sp] & 0xC0) == BAD or (us[U.pv] & 0xC0) == BAD):
             bad = True
         if bad:  # [A] skip the solution as if unpowered
             _hold(x, y, 0.0)
             return
         sp = _word(sp, native)
         pv = _word(pv, native)
-    x[W24] = now
+    x[X.last_solution] = now
     if not override:
-        x[W16] = sp
-        x[W18] = pv
-        x[W15] = ((2.0 if man else 0.0) + 4.0 + (8.0 if up else 0.0)
-                  + (16.0 if dn else 0.0))
+        x[X.internal_sp] = sp
+        x[X.internal_pv] = pv
+        x[X.control_word] = ((2.0 if man else 0.0) + 4.0 + (8.0 if up else 0.0)
+                             + (16.0 if dn else 0.0))
     # 5. error and 6. dead band
-    e = pv - sp if p[DIRECT] != 0.0 else sp - pv
-    db_pos = p[DB_POS]
-    db_neg = p[DB_NEG]
-    if db_neg < e and e < db_pos:
-        e_db = 0.0
-    elif p[DB_SUB] == 0.0:
-        e_db = e
-    elif e >= db_pos:
-        e_db = e - db_pos
-    else:
-        e_db = e - db_neg
+    e = _error(p, sp, pv)
+    e_db = _dead_band(p, e)
     # 7. derivative change (seed 003 table); word 20 keeps the previous error or PV. A fresh
     # array holds 0 there; prime_derivative loads it at the first solution (no kick).
-    if x[S_SOLVED] == 0.0 and p[PRIME_D] != 0.0:
-        x[W20] = pv if p[D_ON_PV] != 0.0 else e
-    x[S_SOLVED] = 1.0
-    if p[D_ON_PV] != 0.0:
-        delta = pv - x[W20] if p[DIRECT] != 0.0 else x[W20] - pv
-        x[W20] = pv
+    if x[X.solved] == 0.0 and p[P.prime_d] != 0.0:
+        x[X.diff_storage] = pv if p[P.d_on_pv] != 0.0 else e
+    x[X.solved] = 1.0
+    if p[P.d_on_pv] != 0.0:
+        delta = pv - x[X.diff_storage] if p[P.direct] != 0.0 else x[X.diff_storage] - pv
+        x[X.diff_storage] = pv
     else:
-        delta = e - x[W20]
-        x[W20] = e
+        delta = e - x[X.diff_storage]
+        x[X.diff_storage] = e
     # 8. terms
-    units = p[UNITS]  # integral units per count (1 in float arithmetic)
-    if native != 0.0:  # ΔI in units = numerator·UNIT_MUL/UNIT_DIV
-        pterm = _div(p[G6] * e_db, 100.0, floor_mode)
-        if p[ISA] == 0.0:
-            inc = p[G8] * e_db * dt_ticks / p[UNIT_DIV]
-            draw = _div(p[G7] * delta * 100.0, dt_ticks, floor_mode)
-        elif p[STAGED] == 0.0:
-            inc = p[G6] * p[G8] * e_db * dt_ticks / p[UNIT_DIV]
-            draw = _div(p[G6] * p[G7] * delta, dt_ticks, floor_mode)
+    units = p[P.units]  # integral units per count (1 in float arithmetic)
+    if native != 0.0:  # ΔI in units = numerator·unit_mul/unit_div
+        pterm = _p_term(p, e_db)
+        if p[P.isa] == 0.0:
+            inc = p[P.g8] * e_db * dt_ticks / p[P.unit_div]
+            draw = _div(p[P.g7] * delta * 100.0, dt_ticks, floor_mode)
+        elif p[P.staged] == 0.0:
+            inc = p[P.g6] * p[P.g8] * e_db * dt_ticks / p[P.unit_div]
+            draw = _div(p[P.g6] * p[P.g7] * delta, dt_ticks, floor_mode)
         else:  # bracket term first (e·dt/Ti, Td·Δ/dt), then Kc
-            inner = p[G8] * e_db * dt_ticks * p[UNIT_MUL] / p[UNIT_DIV]
-            if p[QUANT] != 0.0:
+            inner = p[P.g8] * e_db * dt_ticks * p[P.unit_mul] / p[P.unit_div]
+            if p[P.quant] != 0.0:
                 inner = _round_away(inner)
-            inc = p[G6] * inner / 100.0
-            draw = _div(p[G6] * _div(p[G7] * delta * 100.0, dt_ticks, floor_mode), 100.0,
+            inc = p[P.g6] * inner / 100.0
+            draw = _div(p[P.g6] * _div(p[P.g7] * delta * 100.0, dt_ticks, floor_mode), 100.0,
                         floor_mode)
-        if p[QUANT] != 0.0:  # ΔI to the nearest unit of integral_resolution
+        if p[P.quant] != 0.0:  # ΔI to the nearest unit of integral_resolution
             inc = _round_away(inc)
     else:
         dt_s = dt_ticks / TICKS_PER_S
-        pterm = p[G6] * e_db
-        inc = p[G8] * e_db * dt_s
-        draw = p[G7] * delta / dt_s
-    if p[D_FILT] != 0.0:
-        x[S_DF] = lag_step(x[S_DF], draw, dt_ticks / TICKS_PER_S, p[TF])
-        dterm = _div(x[S_DF], 1.0, floor_mode) if native != 0.0 else x[S_DF]
+        pterm = _p_term(p, e_db)
+        inc = p[P.g8] * e_db * dt_s
+        draw = p[P.g7] * delta / dt_s
+    if p[P.d_filt] != 0.0:
+        x[X.d_filter] = lag_step(x[X.d_filter], draw, dt_ticks / TICKS_PER_S, p[P.tf])
+        dterm = _div(x[X.d_filter], 1.0, floor_mode) if native != 0.0 else x[X.d_filter]
     else:
         dterm = draw
-    bias = p[BIAS]
+    bias = p[P.bias]
     imax = INT32_MAX * units
-    total_prev = x[W21] * units + x[W27]
+    total_prev = x[X.integral] * units + x[X.int_remainder]
     # 9. mode
     if man:
-        target = x[W14]
+        target = x[X.manual_command]
         if up:
             target += 1.0
         if dn:
             target -= 1.0
         target = clamp(target, WORD_MIN, WORD_MAX)
-        x[W14] = target
+        x[X.manual_command] = target
         total = clamp(target - pterm - dterm - bias, -INT32_MAX, INT32_MAX) * units
     else:
         total = clamp(total_prev + inc, -imax, imax)
     icounts = _div(total, units, floor_mode) if native != 0.0 else total  # whole counts
     out = pterm + icounts + dterm + bias
-    if p[SAT_SUM] != 0.0:
+    if p[P.sat_sum] != 0.0:
         out = clamp(out, WORD_MIN, WORD_MAX)
     # 10. slew limit; the integral follows the limited output
-    prev = x[W19]
-    if p[SLEW] > 0.0:
+    prev = x[X.output]
+    if p[P.slew] > 0.0:
         if native != 0.0:
-            allow_num = 32000.0 * dt_ticks + x[W23]
-            den = p[SLEW] * TICKS_PER_S
+            allow_num = 32000.0 * dt_ticks + x[X.slew_storage]
+            den = p[P.slew] * TICKS_PER_S
             step = _div(allow_num, den, 0.0)
         else:
-            step = 32000.0 * (dt_ticks / TICKS_PER_S) / p[SLEW]
+            step = 32000.0 * (dt_ticks / TICKS_PER_S) / p[P.slew]
             allow_num = 0.0
             den = 1.0
         if out > prev + step or out < prev - step:
             out = prev + step if out > prev else prev - step
-            if native != 0.0 and p[SLEW_CARRY] != 0.0:
-                x[W23] = allow_num - step * den
+            if native != 0.0 and p[P.slew_carry] != 0.0:
+                x[X.slew_storage] = allow_num - step * den
             total = clamp(out - pterm - dterm - bias, -INT32_MAX, INT32_MAX) * units
         else:
-            x[W23] = 0.0
+            x[X.slew_storage] = 0.0
     # 11. clamps and anti-windup (Config bit 4)
-    if out > p[UPPER] or out < p[LOWER]:
-        out = p[UPPER] if out > p[UPPER] else p[LOWER]
-        if p[ARW_HOLD] != 0.0:
+    if out > p[P.upper] or out < p[P.lower]:
+        out = p[P.upper] if out > p[P.upper] else p[P.lower]
+        if p[P.arw_hold] != 0.0:
             total = total_prev
         else:
             total = clamp(out - pterm - dterm - bias, -INT32_MAX, INT32_MAX) * units
     # store the integral as words 21-22 (whole counts) and 27 (remainder)
     if native != 0.0:
         whole = _div(total, units, floor_mode)
-        x[W21] = whole
-        x[W27] = total - whole * units
+        x[X.integral] = whole
+        x[X.int_remainder] = total - whole * units
     else:
-        x[W21] = total
-        x[W27] = 0.0
+        x[X.integral] = total
+        x[X.int_remainder] = 0.0
     # 12. word 19 and polarity; 13. Manual Command tracking; 14. ok
-    cv = -out if p[INVERT] != 0.0 else out
-    x[W19] = out
-    x[S_CV] = cv
+    cv = -out if p[P.invert] != 0.0 else out
+    x[X.output] = out
+    x[X.cv] = cv
     if not override:
-        x[W17] = cv
+        x[X.internal_cv] = cv
     if not man:
-        x[W14] = cv if p[TRACK_CV] != 0.0 else out
-    y[CV] = cv
-    y[OUTPUT] = out
-    y[OK] = 1.0
+        x[X.manual_command] = cv if p[P.track_cv] != 0.0 else out
+    y[Y.cv] = cv
+    y[Y.output] = out
+    y[Y.ok] = 1.0
 
 
 # ----------------------------------------------------------------------------------------------
@@ -596,40 +677,15 @@ def _common_params() -> tuple[Param, ...]:
         Param("prime_derivative", False, "", "load word 20 (diff term storage) from the first "
               "solution's PV (or error) so the first derivative sees no change; off: word 20 "
               "starts at 0 (a fresh array) and the first solution kicks, spec 1.2/1.7", "bool"),
+        Param("retune", "vendor", "", "a change of the P term (kp or kc, direct_acting, the "
+              "dead band) in Auto: vendor = the law as it is, the output steps by the change "
+              "of P (spec 1.6); bumpless = words 21-22 move by P_old - P_new at the latched "
+              "SP and PV, so the next solution does not step [A, spec silent]", "choice",
+              choices=("vendor", "bumpless")),
     )
 
 
 _GAIN_MAX = 327.67
-_INPUTS: tuple[Port, ...] = (
-    Port("sp", 0.0, "counts", "SP operand: setpoint, same scaling as PV (spec 1.1)",
-         status=True),
-    Port("pv", 0.0, "counts", "PV operand: process variable (spec 1.1)", status=True),
-    Port("man", 0.0, "", "MAN: 1 = Manual mode (spec 1.1)"),
-    Port("up", 0.0, "", "UP: in Manual raise CV 1 count per solution (spec 1.1)"),
-    Port("dn", 0.0, "", "DN: in Manual lower CV 1 count per solution (spec 1.1)"),
-    Port("enable", 1.0, "", "power flow in: the block runs only while 1 (spec 1.1)"),
-    Port("clock", math.nan, "s", "controller clock (module time / replay t); NaN = advance an "
-         "own clock by dt (spec 1.7 step 3)"),
-    Port("manual_command", math.nan, "counts", "program write into word 14 (Manual Command) "
-         "each sweep; NaN = no write (spec 1.2)"),
-    Port("control_word", math.nan, "", "HMI write into word 15 (bit 0 Override, 1 Manual, "
-         "3 UP, 4 DN); NaN = no write (spec 1.4)"),
-    Port("internal_sp", math.nan, "counts", "write into word 16, the SP used under Override; "
-         "NaN = no write (spec 1.4)"),
-    Port("internal_pv", math.nan, "counts", "write into word 18, the PV used under Override; "
-         "NaN = no write (spec 1.4)"),
-)
-_OUTPUTS: tuple[Port, ...] = (
-    Port("cv", 0.0, "counts", "CV: the output after polarity (spec 1.1)"),
-    Port("output", 0.0, "counts", "word 19: the output before the polarity inversion "
-         "(spec 1.2)"),
-    Port("ok", 0.0, "", "ok power flow out: 1 = executed without a parameter error "
-         "(spec 1.1)"),
-)
-_STATES: tuple[str, ...] = (
-    "manual_command", "control_word", "internal_sp", "internal_cv", "internal_pv", "output",
-    "diff_storage", "integral", "int_remainder", "slew_storage", "last_solution", "clock",
-    "d_filter", "started", "cv", "solved")
 
 
 def _word_of(value: float, scale: float) -> int:
@@ -638,12 +694,13 @@ def _word_of(value: float, scale: float) -> int:
 
 
 class GEPIDBlock(Block):
-    """Shared machinery of PID_IND and PID_ISA (one kernel, ``p[ISA]`` selects the maths)."""
+    """Shared machinery of PID_IND and PID_ISA (one kernel, ``p[P.isa]`` selects the maths)."""
 
     kernel = staticmethod(ge_pid_kernel)
-    INPUTS: ClassVar[tuple[Port, ...]] = _INPUTS
-    OUTPUTS: ClassVar[tuple[Port, ...]] = _OUTPUTS
-    STATES: ClassVar[tuple[str, ...]] = _STATES
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
     IS_ISA: ClassVar[bool] = False
 
     def _fail(self, message: str) -> ParameterError:
@@ -662,6 +719,73 @@ class GEPIDBlock(Block):
                              "off; give 0 or a larger value")
         return word
 
+    def set_params(self, **changes: Any) -> None:
+        """Change parameters between sweeps (see :meth:`Block.set_params`). With
+        ``retune = "bumpless"``, while the block is in Auto (powered, solved before, no
+        parameter error, the latched MAN off), a change of the P term's coefficients (word 6,
+        Config bit 0, the dead band) moves the integral (words 21-22) by
+
+            P_old - P_new,  P = w6·e_db/100 at the SP and PV the next solution reads
+
+        so that solution's output does not step (DiscretePIDs.jl ``set_K!``; Åström &
+        Hägglund 2006, sec. 3.5). P is a whole count in native arithmetic, so the correction
+        is a whole count and word 27 (the remainder) is untouched: the stored integral moves
+        by exactly P_old - P_new (saturated at the 32-bit limit, as the block's own
+        integral). The integral and the derivative act on increments (the integral is stored
+        in CV counts, Kc applied per increment for PID_ISA, spec 1.5), so Ki, Ti, Kd, Td need
+        no correction, and a Kc change does not rescale the past integral."""
+        old = self.p.copy()
+        super().set_params(**changes)
+        if self.params["retune"] != "bumpless":
+            return
+        new, x = self.p, self.x
+        if (x[X.solved] == 0.0 or old[P.param_err] != 0.0 or new[P.param_err] != 0.0
+                or old[P.native] != new[P.native] or not self.u[U.enable] > 0.5):
+            return
+        operands = self._next_operands()
+        if operands is None or operands[0]:  # Bad input, or Manual: back-calculated anyway
+            return
+        _, sp, pv = operands
+        delta = (_p_term(old, _dead_band(old, _error(old, sp, pv)))
+                 - _p_term(new, _dead_band(new, _error(new, sp, pv))))
+        whole = x[X.integral] + delta
+        if not -INT32_MAX <= whole <= INT32_MAX:  # the 32-bit words saturate
+            whole = max(-INT32_MAX, min(INT32_MAX, whole))
+            x[X.int_remainder] = 0.0
+        x[X.integral] = whole
+
+    def _next_operands(self) -> tuple[bool, float, float] | None:
+        """(manual, SP, PV) of the next solution with the inputs as latched, None when that
+        would be Bad input: the kernel's steps 4-5, after the sweep's writes of words 15, 16
+        and 18 (spec 1.4, 1.7 step 4)."""
+        p, x, u, us = self.p, self.x, self.u, self.us
+        native = p[P.native]
+        cw = x[X.control_word]
+        if _is_word(u[U.control_word], WORD_MIN, 65535.0, 1.0):
+            cw = _round_away(u[U.control_word])
+            cw = cw + 65536.0 if cw < 0.0 else cw
+        override = _bit(cw, 1.0)
+        if override:
+            man = _bit(cw, 2.0)
+        elif not (finite(u[U.man]) and finite(u[U.up]) and finite(u[U.dn])):
+            return None
+        else:
+            man = u[U.man] > 0.5
+        if override and p[P.ovr_sppv] != 0.0:
+            sp, pv = x[X.internal_sp], x[X.internal_pv]
+            if _is_word(u[U.internal_sp], WORD_MIN, WORD_MAX, native):
+                sp = _word(u[U.internal_sp], native)
+            if _is_word(u[U.internal_pv], WORD_MIN, WORD_MAX, native):
+                pv = _word(u[U.internal_pv], native)
+            return man, sp, pv
+        sp, pv = u[U.sp], u[U.pv]
+        bad_status = (us[U.sp] & 0xC0) == BAD or (us[U.pv] & 0xC0) == BAD
+        if (not _is_word(sp, WORD_MIN, WORD_MAX, native)
+                or not _is_word(pv, WORD_MIN, WORD_MAX, native)
+                or (bad_status and p[P.ignore_status] == 0.0)):
+            return None
+        return man, _word(sp, native), _word(pv, native)
+
     def config_bits(self) -> dict[str, bool]:
         """The Config Word (word 13) bits by flag name."""
         prm = self.params
@@ -674,7 +798,7 @@ class GEPIDBlock(Block):
             return {name: bool(cw >> bit & 1) for bit, name in enumerate(CONFIG_FLAGS)}
         return {name: bool(prm[name]) for name in CONFIG_FLAGS}
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         native = prm["arithmetic"] == "native"
         bits = self.config_bits()
@@ -710,7 +834,7 @@ class GEPIDBlock(Block):
                              "ok = 0 instead")
         # Integral units: 1/integral_resolution per count; for the exact carry the natural
         # denominators of ΔI (10^-7 count for IND, 10^-9 for ISA), so that every ΔI is a whole
-        # number of units. ΔI [units] = numerator·UNIT_MUL/UNIT_DIV, where the numerator over
+        # number of units. ΔI [units] = numerator·unit_mul/unit_div, where the numerator over
         # 10^7 (IND, ISA staged bracket) or 10^9 (ISA combined) is ΔI in counts.
         res = float(prm["integral_resolution"])
         isa_staged = self.IS_ISA and prm["isa_division"] == "staged"
@@ -737,59 +861,57 @@ class GEPIDBlock(Block):
             tf = float(prm["derivative_filter_time"])
         else:
             tf = (words[7] / 100.0 if native else float(prm["td" if self.IS_ISA else "kd"])) / 10
-        c = [0.0] * N_COEFFS
-        c[ISA] = 1.0 if self.IS_ISA else 0.0
-        c[NATIVE] = 1.0 if native else 0.0
-        c[PERIOD] = max(words[3] * 100.0, MIN_PERIOD_TICKS)
-        c[DB_POS], c[DB_NEG] = db_pos, db_neg
-        c[G6], c[G7], c[G8] = g6, g7, g8
-        c[BIAS], c[UPPER], c[LOWER], c[SLEW] = bias, upper, lower, slew
-        for index, name in ((DIRECT, "direct_acting"), (INVERT, "invert_output"),
-                            (D_ON_PV, "derivative_on_pv"), (DB_SUB, "deadband_subtract"),
-                            (ARW_HOLD, "arw_hold"), (D_FILT, "derivative_filter")):
-            c[index] = 1.0 if bits[name] else 0.0
-        c[TF] = tf
-        c[UNITS] = units
-        c[UNIT_MUL] = unit_mul
-        c[UNIT_DIV] = unit_div
-        c[QUANT] = 1.0 if quant else 0.0
-        c[FLOOR] = 1.0 if prm["rounding"] == "floor" else 0.0
-        c[STAGED] = 1.0 if prm.get("isa_division") == "staged" else 0.0
-        c[OVR_SPPV] = 1.0 if prm["override_sp_pv"] else 0.0
-        c[TRACK_CV] = 1.0 if prm["manual_tracking"] == "cv" else 0.0
-        c[LAST0] = math.floor(float(prm["initial_last_solution"]) * TICKS_PER_S + 0.5)
-        c[LOAD_CLOCK] = 1.0 if prm["load_clock_at_start"] else 0.0
-        c[PARAM_ERR] = 1.0 if problem else 0.0
-        c[IGNORE_STATUS] = 1.0 if prm["bad_input"] == "ignore_status" else 0.0
-        c[SLEW_CARRY] = 1.0 if prm["slew_remainder"] else 0.0
-        c[SAT_SUM] = 1.0 if prm["saturate_sum"] else 0.0
-        c[PRIME_D] = 1.0 if prm["prime_derivative"] else 0.0
-        return c
+        flags = {"direct": "direct_acting", "invert": "invert_output",
+                 "d_on_pv": "derivative_on_pv", "db_sub": "deadband_subtract",
+                 "arw_hold": "arw_hold", "d_filt": "derivative_filter"}
+        return {
+            "isa": 1.0 if self.IS_ISA else 0.0,
+            "native": 1.0 if native else 0.0,
+            "period": max(words[3] * 100.0, MIN_PERIOD_TICKS),
+            "db_pos": db_pos, "db_neg": db_neg,
+            "g6": g6, "g7": g7, "g8": g8,
+            "bias": bias, "upper": upper, "lower": lower, "slew": slew,
+            **{key: 1.0 if bits[flag] else 0.0 for key, flag in flags.items()},
+            "tf": tf,
+            "units": units, "unit_mul": unit_mul, "unit_div": unit_div,
+            "quant": 1.0 if quant else 0.0,
+            "floor": 1.0 if prm["rounding"] == "floor" else 0.0,
+            "staged": 1.0 if prm.get("isa_division") == "staged" else 0.0,
+            "ovr_sppv": 1.0 if prm["override_sp_pv"] else 0.0,
+            "track_cv": 1.0 if prm["manual_tracking"] == "cv" else 0.0,
+            "last0": math.floor(float(prm["initial_last_solution"]) * TICKS_PER_S + 0.5),
+            "load_clock": 1.0 if prm["load_clock_at_start"] else 0.0,
+            "param_err": 1.0 if problem else 0.0,
+            "ignore_status": 1.0 if prm["bad_input"] == "ignore_status" else 0.0,
+            "slew_carry": 1.0 if prm["slew_remainder"] else 0.0,
+            "sat_sum": 1.0 if prm["saturate_sum"] else 0.0,
+            "prime_d": 1.0 if prm["prime_derivative"] else 0.0,
+        }
 
     def initial_state(self) -> list[float]:
         """A fresh reference array: internal words 0, words 24-26 = initial_last_solution;
         except that the output words start at the start value (:meth:`start_output`)."""
-        x = [0.0] * len(self.STATES)
-        x[W24] = self.p[LAST0]
+        x = [0.0] * self.n_x
+        x[X.last_solution] = self.p[P.last0]
         out = self.start_output()
-        cv = -out if self.p[INVERT] != 0.0 else out
-        x[W19] = out
-        x[S_CV] = cv
-        x[W17] = cv
-        x[W14] = cv if self.p[TRACK_CV] != 0.0 else out
+        cv = -out if self.p[P.invert] != 0.0 else out
+        x[X.output] = out
+        x[X.cv] = cv
+        x[X.internal_cv] = cv
+        x[X.manual_command] = cv if self.p[P.track_cv] != 0.0 else out
         return x
 
     def start_output(self) -> float:
         """Word 19 before the first solution: the Bias limited to the clamps, the output a
         first solution gives at zero error with the empty integral (issue 11 point 8); 0 (the
         fresh array) when the clamps are a parameter error, as the block never solves then."""
-        if self.p[PARAM_ERR] != 0.0:
+        if self.p[P.param_err] != 0.0:
             return 0.0
-        return float(min(max(self.p[BIAS], self.p[LOWER]), self.p[UPPER]))
+        return float(min(max(self.p[P.bias], self.p[P.lower]), self.p[P.upper]))
 
     def initial_outputs(self) -> list[float]:
         """CV and word 19 at their start values, ok = 0 (the block has not run)."""
-        return [float(self.x[S_CV]), float(self.x[W19]), 0.0]
+        return [float(self.x[X.cv]), float(self.x[X.output]), 0.0]
 
     def parameter_words(self) -> dict[int, int]:
         """The user words 3-13 of the reference array this block runs with (spec 1.2)."""

@@ -89,6 +89,20 @@ in velocity mode; ``dy`` is 0. Y lies in [BGUG, BGOG] (positioning) and dY too (
 except the 0 that REG_AUS writes (spec 2.10), a held 0 after it, and the velocity-mode
 HANDART 0 (spec 2.9).
 
+Retuning in Auto (issue 12 point 4)
+-----------------------------------
+The law is a correction-rate (velocity) law (spec 2.5): each call computes an increment dY_k
+from the differences PW_k, QW_k and the I element TI·XW_k, and positioning mode only sums the
+increments into DW 48 (spec 2.7). The output is never re-evaluated as a gain times the error
+(as a positional P + I + D would be), so a new ``k``, ``r``, ``ti`` or ``td`` (``set_params``
+between calls) does not bump Y: the next call adds the increment the new coefficients give,
+dY_k = K_new·(R_new·PW_k + TI_new·XW_k + dD_k) + dZ_k, to DW 48 as it was, with the histories
+as they were. At a steady error (PW = QW = 0) Y moves by K_new·TI_new·XW only (plus what is
+left of a decaying dD, which the new K multiplies as the law says). This is the vendor's
+behaviour, bumpless by construction, so there is no ``retune`` option. In velocity mode DW 48
+is the new increment itself; in Manual a change does nothing until Auto, which continues from
+DW 48 (spec 2.9).
+
 Arithmetic
 ----------
 ``arithmetic = "native"`` (default) is 16-bit fixed point: every input is rounded to the
@@ -200,6 +214,7 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
@@ -209,18 +224,36 @@ WORD_MIN = -32768.0
 WORD_MAX = 32767.0
 _WHOLE = 4503599627370496.0  # 2^52: every float64 at least this large is a whole number
 
-# Coefficient layout (p)
-(K, R, TI, TD, BGOG, BGUG, Y0, SCALE, NATIVE, ROUNDING, WRAP, DD_DECAY, ISUP, MANUAL_STEPS,
- FIRST_INPUTS, BAD_LAST, XZ_ON, VELOCITY, HOLD, NO_Z) = range(20)
 ROUND_NEAREST_EVEN, ROUND_NEAREST, ROUND_FLOOR, ROUND_TRUNCATE = 0.0, 1.0, 2.0, 3.0
 ISUP_RECOMPUTE, ISUP_FLAG, ISUP_NONE = 0.0, 1.0, 2.0
-# Inputs (u)
-W, X, Z, XZ, YH, AUTO, OFF = range(7)
-# Outputs (y)
-OUT_Y, OUT_DY = range(2)
-# State (x): DW 48, the history words, the last input words, flags
-(S_DW48, S_XW1, S_PW1, S_DD1, S_Z1, S_XZ1, S_PZ1, S_W, S_X, S_YH, S_MAN_N, S_LIM,
- S_FIRST) = range(13)
+
+INPUTS = (
+    Port("w", 0.0, "count", "setpoint W (DW 9)"),
+    Port("x", 0.0, "count", "actual value X (DW 22)"),
+    Port("z", 0.0, "count", "disturbance Z (DW 24), used unless no_z"),
+    Port("xz", 0.0, "count", "derivative input XZ (DW 29), used if xz_on"),
+    Port("yh", 0.0, "count", "manual value YH (positioning) or manual increment dYH "
+         "(velocity) (DW 12)"),
+    Port("auto", 1.0, "", "D 11.0: AUTO (1) automatic, MAN (0) manual (spec 2.9)",
+         choices=("MAN", "AUTO")),
+    Port("off", 0.0, "", "D 11.2 REG_AUS: OFF (1) clears DW 18..48 and suspends the "
+         "block, ACTIVE (0) runs it (spec 2.10)", choices=("ACTIVE", "OFF")),
+)
+OUTPUTS = (
+    Port("y", 0.0, "count", "DW 48: the position Y_k (positioning) or the increment dY_k "
+         "(velocity)"),
+    Port("dy", 0.0, "count", "change of the output this scan: Y_k - Y_{k-1} "
+         "(positioning) or dY_k (velocity)"),
+)
+#: the coefficient array p (coefficients())
+COEFFS = ("k", "r", "ti", "td", "bgog", "bgug", "y0", "scale", "native", "rounding", "wrap",
+          "dd_decay", "isup", "manual_steps", "first_inputs", "bad_last", "xz_on", "velocity",
+          "hold", "no_z")
+#: the state array x: DW 48, the history words, the last input words, flags
+STATES = ("dw48", "xw1", "pw1", "dd1", "z1", "xz1", "pz1", "w", "x", "yh", "manual_n", "limit",
+          "first")
+# XS, not X: X is the S5's actual value (DW 22), the input U.x
+P, XS, U, Y = index(COEFFS, "P"), index(STATES, "XS"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 _ROUNDINGS = ("nearest_even", "nearest", "floor", "truncate")
 _ISUPS = ("recompute", "flag", "none")
@@ -292,63 +325,64 @@ def _s5_hold(x: FloatArray, y: FloatArray, y_prev: float, velocity: bool) -> Non
     """A skipped scan (bad input): DW 48 is kept in positioning mode; velocity mode outputs
     a zero increment, so the actuator stays."""
     if velocity:
-        x[S_DW48] = 0.0
-        y[OUT_Y] = 0.0
-        y[OUT_DY] = 0.0
+        x[XS.dw48] = 0.0
+        y[Y.y] = 0.0
+        y[Y.dy] = 0.0
     else:
-        y[OUT_Y] = y_prev
-        y[OUT_DY] = 0.0
+        y[Y.y] = y_prev
+        y[Y.dy] = 0.0
 
 
 def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                   y: FloatArray, ys: IntArray) -> None:
     """One OB 251 call (equations in the module docstring). ``dt`` is not used: no clock.
     The S5 has no status: ``us`` is not read (the values alone decide)."""
-    native = p[NATIVE] != 0.0
-    wrap = p[WRAP] != 0.0
-    mode = p[ROUNDING]
-    scale = p[SCALE]
-    hi = p[BGOG]
-    lo = p[BGUG]
-    velocity = p[VELOCITY] != 0.0
-    xz_on = p[XZ_ON] != 0.0
-    use_z = p[NO_Z] == 0.0
-    y_prev = x[S_DW48]
-    if not finite(u[OFF]) or not finite(u[AUTO]):  # a control bit that is no bit: hold
+    native = p[P.native] != 0.0
+    wrap = p[P.wrap] != 0.0
+    mode = p[P.rounding]
+    scale = p[P.scale]
+    hi = p[P.bgog]
+    lo = p[P.bgug]
+    velocity = p[P.velocity] != 0.0
+    xz_on = p[P.xz_on] != 0.0
+    use_z = p[P.no_z] == 0.0
+    y_prev = x[XS.dw48]
+    if not finite(u[U.off]) or not finite(u[U.auto]):  # a control bit that is no bit: hold
         _s5_hold(x, y, y_prev, velocity)
         return
-    if u[OFF] > 0.5:  # REG_AUS: clear DW 18..48 and do not compute (spec 2.3, 2.10)
-        for i in (S_DW48, S_XW1, S_PW1, S_DD1, S_Z1, S_XZ1, S_PZ1, S_X, S_MAN_N, S_LIM):
+    if u[U.off] > 0.5:  # REG_AUS: clear DW 18..48 and do not compute (spec 2.3, 2.10)
+        for i in (XS.dw48, XS.xw1, XS.pw1, XS.dd1, XS.z1, XS.xz1, XS.pz1, XS.x, XS.manual_n,
+                  XS.limit):
             x[i] = 0.0
-        x[S_FIRST] = 1.0
-        y[OUT_Y] = 0.0
-        y[OUT_DY] = 0.0 if velocity else -y_prev
+        x[XS.first] = 1.0
+        y[Y.y] = 0.0
+        y[Y.dy] = 0.0 if velocity else -y_prev
         return
-    auto = u[AUTO] > 0.5
-    manual_follow = not auto and p[HOLD] == 0.0
-    last = p[BAD_LAST] != 0.0
+    auto = u[U.auto] > 0.5
+    manual_follow = not auto and p[P.hold] == 0.0
+    last = p[P.bad_last] != 0.0
     # inputs: a non-finite value takes the DB word's last content; the scan is bad when it is
     # one the scan uses and bad_input = hold
     bad = False
-    w = u[W]
+    w = u[U.w]
     if not finite(w):
-        w = x[S_W]
+        w = x[XS.w]
         bad = True
-    xv = u[X]
+    xv = u[U.x]
     if not finite(xv):
-        xv = x[S_X]
+        xv = x[XS.x]
         bad = True
-    z = u[Z]
+    z = u[U.z]
     if not finite(z):
-        z = x[S_Z1]
+        z = x[XS.z1]
         bad = bad or use_z
-    xz = u[XZ]
+    xz = u[U.xz]
     if not finite(xz):
-        xz = x[S_XZ1]
+        xz = x[XS.xz1]
         bad = bad or xz_on
-    yh = u[YH]
+    yh = u[U.yh]
     if not finite(yh):
-        yh = x[S_YH]
+        yh = x[XS.yh]
         bad = bad or manual_follow
     if bad and not last:  # bad_input = hold: skip the scan, keep every history
         _s5_hold(x, y, y_prev, velocity)
@@ -358,79 +392,79 @@ def s5_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     z = s5_input(z, native, wrap)
     xz = s5_input(xz, native, wrap)
     yh = s5_input(yh, native, wrap)
-    x[S_W] = w
-    x[S_X] = xv
-    x[S_YH] = yh
+    x[XS.w] = w
+    x[XS.x] = xv
+    x[XS.yh] = yh
     xw = s5_word(w - xv, native, wrap)
-    if x[S_FIRST] != 0.0 and p[FIRST_INPUTS] != 0.0:  # first_call = inputs: no kick
-        x[S_XW1] = xw
-        x[S_PW1] = 0.0
-        x[S_XZ1] = xz
-        x[S_PZ1] = 0.0
-        x[S_Z1] = z
-        x[S_DD1] = 0.0
-    x[S_FIRST] = 0.0
-    pw = s5_word(xw - x[S_XW1], native, wrap)
-    q = s5_word(pw - x[S_PW1], native, wrap)  # QW
+    if x[XS.first] != 0.0 and p[P.first_inputs] != 0.0:  # first_call = inputs: no kick
+        x[XS.xw1] = xw
+        x[XS.pw1] = 0.0
+        x[XS.xz1] = xz
+        x[XS.pz1] = 0.0
+        x[XS.z1] = z
+        x[XS.dd1] = 0.0
+    x[XS.first] = 0.0
+    pw = s5_word(xw - x[XS.xw1], native, wrap)
+    q = s5_word(pw - x[XS.pw1], native, wrap)  # QW
     pz = 0.0
     if xz_on:
-        pz = s5_word(xz - x[S_XZ1], native, wrap)
-        q = s5_word(pz - x[S_PZ1], native, wrap)  # QZ
+        pz = s5_word(xz - x[XS.xz1], native, wrap)
+        q = s5_word(pz - x[XS.pz1], native, wrap)  # QZ
     dz = 0.0
     if use_z:
-        dz = s5_word(z - x[S_Z1], native, wrap)
+        dz = s5_word(z - x[XS.z1], native, wrap)
     if auto:
-        dpw = s5_mul(p[R], pw, scale, native, mode, wrap)
-        di = s5_mul(p[TI], xw, scale, native, mode, wrap)
-        tq = s5_mul(p[TD], q, scale, native, mode, wrap)
-        dd = s5_mul(p[DD_DECAY], s5_word(tq + x[S_DD1], native, wrap), 1.0, native, mode, wrap)
+        dpw = s5_mul(p[P.r], pw, scale, native, mode, wrap)
+        di = s5_mul(p[P.ti], xw, scale, native, mode, wrap)
+        tq = s5_mul(p[P.td], q, scale, native, mode, wrap)
+        dd = s5_mul(p[P.dd_decay], s5_word(tq + x[XS.dd1], native, wrap), 1.0, native, mode, wrap)
         total = s5_word(s5_word(dpw + di, native, wrap) + dd, native, wrap)
-        dy = s5_word(s5_mul(p[K], total, scale, native, mode, wrap) + dz, native, wrap)
+        dy = s5_word(s5_mul(p[P.k], total, scale, native, mode, wrap) + dz, native, wrap)
         if velocity:  # spec 2.8: DW 48 = the limited increment (clamped below)
             v = dy
         else:
             # the unclamped Y_k = Y_{k-1} + dY_k is compared with the limits before anything
             # limits it (spec 2.8): a saturated sum could never exceed BGOG = 32767
             v = s5_sum(y_prev, dy, native, wrap)
-            push = p[K] * di  # the direction the I element moves the output
-            isup = p[ISUP]
+            push = p[P.k] * di  # the direction the I element moves the output
+            isup = p[P.isup]
             suppress = False
             if isup == ISUP_RECOMPUTE:
                 suppress = (v > hi and push > 0.0) or (v < lo and push < 0.0)
             elif isup == ISUP_FLAG:
-                suppress = (x[S_LIM] > 0.0 and push > 0.0) or (x[S_LIM] < 0.0 and push < 0.0)
+                suppress = (x[XS.limit] > 0.0 and push > 0.0) or (x[XS.limit] < 0.0 and push < 0.0)
             if suppress:  # spec 2.8: recompute with dI = 0
                 total = s5_word(s5_word(dpw, native, wrap) + dd, native, wrap)
-                dy = s5_word(s5_mul(p[K], total, scale, native, mode, wrap) + dz, native, wrap)
+                dy = s5_word(s5_mul(p[P.k], total, scale, native, mode, wrap) + dz, native, wrap)
                 v = s5_sum(y_prev, dy, native, wrap)
-        x[S_DD1] = dd
-        x[S_MAN_N] = 0.0
+        x[XS.dd1] = dd
+        x[XS.manual_n] = 0.0
     else:  # Manual (spec 2.9): no algorithm; dD_{k-1} = 0
         if velocity:
-            v = 0.0 if p[HOLD] != 0.0 else yh
-        elif p[HOLD] != 0.0:
+            v = 0.0 if p[P.hold] != 0.0 else yh
+        elif p[P.hold] != 0.0:
             v = y_prev
-        elif x[S_MAN_N] < p[MANUAL_STEPS]:
+        elif x[XS.manual_n] < p[P.manual_steps]:
             gap = s5_word(yh - y_prev, native, wrap)
             v = s5_word(y_prev + s5_mul(0.5, gap, 1.0, native, mode, wrap), native, wrap)
-            x[S_MAN_N] = x[S_MAN_N] + 1.0
+            x[XS.manual_n] = x[XS.manual_n] + 1.0
         else:
             v = yh
-        x[S_DD1] = 0.0
+        x[XS.dd1] = 0.0
     # spec 2.8, 2.9: the limits bound Y or dY, in Manual too; HANDART = 1 in velocity mode
     # is dYA = 0 (the actuator stays) whatever the limits
-    out = 0.0 if velocity and not auto and p[HOLD] != 0.0 else clamp(v, lo, hi)
-    x[S_LIM] = 1.0 if v >= hi else (-1.0 if v <= lo else 0.0)
-    x[S_XW1] = xw
-    x[S_PW1] = pw
+    out = 0.0 if velocity and not auto and p[P.hold] != 0.0 else clamp(v, lo, hi)
+    x[XS.limit] = 1.0 if v >= hi else (-1.0 if v <= lo else 0.0)
+    x[XS.xw1] = xw
+    x[XS.pw1] = pw
     if xz_on:
-        x[S_XZ1] = xz
-        x[S_PZ1] = pz
+        x[XS.xz1] = xz
+        x[XS.pz1] = pz
     if use_z:
-        x[S_Z1] = z
-    x[S_DW48] = out
-    y[OUT_Y] = out
-    y[OUT_DY] = out if velocity else out - y_prev
+        x[XS.z1] = z
+    x[XS.dw48] = out
+    y[Y.y] = out
+    y[Y.dy] = out if velocity else out - y_prev
 
 
 def _word_param(name: str, default: int, meaning: str, lo: float = WORD_MIN,
@@ -498,61 +532,44 @@ class S5PID(Block):
               "scan) or last (use the last finite value, as the DB word keeps it) (spec 7: "
               "the S5 has no status)", "choice", choices=("hold", "last")),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("w", 0.0, "count", "setpoint W (DW 9)"),
-        Port("x", 0.0, "count", "actual value X (DW 22)"),
-        Port("z", 0.0, "count", "disturbance Z (DW 24), used unless no_z"),
-        Port("xz", 0.0, "count", "derivative input XZ (DW 29), used if xz_on"),
-        Port("yh", 0.0, "count", "manual value YH (positioning) or manual increment dYH "
-             "(velocity) (DW 12)"),
-        Port("auto", 1.0, "", "D 11.0: AUTO (1) automatic, MAN (0) manual (spec 2.9)",
-             choices=("MAN", "AUTO")),
-        Port("off", 0.0, "", "D 11.2 REG_AUS: OFF (1) clears DW 18..48 and suspends the "
-             "block, ACTIVE (0) runs it (spec 2.10)", choices=("ACTIVE", "OFF")),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("y", 0.0, "count", "DW 48: the position Y_k (positioning) or the increment dY_k "
-             "(velocity)"),
-        Port("dy", 0.0, "count", "change of the output this scan: Y_k - Y_{k-1} "
-             "(positioning) or dY_k (velocity)"),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "dw48", "xw1", "pw1", "dd1", "z1", "xz1", "pz1", "w", "x", "yh", "manual_n", "limit",
-        "first")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, float]:
         prm: dict[str, Any] = self.params
         if prm["bgug"] > prm["bgog"]:
             raise ParameterError(
                 f"s5.pid: parameter 'bgug' = {prm['bgug']} is out of range: allowed "
                 f"[-32768, {prm['bgog']}] (at most bgog)")
-        c = [0.0] * 20
-        c[K], c[R], c[TI], c[TD] = (float(prm[n]) for n in ("k", "r", "ti", "td"))
-        c[BGOG], c[BGUG], c[Y0] = float(prm["bgog"]), float(prm["bgug"]), float(prm["y0"])
-        c[SCALE] = 1024.0 if prm["scale"] == "exact" else 1000.0
-        c[NATIVE] = 1.0 if prm["arithmetic"] == "native" else 0.0
-        c[ROUNDING] = float(_ROUNDINGS.index(prm["rounding"]))
-        c[WRAP] = 1.0 if prm["overflow"] == "wrap" else 0.0
-        c[DD_DECAY] = float(prm["dd_decay"])
-        c[ISUP] = float(_ISUPS.index(prm["i_suppression"]))
-        c[MANUAL_STEPS] = float(prm["manual_steps"])
-        c[FIRST_INPUTS] = 1.0 if prm["first_call"] == "inputs" else 0.0
-        c[BAD_LAST] = 1.0 if prm["bad_input"] == "last" else 0.0
-        for index, flag in ((XZ_ON, "xz_on"), (VELOCITY, "velocity"), (HOLD, "hold"),
-                            (NO_Z, "no_z")):
-            c[index] = 1.0 if prm[flag] else 0.0
-        return c
+        return {"k": float(prm["k"]), "r": float(prm["r"]), "ti": float(prm["ti"]),
+                "td": float(prm["td"]), "bgog": float(prm["bgog"]), "bgug": float(prm["bgug"]),
+                "y0": float(prm["y0"]),
+                "scale": 1024.0 if prm["scale"] == "exact" else 1000.0,
+                "native": 1.0 if prm["arithmetic"] == "native" else 0.0,
+                "rounding": float(_ROUNDINGS.index(prm["rounding"])),
+                "wrap": 1.0 if prm["overflow"] == "wrap" else 0.0,
+                "dd_decay": float(prm["dd_decay"]),
+                "isup": float(_ISUPS.index(prm["i_suppression"])),
+                "manual_steps": float(prm["manual_steps"]),
+                "first_inputs": 1.0 if prm["first_call"] == "inputs" else 0.0,
+                "bad_last": 1.0 if prm["bad_input"] == "last" else 0.0,
+                "xz_on": 1.0 if prm["xz_on"] else 0.0,
+                "velocity": 1.0 if prm["velocity"] else 0.0,
+                "hold": 1.0 if prm["hold"] else 0.0,
+                "no_z": 1.0 if prm["no_z"] else 0.0}
 
     def initial_state(self) -> list[float]:
         """The DB before the first call: histories 0 (spec 2.10); DW 48 = the ``y0`` preset,
         limited to [BGUG, BGOG] (the limits are always active, spec 2.9) in positioning mode,
         0 (no increment) in velocity mode."""
-        x = [0.0] * len(self.STATES)
-        if self.p[VELOCITY] == 0.0:
-            x[S_DW48] = min(max(self.p[Y0], self.p[BGUG]), self.p[BGOG])
-        x[S_FIRST] = 1.0
+        x = [0.0] * self.n_x
+        if self.p[P.velocity] == 0.0:
+            x[XS.dw48] = min(max(self.p[P.y0], self.p[P.bgug]), self.p[P.bgog])
+        x[XS.first] = 1.0
         return x
 
     def initial_outputs(self) -> list[float]:
         """Before the first call y is DW 48 (the preset Y, or no increment) and dy is 0."""
-        return [float(self.x[S_DW48]), 0.0]
+        return [float(self.x[XS.dw48]), 0.0]

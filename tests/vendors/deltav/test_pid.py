@@ -26,16 +26,7 @@ import loopworks
 from loopworks.blocks.block import Block
 from loopworks.cli import app
 from loopworks.errors import ParameterError
-from loopworks.vendors.deltav.pid import MODE_ACTUAL as MODE_ACTUAL_I
-from loopworks.vendors.deltav.pid import MODE_TARGET as MODE_TARGET_I
-from loopworks.vendors.deltav.pid import (
-    OUT_EU0,
-    OUT_EU_PER_PCT,
-    OUT_HI,
-    OUT_LO,
-    deltav_pid_kernel,
-    series_to_standard,
-)
+from loopworks.vendors.deltav.pid import P, Y, deltav_pid_kernel, series_to_standard
 from tests.csvfiles import write_csv
 from tests.properties.strategies import Case, cases
 
@@ -958,8 +949,8 @@ def test_kernel_is_sound_by_itself_and_out_within_limits(case: Case) -> None:
     unless "No OUT limits in Manual" with target Man."""
     b = loopworks.create_block("deltav.pid", jit=False, **case.params)
     single = b.params["precision"] == "float32"
-    lo = b.p[OUT_EU0] + b.p[OUT_LO] * b.p[OUT_EU_PER_PCT]
-    hi = b.p[OUT_EU0] + b.p[OUT_HI] * b.p[OUT_EU_PER_PCT]
+    lo = b.p[P.out_eu0] + b.p[P.out_lo] * b.p[P.out_eu_per_pct]
+    hi = b.p[P.out_eu0] + b.p[P.out_hi] * b.p[P.out_eu_per_pct]
     if single:
         lo, hi = float(np.float32(lo)), float(np.float32(hi))
     free_man = bool(b.params["no_out_limits_manual"])
@@ -970,6 +961,136 @@ def test_kernel_is_sound_by_itself_and_out_within_limits(case: Case) -> None:
         where = f"scan {k}, params {case.params}, inputs {inputs}"
         assert np.isfinite(b.x).all(), where
         assert np.isfinite(b.y).all(), where
-        actual, target = b.y[MODE_ACTUAL_I], b.y[MODE_TARGET_I]
+        actual, target = b.y[Y.mode_actual], b.y[Y.mode_target]
         if actual in (AUTO, CAS) or (actual == MAN and not (free_man and target == MAN)):
             assert lo <= b.y[0] <= hi, where
+
+
+# ----------------------------------------------------------------------------------------------
+# Retuning in Auto (issue 12 point 4): the option retune = vendor | bumpless
+# ----------------------------------------------------------------------------------------------
+# The DV1 loop (spec 4.8): GAIN 1, RESET 10 s, dt 1 s, SP 50, PV 40 (e = +10 %), from OUT = R =
+# 50. Two Auto scans give OUT 60, 61 (R 50, 51); the old tuning's third scan gives 62 (R 52).
+# Each change, with the P term the spec gives at SP% = 50, PV% = 40 (spec 4.7 step 5,
+# P = s·GAIN·(β·SP% - PV%)): old P = 1·1·(50 - 40) = 10.
+RETUNES: list[tuple[dict[str, Any], dict[str, Any], float, float]] = [
+    # (params, change, P_new, the new tuning's reset step a·Pe_new = 0.1·s·GAIN·(SP% - PV%))
+    ({}, {"gain": 2.0}, 2.0 * (50.0 - 40.0), 0.1 * 2.0 * 10.0),
+    ({}, {"direct_acting": True}, -1.0 * (50.0 - 40.0), 0.1 * -1.0 * 10.0),
+    ({"structure": "two_degrees_of_freedom", "beta": 1.0, "gamma": 0.0}, {"beta": 0.5},
+     0.5 * 50.0 - 40.0, 0.1 * 10.0),
+]
+
+
+def dv1_two_scans(block: Block) -> None:
+    steady(block)
+    assert values(block, "out", 2, mode="AUTO", pv=40.0) == [60.0, 61.0]
+
+
+@pytest.mark.parametrize(("params", "change", "p_new", "step"), RETUNES)
+def test_retune_vendor_jumps_by_the_p_change(make: Make, params: dict[str, Any],
+                                             change: dict[str, Any], p_new: float,
+                                             step: float) -> None:
+    """retune = vendor (default): the new coefficients act on the law as it is (spec 4.2,
+    4.7 steps 5, 7, 9: OUT = P + D + R + FF, R_k from the previous scan's terms), so the first
+    scan after the change is the old tuning's 62 plus P_new - P_old; then R moves by the new
+    tuning's step each scan."""
+    b = make(gain=1.0, reset=10.0, **params, **F64)
+    assert b.params["retune"] == "vendor"
+    dv1_two_scans(b)
+    b.set_params(**change)
+    got = [run(b) for _ in range(3)]
+    # R_3 = R_2 + a·(F_2 - R_2), F_2 = OUT_2 - (P_2 - Pe_2) = 61: 51 + 0.1·10 = 52, as before
+    assert got[0]["r_term"][0] == pytest.approx(52.0, abs=1e-12)
+    assert got[0]["p_term"][0] == pytest.approx(p_new, abs=1e-12)
+    assert got[0]["out"][0] == pytest.approx(62.0 + (p_new - 10.0), abs=1e-12)
+    out = [r["out"][0] for r in got]
+    assert out[1] - out[0] == pytest.approx(step, abs=1e-12)
+    assert out[2] - out[1] == pytest.approx(step, abs=1e-12)
+
+
+@pytest.mark.parametrize(("params", "change", "p_new", "step"), RETUNES)
+def test_retune_bumpless_gives_the_old_output_then_the_new_law(
+        make: Make, params: dict[str, Any], change: dict[str, Any], p_new: float,
+        step: float) -> None:
+    """retune = bumpless (DiscretePIDs.jl set_K!): R moves by P_old - P_new at the latched SP
+    and PV, so the first scan gives the old tuning's 62 (R_3 = 52 + 10 - P_new, spec 4.7 step
+    7 with F_2 - R_2 unchanged) and the loop then follows the new tuning, 62 + step, ..."""
+    b = make(gain=1.0, reset=10.0, retune="bumpless", **params, **F64)
+    dv1_two_scans(b)
+    b.set_params(**change)
+    got = [run(b) for _ in range(3)]
+    assert got[0]["p_term"][0] == pytest.approx(p_new, abs=1e-12)
+    assert got[0]["r_term"][0] == pytest.approx(52.0 + 10.0 - p_new, abs=1e-12)
+    assert [r["out"][0] for r in got] == pytest.approx([62.0, 62.0 + step, 62.0 + 2 * step],
+                                                       abs=1e-12)
+    assert got[0]["out"][1] == GOOD
+
+
+@pytest.mark.parametrize("form", ["standard", "series"])
+@pytest.mark.parametrize("mode", ["AUTO", "CAS"])
+@pytest.mark.parametrize("limited", [False, True])
+def test_retune_bumpless_float32_within_the_resolution(make: Make, form: str, mode: str,
+                                                       limited: bool) -> None:
+    """float32 (spec 4.1 [A]): with retune = bumpless the first scan after a change of GAIN
+    and STRUCTURE/BETA gives the output a block kept on the old tuning gives, within 2
+    float32 steps of the largest term (R and P are stored rounded); with D, in Auto and Cas,
+    and at the output limit with the ARW window (spec 4.4)."""
+    params: dict[str, Any] = {
+        "form": form, "gain": 1.3, "reset": 7.0, "rate": 1.5,
+        "structure": "two_degrees_of_freedom", "beta": 0.8, "gamma": 0.4}
+    if limited:
+        params |= {"out_hi_lim": 70.0, "arw_hi_lim": 60.0}
+    new, old = (make(retune="bumpless", **params) for _ in range(2))
+    inputs = {"mode": mode, "sp": 57.3, "cas_in": 57.3, "pv": 41.9}
+    for blk in (new, old):
+        steady(blk, 55.0, 57.3, 41.9, dt=0.5)
+        for _ in range(12):
+            run(blk, 0.5, **inputs)
+    assert np.array_equal(new.x, old.x)
+    if limited:
+        assert run(old, 0.5)["out"][1] == GOOD_HIGH and run(new, 0.5)["out"][1] == GOOD_HIGH
+    new.set_params(gain=2.7, beta=0.3)
+    got, want = run(new, 0.5), run(old, 0.5)
+    assert got["p_term"][0] != want["p_term"][0]
+    size = max(abs(got[k][0]) for k in ("out", "p_term", "r_term", "d_term"))
+    assert abs(got["out"][0] - want["out"][0]) <= 2 * np.spacing(np.float32(size))
+
+
+def test_retune_bumpless_gamma_change_gives_no_derivative_kick(make: Make) -> None:
+    """Two degrees of freedom, RATE 2, e = 0 at SP = PV = 50: GAMMA 1 -> 0.9 makes d = γ·SP% -
+    PV% step from 0 to -5. retune = vendor: D = s·GAIN·RATE·Δd/(α·RATE + dt) = 2·(-5)/1.25 =
+    -8, OUT 42 (spec 4.7 step 6); bumpless re-bases d_{k-1}: no kick, OUT stays 50."""
+    for retune, want in (("vendor", 42.0), ("bumpless", 50.0)):
+        b = make(structure="two_degrees_of_freedom", beta=1.0, gamma=1.0, gain=1.0,
+                 reset=10.0, rate=2.0, retune=retune, **F64)
+        steady(b)
+        assert run(b, mode="AUTO")["out"][0] == 50.0
+        b.set_params(gamma=0.9)
+        r = run(b)
+        assert r["out"][0] == pytest.approx(want, abs=1e-12), retune
+
+
+@pytest.mark.parametrize("retune", ["vendor", "bumpless"])
+def test_retune_in_man_does_nothing_special(make: Make, retune: str) -> None:
+    """In Man nothing is corrected (spec 4.5, 4.7 step 10): the state is untouched, OUT stays
+    the operator's, and the next Man scan back-initialises R = OUT - P_new = 50 - 20 = 30, so
+    the first Auto scan gives P + R_1 = 20 + 30 + 0.1·(50 - 30) = 52 = OUT + a·Pe_new."""
+    b = make(gain=1.0, reset=10.0, retune=retune, **F64)
+    steady(b, 50.0, 50.0, 40.0)
+    before = b.x.copy()
+    b.set_params(gain=2.0)
+    assert np.array_equal(b.x, before)
+    r = run(b, mode="MAN")
+    assert (r["out"][0], r["r_term"][0]) == (50.0, 30.0)
+    assert run(b, mode="AUTO")["out"][0] == pytest.approx(52.0, abs=1e-12)
+
+
+def test_retune_bumpless_ignores_changes_outside_p(make: Make) -> None:
+    """RESET, RATE and the other coefficients outside P act on increments: bumpless leaves
+    the state as it is (the next scan is the vendor's)."""
+    b = make(gain=1.0, reset=10.0, retune="bumpless", **F64)
+    dv1_two_scans(b)
+    before = b.x.copy()
+    b.set_params(reset=20.0, rate=1.0, out_hi_lim=90.0)
+    assert np.array_equal(b.x, before)

@@ -116,10 +116,10 @@ moves lines 8 and 26 one scan late (NOISE_BAND from last scan's DITHER_AMP, SIGN
 last scan's KICKER_DELT and DITHER_DELT).
 
 The kernel is a small stack machine: the text is compiled (at construction) into a flat
-program of (opcode, argument) pairs stored in the coefficient array ``p`` after a header
-(``PRECISION, DEFERRED, DIV_IEEE, N_OUT, STACK, CODE_LEN``), and each scan interprets it on a
-value stack sized for the program. Jumps implement IF/ELSIF/ELSE. Outputs live in the state
-array (values, then statuses), so they persist between scans and resume from
+program of (opcode, argument) pairs stored in the coefficient array ``p`` (``code``, after a
+header: ``precision, deferred, div_ieee, n_out, stack, code_len``), and each scan interprets it
+on a value stack sized for the program. Jumps implement IF/ELSIF/ELSE. Outputs live in the
+state array (values, then statuses), so they persist between scans and resume from
 ``state_dict``.
 One compiled kernel serves every text (a compiled block steps through the kernel's standard
 entry point rather than a wrapper specialised to its array sizes, so a new text costs no numba
@@ -238,6 +238,7 @@ import numpy as np
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import Array, index
 from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.primitives import finite
 from loopworks.blocks.registry import register
@@ -274,9 +275,27 @@ from loopworks.vendors.deltav.expression import (
     parse,
 )
 
-# Coefficient layout (p): a header, then the program's (opcode, argument) pairs from CODE on.
-PRECISION, DEFERRED, DIV_IEEE, N_OUT, STACK, CODE_LEN = range(6)
-CODE = 6
+
+def _compile(prog: Program) -> Compiled:
+    """The stack-machine program of a parsed text: its inputs (the names it only reads) and
+    its outputs (the names it assigns) are numbered in the order of their first reference."""
+    inputs = [name for name in prog.names if name not in prog.written]
+    outputs = [name for name in prog.names if name in prog.written]
+    return compile_program(prog, {name: i for i, name in enumerate(inputs)},
+                           {name: i for i, name in enumerate(outputs)})
+
+
+def code_size(prm: Mapping[str, Any]) -> int:
+    """The number of floats of the compiled program of the text ``prm["expression"]``."""
+    return len(_compile(parse(prm["expression"])).code)
+
+
+#: the coefficient array p (coefficients()): a header, then the compiled program, whose size
+#: follows the text (an instance declares it from the program it compiled, _Layout.coeffs)
+HEADER = ("precision", "deferred", "div_ieee", "n_out", "stack", "code_len")
+CODE_MEANING = "2 per instruction of the compiled expression: its (opcode, argument) pairs"
+COEFFS = (*HEADER, Array("code", code_size, CODE_MEANING))
+P = index(COEFFS, "P")
 
 FLOAT32_MAX = 3.4028234663852886e38
 """The largest float32, DeltaV's 3.402823466e+38 (the result of x/0)."""
@@ -357,19 +376,19 @@ def calc_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntA
     not finite. Immediate reads see ``cur``; deferred reads see x, the values at the start of
     the scan. A value is stored only when it is finite (module docstring, "Non-finite
     values")."""
-    n = int(p[N_OUT])
-    f32 = p[PRECISION] != 0.0
-    deferred = p[DEFERRED] != 0.0
-    ieee = p[DIV_IEEE] != 0.0
+    n = int(p[P.n_out])
+    f32 = p[P.precision] != 0.0
+    deferred = p[P.deferred] != 0.0
+    ieee = p[P.div_ieee] != 0.0
     cur = x[:2 * n].copy()
     held = np.zeros(n)
-    stack = np.empty(int(p[STACK]))
+    stack = np.empty(int(p[P.stack]))
     top = 0
     pc = 0
-    end = int(p[CODE_LEN])
+    end = int(p[P.code_len])
     while pc < end:
-        op = int(p[CODE + pc])
-        arg = p[CODE + pc + 1]
+        op = int(p[P.code + pc])
+        arg = p[P.code + pc + 1]
         pc += 2
         if op == OP_CONST:
             stack[top] = arg
@@ -533,10 +552,11 @@ class _Layout:
                 inputs.append(Port(name, default, unit, label, status=name in prog.status_read))
         self.inputs = tuple(inputs)
         self.outputs = tuple(outputs)
+        # the output values, then their statuses ("signal_out.st"): the kernel finds them by
+        # the program's output numbers, so they are names for state() only, not an index
         self.states = tuple(p.name for p in outputs) + tuple(f"{p.name}.st" for p in outputs)
-        self.compiled: Compiled = compile_program(
-            prog, {p.name: i for i, p in enumerate(inputs)},
-            {p.name: i for i, p in enumerate(outputs)})
+        self.compiled: Compiled = _compile(prog)
+        self.coeffs = (*HEADER, Array("code", len(self.compiled.code), CODE_MEANING))
 
 
 def _layout(text: Any, given: Mapping[str, Any], kind: str) -> _Layout:
@@ -590,6 +610,7 @@ class Calc(Block):
     PARAMS: ClassVar[tuple[Param, ...]] = _SEED.params
     INPUTS: ClassVar[tuple[Port, ...]] = _SEED.inputs
     OUTPUTS: ClassVar[tuple[Port, ...]] = _SEED.outputs
+    COEFFS: ClassVar[tuple[Any, ...]] = COEFFS
     STATES: ClassVar[tuple[str, ...]] = _SEED.states
 
     def __init__(self, *, jit: bool | None = None, **params: Any) -> None:
@@ -598,10 +619,11 @@ class Calc(Block):
         self.program: Program = layout.prog
         self._layout = layout
         self.__dict__.update(PARAMS=layout.params, INPUTS=layout.inputs,
-                             OUTPUTS=layout.outputs, STATES=layout.states)
+                             OUTPUTS=layout.outputs, COEFFS=layout.coeffs,
+                             STATES=layout.states)
         super().__init__(jit=jit, **params)
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm = self.params
         if prm["precision"] == "float32":
             for port in (*self.INPUTS, *self.OUTPUTS):
@@ -612,11 +634,11 @@ class Calc(Block):
                         f"{FLOAT32_OVERFLOW:g}), i.e. values that round to a finite float32 "
                         "(precision = float32, spec 6.1)")
         code = self._layout.compiled
-        return [1.0 if prm["precision"] == "float32" else 0.0,
-                1.0 if prm["deferred_param_reads"] else 0.0,
-                1.0 if prm["divide_by_zero"] == "ieee" else 0.0,
-                float(len(self.OUTPUTS)), float(code.stack), float(len(code.code)),
-                *code.code]
+        return {"precision": 1.0 if prm["precision"] == "float32" else 0.0,
+                "deferred": 1.0 if prm["deferred_param_reads"] else 0.0,
+                "div_ieee": 1.0 if prm["divide_by_zero"] == "ieee" else 0.0,
+                "n_out": float(len(self.OUTPUTS)), "stack": float(code.stack),
+                "code_len": float(len(code.code)), "code": code.code}
 
     def initial_state(self) -> list[float]:
         """Outputs start at their initial values (stored: rounded to float32 in that

@@ -184,6 +184,11 @@ Each is a parameter whose default is the spec's choice:
   D, R, FF, OUT) are rounded to IEEE single precision, the DeltaV float; the arithmetic inside
   one formula is double) | ``float64``. Spec 4.1 [A].
 * ``initial_out``: the output before the first scan (OUT EU; default OUT_SCALE 0 %).
+* ``retune`` = ``vendor`` (a tuning change in Auto/Cas, ``set_params``, acts on the law as it
+  is: OUT jumps by the P term's change; the spec says nothing of retuning [A]) | ``bumpless``
+  (R moves by P_old - P_new at the latched SP and PV, so the next scan gives the output the
+  old tuning would have; DiscretePIDs.jl ``set_K!``). Spec 4.2, 4.7 steps 5, 7, 9; see
+  ``DeltaVPID.set_params``.
 * Defaults [?] (spec 4.1): GAIN 1 and RESET inf (the Emerson FF PID defaults, R58); STRUCTURE
   ``pi_action_on_error_d_action_on_pv``; BETA = GAMMA = 1; SP limits and OUT limits = the
   scale ends; ARW limits = the OUT limits (the 16x rule then never acts); FF_GAIN 0.
@@ -238,6 +243,7 @@ import numpy as np
 from loopworks.blocks.block import Block
 from loopworks.blocks.forms import series_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite, lag_step
 from loopworks.blocks.registry import register
@@ -264,32 +270,60 @@ from loopworks.blocks.status import (
 )
 from loopworks.errors import ParameterError
 
-# Coefficient layout (p)
-(GAIN, RESET, RATE, ALPHA, BETA, GAMMA, HAS_P, HAS_I, SERIES, D_FACTOR, SIGN,
- PV_EU0, PV_K, OUT_EU0, OUT_K, OUT_EU_PER_PCT, FF_EU0, FF_K, TRK_EU0, TRK_K,
- SP_LO, SP_HI, SP_RATE_UP, SP_RATE_DN, SP_FTIME, PV_FTIME, OUT_LO, OUT_HI, ARW_LO, ARW_HI,
- BKCAL_HYS, IDEADBAND, FF_GAIN, FF_ORDER, RESET_LAW, FILTER_LAW, DERIV_LAW, FEEDBACK,
- FF_IN_FEEDBACK, BIAS_MODE, BIAS, BAL_TIME, SINGLE,
- TRACK_ENABLE, TRACK_IN_MANUAL, SP_PV_TRACK_MAN, SP_PV_TRACK_LO_IMAN, SP_TRACK_RETAINED,
- USE_PV_FOR_BKCAL, OBEY_SP_LIMITS, NO_OUT_LIMITS_MAN, DYNAMIC_RESET,
- IFS_IF_BAD_IN, IFS_IF_BAD_CAS_IN, UNCERTAIN_AS_GOOD, TARGET_TO_MAN, TARGET_TO_NEXT) = range(57)
-N_COEFFS = 57
 EULER, BACKWARD, EXACT = 0.0, 1.0, 2.0
 FEEDBACK_ERROR, FEEDBACK_OUTPUT = 0.0, 1.0
 GAIN_THEN_SCALE, SCALE_THEN_GAIN = 0.0, 1.0
 BIAS_BUMPLESS, BIAS_FIXED = 0.0, 1.0
-# Inputs (u, us)
-PV, SP, CAS_IN, BKCAL_IN, FF_VAL, TRK_IN_D, TRK_VAL, MAN_OUT, MODE = range(9)
 # Mode codes (inputs and outputs)
 MODES = ("OOS", "IMAN", "LO", "MAN", "AUTO", "CAS")
 OOS, IMAN, LO, MAN, AUTO, CAS = 0.0, 1.0, 2.0, 3.0, 4.0, 5.0
-# Outputs (y, ys)
-(OUT, BKCAL_OUT, FILTERED_PV, WORKING_SP, MODE_ACTUAL, MODE_TARGET, P_TERM, D_TERM, R_TERM,
- FF_TERM) = range(10)
-# State (x)
-(S_TARGET, S_MODE_SEEN, S_SP_PARAM, S_SP_SEEN, S_MAN_SEEN, S_SP_RAMP, S_SP_FILT, S_PV, S_PV_OK,
- S_OUT, S_R, S_P, S_PE, S_D, S_DSIG, S_FF, S_FF_HOLD, S_LIM, S_INIT, S_FIRST, S_MODE_SEEN_OK,
- S_SP_SEEN_OK, S_MAN_SEEN_OK) = range(23)
+_PCT = "%"
+
+INPUTS = (
+    Port("pv", 0.0, "EU", "IN: the process input, PV_SCALE EU", status=True),
+    Port("sp", 0.0, "EU", "operator SP write (a new value is written; NaN = none)"),
+    Port("cas_in", math.nan, "EU", "CAS_IN: cascade setpoint (Cas)", status=True),
+    Port("bkcal_in", math.nan, "EU", "BKCAL_IN: downstream BKCAL_OUT (OUT_SCALE EU); its "
+         "status drives IMan", status=True),
+    Port("ff_val", 0.0, "EU", "FF_VAL: feedforward input, FF_SCALE EU", status=True),
+    Port("trk_in_d", 0.0, "", "TRK_IN_D: track switch (> 0.5 = track)", status=True),
+    Port("trk_val", math.nan, "EU", "TRK_VAL: output in LO, TRK_SCALE EU", status=True),
+    Port("man_out", math.nan, "EU", "operator OUT write in Man/OOS (a new value is "
+         "written; NaN = none)"),
+    Port("mode", AUTO, "", "MODE.TARGET write: OOS, MAN, AUTO or CAS (IMAN/LO rejected)",
+         choices=MODES),
+)
+OUTPUTS = (
+    Port("out", 0.0, "EU", "OUT, OUT_SCALE EU", status=True),
+    Port("bkcal_out", 0.0, "EU", "BKCAL_OUT: working SP (or PV), PV_SCALE EU", status=True),
+    Port("filtered_pv", 0.0, "EU", "PV: IN after PV_FTIME; status follows IN", status=True),
+    Port("working_sp", 0.0, "EU", "working SP after limits, ramp and SP_FTIME"),
+    Port("mode_actual", 0.0, "", "MODE.ACTUAL code: OOS 0, IMAN 1, LO 2, MAN 3, AUTO 4, "
+         "CAS 5", choices=MODES),
+    Port("mode_target", 0.0, "", "MODE.TARGET code (same codes)", choices=MODES),
+    Port("p_term", 0.0, _PCT, "P contribution, % of OUT span"),
+    Port("d_term", 0.0, _PCT, "D contribution, % of OUT span"),
+    Port("r_term", 0.0, _PCT, "reset contribution R (external reset state), %"),
+    Port("ff_term", 0.0, _PCT, "FF contribution, %"),
+)
+#: the CONTROL_OPTS and STATUS_OPTS flags, each a coefficient under its parameter's name
+FLAGS = ("track_enable", "track_in_manual", "sp_pv_track_man", "sp_pv_track_lo_iman",
+         "sp_track_retained_target", "use_pv_for_bkcal_out", "obey_sp_limits_cas",
+         "no_out_limits_manual", "dynamic_reset_limit", "ifs_if_bad_in", "ifs_if_bad_cas_in",
+         "use_uncertain_as_good", "target_to_man_if_bad_in", "target_to_next_if_bad_cas_in")
+#: the coefficient array p (coefficients()): % of span values, the law switches, the flags
+COEFFS = ("gain", "reset", "rate", "alpha", "beta", "gamma", "has_p", "has_i", "series",
+          "d_factor", "sign", "pv_eu0", "pv_k", "out_eu0", "out_k", "out_eu_per_pct", "ff_eu0",
+          "ff_k", "trk_eu0", "trk_k", "sp_lo", "sp_hi", "sp_rate_up", "sp_rate_dn", "sp_ftime",
+          "pv_ftime", "out_lo", "out_hi", "arw_lo", "arw_hi", "bkcal_hys", "ideadband",
+          "ff_gain", "ff_order", "reset_law", "filter_law", "deriv_law", "feedback",
+          "ff_in_feedback", "bias_mode", "bias", "bal_time", "single", *FLAGS)
+#: the state array x
+STATES = (
+    "target", "mode_seen", "sp_param", "sp_seen", "man_seen", "sp_ramp", "sp_filtered",
+    "pv", "pv_ok", "out_pct", "r", "p", "pe", "d", "d_signal", "ff", "ff_hold",
+    "limit", "init", "first", "mode_seen_ok", "sp_seen_ok", "man_seen_ok")
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 SIGNAL_LIMIT = 1e15  # % signals saturate here: an overflow guard, not a vendor limit
 GAIN_LIMIT = 1e6
@@ -378,34 +412,34 @@ def ramp(current: float, target: float, up: float, down: float) -> float:
 def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                       y: FloatArray, ys: IntArray) -> None:
     """One scan of the DeltaV PID, in the order of spec 4.7 (see the module docstring)."""
-    single = p[SINGLE] != 0.0
-    first = x[S_FIRST] != 0.0
-    lo = p[OUT_LO]
-    hi = p[OUT_HI]
-    out_prev = x[S_OUT]
+    single = p[P.single] != 0.0
+    first = x[X.first] != 0.0
+    lo = p[P.out_lo]
+    hi = p[P.out_hi]
+    out_prev = x[X.out_pct]
     # -- input qualities (spec 4.5, 4.6) ------------------------------------------------------
-    v_in = u[PV]
-    q_in = us[PV] & 0xC0
+    v_in = u[U.pv]
+    q_in = us[U.pv] & 0xC0
     in_finite = storable(v_in)  # NaN, inf or beyond float32: Bad IN
     in_bad = (not in_finite or q_in == BAD
-              or (q_in == UNCERTAIN and p[UNCERTAIN_AS_GOOD] == 0.0))
+              or (q_in == UNCERTAIN and p[P.use_uncertain_as_good] == 0.0))
     in_uncertain = q_in == UNCERTAIN and not in_bad
     sample = in_finite and q_in != BAD  # a value the PV filter takes
     if in_finite:
         v_in = rnd(v_in, single)
     fresh = False
-    if sample and x[S_PV_OK] == 0.0:  # the PV filter starts at the first usable IN
-        x[S_PV] = v_in
-        x[S_PV_OK] = 1.0
+    if sample and x[X.pv_ok] == 0.0:  # the PV filter starts at the first usable IN
+        x[X.pv] = v_in
+        x[X.pv_ok] = 1.0
         fresh = True
-    cas = u[CAS_IN]
-    cas_ok = storable(cas) and (us[CAS_IN] & 0xC0) != BAD
+    cas = u[U.cas_in]
+    cas_ok = storable(cas) and (us[U.cas_in] & 0xC0) != BAD
     if cas_ok:
         cas = rnd(cas, single)
-        if p[OBEY_SP_LIMITS] != 0.0:
-            cas = clamp(cas, p[SP_LO], p[SP_HI])
-    bk = u[BKCAL_IN]
-    st_bk = us[BKCAL_IN]
+        if p[P.obey_sp_limits_cas] != 0.0:
+            cas = clamp(cas, p[P.sp_lo], p[P.sp_hi])
+    bk = u[U.bkcal_in]
+    st_bk = us[U.bkcal_in]
     if math.isnan(bk) and (st_bk == BAD_NON_SPECIFIC or st_bk == BAD_NOT_CONNECTED):
         st_bk = GOOD_NC  # no value, no status: BKCAL_IN is not connected (its default)
     elif not storable(bk):
@@ -415,39 +449,39 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     bk_ok = storable(bk) and q_bk != BAD
     bk_pct = 0.0
     if bk_ok:
-        bk_pct = rnd(to_pct(rnd(bk, single), p[OUT_EU0], p[OUT_K]), single)
+        bk_pct = rnd(to_pct(rnd(bk, single), p[P.out_eu0], p[P.out_k]), single)
     downstream_not_cas = (q_bk == BAD or sub_bk == GOOD_C_IR or sub_bk == GOOD_C_NI
                           or sub_bk == GOOD_C_LO or sub_bk == GOOD_C_FSA)
-    trk = u[TRK_VAL]
-    trk_ok = storable(trk) and (us[TRK_VAL] & 0xC0) != BAD
+    trk = u[U.trk_val]
+    trk_ok = storable(trk) and (us[U.trk_val] & 0xC0) != BAD
     # -- step 8 (a pure function of the inputs, needed earlier by the re-initialisation) ------
-    ff_val = u[FF_VAL]
-    if storable(ff_val) and (us[FF_VAL] & 0xC0) != BAD:
+    ff_val = u[U.ff_val]
+    if storable(ff_val) and (us[U.ff_val] & 0xC0) != BAD:
         ff_val = rnd(ff_val, single)
-        if p[FF_ORDER] == SCALE_THEN_GAIN:
-            ff = p[FF_GAIN] * to_pct(ff_val, p[FF_EU0], p[FF_K])
+        if p[P.ff_order] == SCALE_THEN_GAIN:
+            ff = p[P.ff_gain] * to_pct(ff_val, p[P.ff_eu0], p[P.ff_k])
         else:
-            ff = to_pct(p[FF_GAIN] * ff_val, p[FF_EU0], p[FF_K])
+            ff = to_pct(p[P.ff_gain] * ff_val, p[P.ff_eu0], p[P.ff_k])
         ff = rnd(clamp(ff, -SIGNAL_LIMIT, SIGNAL_LIMIT), single)
-        x[S_FF_HOLD] = ff
+        x[X.ff_hold] = ff
     else:  # NaN, inf, beyond float32 or Bad FF_VAL: the last usable contribution holds
-        ff = x[S_FF_HOLD]
+        ff = x[X.ff_hold]
     # -- step 1: target and actual mode ---------------------------------------------------------
-    m = u[MODE]
+    m = u[U.mode]
     # an operator write of MODE.TARGET (always recorded: ``written`` comes first)
-    if written(x, S_MODE_SEEN, S_MODE_SEEN_OK, m) and (m == OOS or m == MAN or m == AUTO
+    if written(x, X.mode_seen, X.mode_seen_ok, m) and (m == OOS or m == MAN or m == AUTO
                                                         or m == CAS):
-        x[S_TARGET] = m
-    if in_bad and p[TARGET_TO_MAN] != 0.0 and x[S_TARGET] != OOS:
-        x[S_TARGET] = MAN
-    ifs_cas = p[IFS_IF_BAD_CAS_IN] != 0.0 and x[S_TARGET] == CAS and not cas_ok
-    if x[S_TARGET] == CAS and not cas_ok and p[TARGET_TO_NEXT] != 0.0:
-        x[S_TARGET] = AUTO
-    target = x[S_TARGET]
-    trk_d = u[TRK_IN_D]
-    tracking = (p[TRACK_ENABLE] != 0.0 and storable(trk_d) and trk_d > 0.5
-                and (us[TRK_IN_D] & 0xC0) != BAD
-                and (target != MAN or p[TRACK_IN_MANUAL] != 0.0))
+        x[X.target] = m
+    if in_bad and p[P.target_to_man_if_bad_in] != 0.0 and x[X.target] != OOS:
+        x[X.target] = MAN
+    ifs_cas = p[P.ifs_if_bad_cas_in] != 0.0 and x[X.target] == CAS and not cas_ok
+    if x[X.target] == CAS and not cas_ok and p[P.target_to_next_if_bad_cas_in] != 0.0:
+        x[X.target] = AUTO
+    target = x[X.target]
+    trk_d = u[U.trk_in_d]
+    tracking = (p[P.track_enable] != 0.0 and storable(trk_d) and trk_d > 0.5
+                and (us[U.trk_in_d] & 0xC0) != BAD
+                and (target != MAN or p[P.track_in_manual] != 0.0))
     if target == OOS:
         actual = OOS
     elif downstream_not_cas:
@@ -462,74 +496,74 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
         actual = AUTO
     computing = actual == AUTO or actual == CAS
     # -- step 2: setpoint -------------------------------------------------------------------------
-    sp_in = u[SP]
-    if written(x, S_SP_SEEN, S_SP_SEEN_OK, sp_in) and actual != CAS:  # an operator write
-        x[S_SP_PARAM] = rnd(clamp(sp_in, p[SP_LO], p[SP_HI]), single)
+    sp_in = u[U.sp]
+    if written(x, X.sp_seen, X.sp_seen_ok, sp_in) and actual != CAS:  # an operator write
+        x[X.sp_param] = rnd(clamp(sp_in, p[P.sp_lo], p[P.sp_hi]), single)
     tracked = False
     if actual == CAS:
-        x[S_SP_PARAM] = cas
+        x[X.sp_param] = cas
         spw = cas
     else:
-        if (p[SP_TRACK_RETAINED] != 0.0 and target == CAS and cas_ok
+        if (p[P.sp_track_retained_target] != 0.0 and target == CAS and cas_ok
                 and (actual == MAN or actual == LO or actual == IMAN)):
-            x[S_SP_PARAM] = cas
+            x[X.sp_param] = cas
             tracked = True
-        elif x[S_PV_OK] != 0.0 and (
-                (p[SP_PV_TRACK_MAN] != 0.0 and target == MAN and actual != OOS)
-                or (p[SP_PV_TRACK_LO_IMAN] != 0.0 and (actual == LO or actual == IMAN))):
-            x[S_SP_PARAM] = x[S_PV]  # SP = PV as it stands at step 2 (PV_{k-1})
+        elif x[X.pv_ok] != 0.0 and (
+                (p[P.sp_pv_track_man] != 0.0 and target == MAN and actual != OOS)
+                or (p[P.sp_pv_track_lo_iman] != 0.0 and (actual == LO or actual == IMAN))):
+            x[X.sp_param] = x[X.pv]  # SP = PV as it stands at step 2 (PV_{k-1})
             tracked = True
         if actual == AUTO and not tracked and not first:
-            spw = ramp(x[S_SP_RAMP], x[S_SP_PARAM], p[SP_RATE_UP] * dt, p[SP_RATE_DN] * dt)
+            spw = ramp(x[X.sp_ramp], x[X.sp_param], p[P.sp_rate_up] * dt, p[P.sp_rate_dn] * dt)
         else:
-            spw = x[S_SP_PARAM]
+            spw = x[X.sp_param]
     spw = rnd(spw, single)
-    x[S_SP_RAMP] = spw
+    x[X.sp_ramp] = spw
     if tracked or first:
         spf = spw
     else:
-        spf = rnd(first_order(x[S_SP_FILT], spw, dt, p[SP_FTIME], p[FILTER_LAW]), single)
-    x[S_SP_FILT] = spf
+        spf = rnd(first_order(x[X.sp_filtered], spw, dt, p[P.sp_ftime], p[P.filter_law]), single)
+    x[X.sp_filtered] = spf
     # -- step 3: PV ------------------------------------------------------------------------------
     if sample and not fresh:
-        x[S_PV] = rnd(first_order(x[S_PV], v_in, dt, p[PV_FTIME], p[FILTER_LAW]), single)
-    pv = x[S_PV]
+        x[X.pv] = rnd(first_order(x[X.pv], v_in, dt, p[P.pv_ftime], p[P.filter_law]), single)
+    pv = x[X.pv]
     # -- steps 4-7 ---------------------------------------------------------------------------------
     valid = not in_bad  # implies a PV: a non-Bad IN has started the filter
-    init = x[S_INIT] != 0.0
-    s = p[SIGN]
-    g = p[GAIN]
+    init = x[X.init] != 0.0
+    s = p[P.sign]
+    g = p[P.gain]
     pterm = 0.0
     dterm = 0.0
     pe = 0.0
     dsig = 0.0
-    r = x[S_R]
+    r = x[X.r]
     if valid:
-        sp_pct = to_pct(spf, p[PV_EU0], p[PV_K])  # step 4
-        pv_pct = to_pct(pv, p[PV_EU0], p[PV_K])
+        sp_pct = to_pct(spf, p[P.pv_eu0], p[P.pv_k])  # step 4
+        pv_pct = to_pct(pv, p[P.pv_eu0], p[P.pv_k])
         pe = rnd(s * g * (sp_pct - pv_pct), single)
-        if p[HAS_P] != 0.0:  # step 5
-            pterm = rnd(s * g * (p[BETA] * sp_pct - pv_pct), single)
-        dsig = p[GAMMA] * sp_pct - pv_pct  # step 6
-        d_prev = x[S_D]
-        dsig_prev = x[S_DSIG]
+        if p[P.has_p] != 0.0:  # step 5
+            pterm = rnd(s * g * (p[P.beta] * sp_pct - pv_pct), single)
+        dsig = p[P.gamma] * sp_pct - pv_pct  # step 6
+        d_prev = x[X.d]
+        dsig_prev = x[X.d_signal]
         if init:
             d_prev = 0.0
             dsig_prev = dsig
-        rate = p[RATE]
+        rate = p[P.rate]
         if rate > 0.0:
-            tf = p[ALPHA] * rate
-            kd = s * g * p[D_FACTOR]
-            if p[DERIV_LAW] == EXACT:
-                dterm = math.exp(-dt / tf) * d_prev + kd / p[ALPHA] * (dsig - dsig_prev)
+            tf = p[P.alpha] * rate
+            kd = s * g * p[P.d_factor]
+            if p[P.deriv_law] == EXACT:
+                dterm = math.exp(-dt / tf) * d_prev + kd / p[P.alpha] * (dsig - dsig_prev)
             else:  # (α·RATE·D + kd·RATE·Δd)/(α·RATE + dt), written so nothing overflows
                 dterm = (d_prev * (tf / (tf + dt))
-                         + kd * (dsig - dsig_prev) / (p[ALPHA] + dt / rate))
+                         + kd * (dsig - dsig_prev) / (p[P.alpha] + dt / rate))
             dterm = rnd(dterm, single)
-        p_prev = x[S_P]
-        pe_prev = x[S_PE]
-        ff_prev = x[S_FF]
-        r_prev = x[S_R]
+        p_prev = x[X.p]
+        pe_prev = x[X.pe]
+        ff_prev = x[X.ff]
+        r_prev = x[X.r]
         if init:  # (re)start: as if the scan before had been Man with these P, D, FF
             r_prev = rnd(out_prev - pterm - dterm - ff, single)
             p_prev = pterm
@@ -538,24 +572,24 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
             ff_prev = ff
         r = r_prev
         if computing:  # step 7
-            if p[HAS_I] == 0.0:
-                if p[BIAS_MODE] == BIAS_FIXED:
-                    r = lag_step(r_prev, p[BIAS], dt, p[BAL_TIME])
-            elif not abs(spf - pv) < p[IDEADBAND]:
+            if p[P.has_i] == 0.0:
+                if p[P.bias_mode] == BIAS_FIXED:
+                    r = lag_step(r_prev, p[P.bias], dt, p[P.bal_time])
+            elif not abs(spf - pv) < p[P.ideadband]:
                 fb = out_prev
-                if p[DYNAMIC_RESET] != 0.0 and bk_ok:
+                if p[P.dynamic_reset_limit] != 0.0 and bk_ok:
                     fb = bk_pct
-                if p[FF_IN_FEEDBACK] == 0.0:
+                if p[P.ff_in_feedback] == 0.0:
                     fb = fb - ff_prev
-                if p[FEEDBACK] == FEEDBACK_ERROR:
+                if p[P.feedback] == FEEDBACK_ERROR:
                     fb = fb - (p_prev - pe_prev)
-                    if p[SERIES] == 0.0:
+                    if p[P.series] == 0.0:
                         fb = fb - d_prev
                 k = 1.0
-                if (out_prev > p[ARW_HI] and fb < r_prev) or (out_prev < p[ARW_LO]
+                if (out_prev > p[P.arw_hi] and fb < r_prev) or (out_prev < p[P.arw_lo]
                                                              and fb > r_prev):
                     k = 16.0  # ARW: RESET/16 on the way back (spec 4.4)
-                r = r_prev + reset_gain(dt * k, p[RESET], p[RESET_LAW]) * (fb - r_prev)
+                r = r_prev + reset_gain(dt * k, p[P.reset], p[P.reset_law]) * (fb - r_prev)
                 if (q_bk & 0x80) != 0:  # Good BKCAL_IN limit bits (spec 4.4)
                     bits = st_bk & 3
                     if (bits == HIGH_LIMITED or bits == CONSTANT) and r > r_prev:
@@ -564,21 +598,21 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
                         r = r_prev
             r = rnd(r, single)
     # -- step 9: output ----------------------------------------------------------------------------
-    man = u[MAN_OUT]
-    man_write = written(x, S_MAN_SEEN, S_MAN_SEEN_OK, man)
+    man = u[U.man_out]
+    man_write = written(x, X.man_seen, X.man_seen_ok, man)
     if computing:
         out_pct = clamp(rnd(pterm + dterm + r + ff, single), lo, hi)
     elif actual == MAN or actual == OOS:  # -- step 10: overrides
         out_pct = out_prev
         if man_write:
-            out_pct = to_pct(rnd(man, single), p[OUT_EU0], p[OUT_K])
-        if actual == MAN and not (p[NO_OUT_LIMITS_MAN] != 0.0 and target == MAN):
+            out_pct = to_pct(rnd(man, single), p[P.out_eu0], p[P.out_k])
+        if actual == MAN and not (p[P.no_out_limits_manual] != 0.0 and target == MAN):
             out_pct = clamp(out_pct, lo, hi)
     elif actual == LO:
         out_pct = out_prev
         if trk_ok:
             trk = rnd(trk, single)
-            out_pct = clamp(to_pct(trk, p[TRK_EU0], p[TRK_K]), lo, hi)
+            out_pct = clamp(to_pct(trk, p[P.trk_eu0], p[P.trk_k]), lo, hi)
     else:  # IMan: OUT follows the downstream block
         out_pct = out_prev
         if bk_ok:
@@ -587,27 +621,27 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     if valid:
         if not computing:  # back-initialisation: the next Auto/Cas scan is bumpless
             r = rnd(out_pct - pterm - dterm - ff, single)
-        x[S_P] = pterm
-        x[S_PE] = pe
-        x[S_D] = dterm
-        x[S_DSIG] = dsig
-        x[S_R] = r
-    x[S_FF] = ff
-    x[S_OUT] = out_pct
-    x[S_INIT] = 0.0 if valid and actual != OOS else 1.0
-    x[S_FIRST] = 0.0
+        x[X.p] = pterm
+        x[X.pe] = pe
+        x[X.d] = dterm
+        x[X.d_signal] = dsig
+        x[X.r] = r
+    x[X.ff] = ff
+    x[X.out_pct] = out_pct
+    x[X.init] = 0.0 if valid and actual != OOS else 1.0
+    x[X.first] = 0.0
     # limit bits with BKCAL_HYS hysteresis (spec 4.4)
     if out_pct >= hi:
-        x[S_LIM] = 2.0
+        x[X.limit] = 2.0
     elif out_pct <= lo:
-        x[S_LIM] = 1.0
-    elif (x[S_LIM] == 2.0 and hi - out_pct >= p[BKCAL_HYS]) or (
-            x[S_LIM] == 1.0 and out_pct - lo >= p[BKCAL_HYS]):
-        x[S_LIM] = 0.0
+        x[X.limit] = 1.0
+    elif (x[X.limit] == 2.0 and hi - out_pct >= p[P.bkcal_hys]) or (
+            x[X.limit] == 1.0 and out_pct - lo >= p[P.bkcal_hys]):
+        x[X.limit] = 0.0
     bits = NOT_LIMITED
-    if x[S_LIM] == 2.0:
+    if x[X.limit] == 2.0:
         bits = HIGH_LIMITED
-    elif x[S_LIM] == 1.0:
+    elif x[X.limit] == 1.0:
         bits = LOW_LIMITED
     # -- step 11: BKCAL_OUT and statuses -------------------------------------------------------
     base = GOOD_NC if q_bk == GOOD_NC else GOOD_CASCADE
@@ -621,7 +655,7 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
             st_out = GOOD_C_IA | CONSTANT
         else:
             st_out = base | CONSTANT
-        if (in_bad and p[IFS_IF_BAD_IN] != 0.0) or ifs_cas:
+        if (in_bad and p[P.ifs_if_bad_in] != 0.0) or ifs_cas:
             st_out = GOOD_C_IFS | (st_out & 3)
         if actual == CAS:
             st_bkcal = GOOD_C_NON_SPECIFIC | bits
@@ -631,19 +665,19 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
             st_bkcal = GOOD_C_IR | bits
         else:
             st_bkcal = GOOD_C_NI | bits
-    y[OUT] = rnd(p[OUT_EU0] + out_pct * p[OUT_EU_PER_PCT], single)
-    ys[OUT] = st_out
-    y[BKCAL_OUT] = pv if actual == CAS and p[USE_PV_FOR_BKCAL] != 0.0 else spf
-    ys[BKCAL_OUT] = st_bkcal
-    y[FILTERED_PV] = pv
-    ys[FILTERED_PV] = us[PV] if in_finite else BAD_NON_SPECIFIC
-    y[WORKING_SP] = spf
-    y[MODE_ACTUAL] = actual
-    y[MODE_TARGET] = target
-    y[P_TERM] = pterm
-    y[D_TERM] = dterm
-    y[R_TERM] = r
-    y[FF_TERM] = ff
+    y[Y.out] = rnd(p[P.out_eu0] + out_pct * p[P.out_eu_per_pct], single)
+    ys[Y.out] = st_out
+    y[Y.bkcal_out] = pv if actual == CAS and p[P.use_pv_for_bkcal_out] != 0.0 else spf
+    ys[Y.bkcal_out] = st_bkcal
+    y[Y.filtered_pv] = pv
+    ys[Y.filtered_pv] = us[U.pv] if in_finite else BAD_NON_SPECIFIC
+    y[Y.working_sp] = spf
+    y[Y.mode_actual] = actual
+    y[Y.mode_target] = target
+    y[Y.p_term] = pterm
+    y[Y.d_term] = dterm
+    y[Y.r_term] = r
+    y[Y.ff_term] = ff
 
 
 def series_to_standard(gain: float, reset: float, rate: float) -> tuple[float, float, float]:
@@ -652,7 +686,6 @@ def series_to_standard(gain: float, reset: float, rate: float) -> tuple[float, f
     return series_to_ideal(gain, reset, rate)
 
 
-_PCT = "%"
 _OPT = "CONTROL_OPTS"
 _STO = "STATUS_OPTS"
 
@@ -805,40 +838,74 @@ class DeltaVPID(Block):
               "float64 (spec 4.1)", "choice", choices=("float32", "float64")),
         _eu("initial_out", None, "EU", "OUT before the first scan (OUT EU, within the OUT "
             "limits); R is back-initialised from it", "out_scale_eu_0 (clamped to the limits)"),
+        Param("retune", "vendor", "", "a tuning change (set_params) after an Auto/Cas scan: "
+              "vendor applies the new GAIN, BETA, STRUCTURE, action or PV_SCALE to the law as "
+              "it is (P jumps; the spec says nothing of retuning, [A]); bumpless moves R by "
+              "P_old - P_new so OUT does not jump (spec 4.2, 4.7 steps 5, 7, 9)", "choice",
+              choices=("vendor", "bumpless")),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("pv", 0.0, "EU", "IN: the process input, PV_SCALE EU", status=True),
-        Port("sp", 0.0, "EU", "operator SP write (a new value is written; NaN = none)"),
-        Port("cas_in", math.nan, "EU", "CAS_IN: cascade setpoint (Cas)", status=True),
-        Port("bkcal_in", math.nan, "EU", "BKCAL_IN: downstream BKCAL_OUT (OUT_SCALE EU); its "
-             "status drives IMan", status=True),
-        Port("ff_val", 0.0, "EU", "FF_VAL: feedforward input, FF_SCALE EU", status=True),
-        Port("trk_in_d", 0.0, "", "TRK_IN_D: track switch (> 0.5 = track)", status=True),
-        Port("trk_val", math.nan, "EU", "TRK_VAL: output in LO, TRK_SCALE EU", status=True),
-        Port("man_out", math.nan, "EU", "operator OUT write in Man/OOS (a new value is "
-             "written; NaN = none)"),
-        Port("mode", AUTO, "", "MODE.TARGET write: OOS, MAN, AUTO or CAS (IMAN/LO rejected)",
-             choices=MODES),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("out", 0.0, "EU", "OUT, OUT_SCALE EU", status=True),
-        Port("bkcal_out", 0.0, "EU", "BKCAL_OUT: working SP (or PV), PV_SCALE EU", status=True),
-        Port("filtered_pv", 0.0, "EU", "PV: IN after PV_FTIME; status follows IN", status=True),
-        Port("working_sp", 0.0, "EU", "working SP after limits, ramp and SP_FTIME"),
-        Port("mode_actual", 0.0, "", "MODE.ACTUAL code: OOS 0, IMAN 1, LO 2, MAN 3, AUTO 4, "
-             "CAS 5", choices=MODES),
-        Port("mode_target", 0.0, "", "MODE.TARGET code (same codes)", choices=MODES),
-        Port("p_term", 0.0, _PCT, "P contribution, % of OUT span"),
-        Port("d_term", 0.0, _PCT, "D contribution, % of OUT span"),
-        Port("r_term", 0.0, _PCT, "reset contribution R (external reset state), %"),
-        Port("ff_term", 0.0, _PCT, "FF contribution, %"),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "target", "mode_seen", "sp_param", "sp_seen", "man_seen", "sp_ramp", "sp_filtered",
-        "pv", "pv_ok", "out_pct", "r", "p", "pe", "d", "d_signal", "ff", "ff_hold",
-        "limit", "init", "first", "mode_seen_ok", "sp_seen_ok", "man_seen_ok")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
-    def coefficients(self) -> list[float]:
+    def set_params(self, **changes: Any) -> None:
+        """Change parameters between scans (see :meth:`Block.set_params`).
+
+        The DeltaV text says nothing about changing the tuning in Auto (spec 4.1-4.9, 8 item
+        4), so ``retune = "vendor"`` (the default, [A]) applies the new coefficients to the law
+        as it is: OUT% = P + D + R + FF (spec 4.2, 4.7 step 9), where R_k is built from the
+        previous scan's terms (step 7), so the next scan's OUT% moves by the P term's change
+        P_new - P_old at once (plus what the scan brings anyway).
+
+        ``retune = "bumpless"``: if the last scan computed the output (actual mode Auto or
+        Cas, no re-initialisation pending), a change of the coefficients of P (GAIN, BETA,
+        STRUCTURE, direct acting, PV_SCALE) moves the reset the other way, in % of span, at
+        the latched working SP and PV (the filtered values the last scan used)::
+
+            P_new = s·GAIN·(β·SP% - PV%)  with the new coefficients (0 without P), float32
+                                          rounded as the kernel stores it
+            R_{k-1} += P_{k-1} - P_new,   P_{k-1} := P_new,   d_{k-1} := γ·SP% - PV%
+
+        Pe_{k-1} is kept: R_k integrates the last scan's error with the gain that scan had,
+        as DiscretePIDs.jl ``set_K!`` keeps the integral's last increment (Åström & Hägglund
+        2006, sec. 3.5). With ``reset_feedback = "error"`` F_{k-1} - R_{k-1} of step 7 is then
+        unchanged, so at an unchanged SP and PV the next scan gives the output the old tuning
+        would have, and the scans after it follow the new tuning. The stored R and P are
+        rounded as the kernel stores them, so "the same" is within 2 float32 steps (float64:
+        a few double steps) of the largest of abs(P), abs(R), abs(OUT%). With
+        ``reset_feedback = "output"`` F = OUT% - FF carries P itself, so the next scan's
+        reset step is already the new tuning's (it integrates P_new): OUT differs from the
+        old tuning's by a·(P_new - P_old), a = dt/RESET (16·dt/RESET under the ARW rule, as
+        long as the rule does not switch). Re-basing d_{k-1} to the new γ and PV_SCALE spares
+        D a kick; D and R act on increments, so RATE, ALPHA and RESET changes need no
+        correction. In the structures without I the frozen bias moves the same way (with
+        ``no_reset_bias = "fixed"`` it then returns to the bias over BAL_TIME, as it does).
+
+        After a Man, LO, IMan or OOS scan nothing is corrected (with either choice): each such
+        scan back-initialises R from the P it computes (step 10), so the return to Auto is
+        bumpless once one of them has run with the new tuning (a change made between the last
+        Man scan and the first Auto scan moves OUT by P_new - P_old, as the law gives)."""
+        old = self.p.copy()
+        super().set_params(**changes)
+        p, x = self.p, self.x
+        if (self.params["retune"] != "bumpless" or x[X.init] != 0.0 or x[X.first] != 0.0
+                or self.y[Y.mode_actual] not in (AUTO, CAS)):
+            return
+        terms = (P.gain, P.sign, P.has_p, P.beta, P.gamma, P.pv_eu0, P.pv_k)  # of P and d
+        if all(old[i] == p[i] for i in terms):
+            return
+        sp_pct = to_pct(x[X.sp_filtered], p[P.pv_eu0], p[P.pv_k])
+        pv_pct = to_pct(x[X.pv], p[P.pv_eu0], p[P.pv_k])
+        p_new = 0.0
+        if p[P.has_p] != 0.0:
+            p_new = rnd(p[P.sign] * p[P.gain] * (p[P.beta] * sp_pct - pv_pct),
+                        p[P.single] != 0.0)
+        x[X.r] = rnd(x[X.r] + (x[X.p] - p_new), p[P.single] != 0.0)
+        x[X.p] = p_new
+        x[X.d_signal] = p[P.gamma] * sp_pct - pv_pct
+
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         kind = self.kind
         single = prm["precision"] == "float32"
@@ -932,57 +999,49 @@ class DeltaVPID(Block):
             d_factor = 1.0 - alpha
         bias = out0 if prm["bias"] is None else num("bias")
         laws = {"euler": EULER, "backward": BACKWARD, "exact": EXACT}
-        flags = ("track_enable", "track_in_manual", "sp_pv_track_man", "sp_pv_track_lo_iman",
-                 "sp_track_retained_target", "use_pv_for_bkcal_out", "obey_sp_limits_cas",
-                 "no_out_limits_manual", "dynamic_reset_limit", "ifs_if_bad_in",
-                 "ifs_if_bad_cas_in", "use_uncertain_as_good", "target_to_man_if_bad_in",
-                 "target_to_next_if_bad_cas_in")
-        c = [0.0] * N_COEFFS
-        c[GAIN], c[RESET], c[RATE], c[ALPHA] = num("gain"), reset, num("rate"), alpha
-        c[BETA], c[GAMMA] = beta, gamma
-        c[HAS_P], c[HAS_I] = float(has_p), float(has_i)
-        c[SERIES], c[D_FACTOR] = float(series), d_factor
-        c[SIGN] = -1.0 if prm["direct_acting"] else 1.0
-        c[PV_EU0], c[PV_K] = pv0, 100.0 / pv_span
-        c[OUT_EU0], c[OUT_K], c[OUT_EU_PER_PCT] = out0, 100.0 / out_span, out_span / 100.0
-        c[FF_EU0], c[FF_K] = ff0, 100.0 / ff_span
-        c[TRK_EU0], c[TRK_K] = trk0, 100.0 / trk_span
-        c[SP_LO], c[SP_HI] = sp_lo, sp_hi
-        c[SP_RATE_UP], c[SP_RATE_DN] = num("sp_rate_up"), num("sp_rate_dn")
-        c[SP_FTIME], c[PV_FTIME] = num("sp_ftime"), num("pv_ftime")
-        c[OUT_LO], c[OUT_HI] = lo, hi
-        c[ARW_HI], c[ARW_LO] = arw
-        c[BKCAL_HYS], c[IDEADBAND] = num("bkcal_hys"), num("ideadband")
-        c[FF_GAIN] = num("ff_gain")
-        c[FF_ORDER] = SCALE_THEN_GAIN if prm["ff_conversion"] == "scale_then_gain" \
-            else GAIN_THEN_SCALE
-        c[RESET_LAW] = laws[prm["reset_discretisation"]]
-        c[FILTER_LAW] = laws[prm["filter_discretisation"]]
-        c[DERIV_LAW] = laws[prm["derivative_discretisation"]]
-        c[FEEDBACK] = FEEDBACK_OUTPUT if prm["reset_feedback"] == "output" else FEEDBACK_ERROR
-        c[FF_IN_FEEDBACK] = float(bool(prm["ff_in_reset_feedback"]))
-        c[BIAS_MODE] = BIAS_FIXED if prm["no_reset_bias"] == "fixed" else BIAS_BUMPLESS
-        c[BIAS] = (bias - out0) * 100.0 / out_span
-        c[BAL_TIME] = num("bal_time")
-        c[SINGLE] = float(single)
-        for i, name in enumerate(flags):
-            c[TRACK_ENABLE + i] = float(bool(prm[name]))
-        return c
+        return {
+            "gain": num("gain"), "reset": reset, "rate": num("rate"), "alpha": alpha,
+            "beta": beta, "gamma": gamma, "has_p": float(has_p), "has_i": float(has_i),
+            "series": float(series), "d_factor": d_factor,
+            "sign": -1.0 if prm["direct_acting"] else 1.0,
+            "pv_eu0": pv0, "pv_k": 100.0 / pv_span,
+            "out_eu0": out0, "out_k": 100.0 / out_span, "out_eu_per_pct": out_span / 100.0,
+            "ff_eu0": ff0, "ff_k": 100.0 / ff_span, "trk_eu0": trk0, "trk_k": 100.0 / trk_span,
+            "sp_lo": sp_lo, "sp_hi": sp_hi,
+            "sp_rate_up": num("sp_rate_up"), "sp_rate_dn": num("sp_rate_dn"),
+            "sp_ftime": num("sp_ftime"), "pv_ftime": num("pv_ftime"),
+            "out_lo": lo, "out_hi": hi, "arw_lo": arw[1], "arw_hi": arw[0],
+            "bkcal_hys": num("bkcal_hys"), "ideadband": num("ideadband"),
+            "ff_gain": num("ff_gain"),
+            "ff_order": SCALE_THEN_GAIN if prm["ff_conversion"] == "scale_then_gain"
+            else GAIN_THEN_SCALE,
+            "reset_law": laws[prm["reset_discretisation"]],
+            "filter_law": laws[prm["filter_discretisation"]],
+            "deriv_law": laws[prm["derivative_discretisation"]],
+            "feedback": FEEDBACK_OUTPUT if prm["reset_feedback"] == "output"
+            else FEEDBACK_ERROR,
+            "ff_in_feedback": float(bool(prm["ff_in_reset_feedback"])),
+            "bias_mode": BIAS_FIXED if prm["no_reset_bias"] == "fixed" else BIAS_BUMPLESS,
+            "bias": (bias - out0) * 100.0 / out_span,
+            "bal_time": num("bal_time"),
+            "single": float(single),
+            **{name: float(bool(prm[name])) for name in FLAGS},
+        }
 
     def initial_state(self) -> list[float]:
         """Target Man until the first scan writes the ``mode`` input; OUT = initial_out; the
         PV filter and the reset wait for the first usable IN (re-initialisation pending)."""
-        x = [0.0] * len(self.STATES)
-        x[S_TARGET] = MAN
-        x[S_SP_PARAM] = self._initial_sp
-        x[S_SP_RAMP] = self._initial_sp
-        x[S_SP_FILT] = self._initial_sp
-        x[S_OUT] = self._initial_pct
-        x[S_R] = self._initial_pct
-        x[S_LIM] = 2.0 if self._initial_pct >= self.p[OUT_HI] else (
-            1.0 if self._initial_pct <= self.p[OUT_LO] else 0.0)
-        x[S_INIT] = 1.0
-        x[S_FIRST] = 1.0
+        x = [0.0] * self.n_x
+        x[X.target] = MAN
+        x[X.sp_param] = self._initial_sp
+        x[X.sp_ramp] = self._initial_sp
+        x[X.sp_filtered] = self._initial_sp
+        x[X.out_pct] = self._initial_pct
+        x[X.r] = self._initial_pct
+        x[X.limit] = 2.0 if self._initial_pct >= self.p[P.out_hi] else (
+            1.0 if self._initial_pct <= self.p[P.out_lo] else 0.0)
+        x[X.init] = 1.0
+        x[X.first] = 1.0
         return x
 
     def initial_outputs(self) -> list[float]:
@@ -991,9 +1050,10 @@ class DeltaVPID(Block):
         (SP_LO_LIM..SP_HI_LIM nearest 0); mode Man (the target until the first scan writes
         ``mode``); R = OUT%; PV, P, D and FF 0 (no IN yet; IN's default is 0)."""
         x = self.x
+        p = self.p
         y = [0.0] * len(self.OUTPUTS)
-        y[OUT] = rnd(self.p[OUT_EU0] + x[S_OUT] * self.p[OUT_EU_PER_PCT], self.p[SINGLE] != 0.0)
-        y[BKCAL_OUT] = y[WORKING_SP] = x[S_SP_FILT]
-        y[MODE_ACTUAL] = y[MODE_TARGET] = x[S_TARGET]
-        y[R_TERM] = x[S_R]
+        y[Y.out] = rnd(p[P.out_eu0] + x[X.out_pct] * p[P.out_eu_per_pct], p[P.single] != 0.0)
+        y[Y.bkcal_out] = y[Y.working_sp] = x[X.sp_filtered]
+        y[Y.mode_actual] = y[Y.mode_target] = x[X.target]
+        y[Y.r_term] = x[X.r]
         return y

@@ -114,20 +114,27 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD, GOOD_NC
 from loopworks.vendors.deltav.calc import FLOAT32_MAX, FLOAT32_OVERFLOW
 
-# Coefficient layout (p)
-WAVEFORM, AMPLITUDE, PERIOD, BIAS, PHASE = range(5)
-SQUARE, SINE, TRIANGLE = 0.0, 1.0, 2.0
-# Inputs (u, us)
-AMPLITUDE_IN = 0
-# Outputs (y, ys)
-OUT = 0
-# State (x)
-S_CYCLE, S_STARTED, S_AMPLITUDE = range(3)
+SQUARE, SINE, TRIANGLE = 0.0, 1.0, 2.0  # values of the waveform coefficient
+
+INPUTS = (
+    Port("amplitude", math.nan, "out",
+         "amplitude, e.g. wired from the compensator's dither_amp; NaN = the parameter; "
+         "±inf or beyond float32 = Bad: the last usable amplitude, out Bad (spec 6.5)"),
+)
+OUTPUTS = (
+    Port("out", 0.0, "out", "bias + amplitude·wave (spec 6.5: DITHER_OUT)", status=True),
+)
+#: the coefficient array p (coefficients()); phase in cycles
+COEFFS = ("waveform", "amplitude", "period", "bias", "phase")
+#: the state array x: the position in the cycle, 1 once started, the last usable amplitude
+STATES = ("cycle", "started", "amplitude")
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 EDGE_TOLERANCE = 1e-9  # cycles: positions this close to an edge are on it
 MAX_CYCLES = 1e15  # beyond this many cycles in one scan the position within a cycle is lost
@@ -162,28 +169,28 @@ def usable(amplitude: float) -> bool:
 def sggn_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                 y: FloatArray, ys: IntArray) -> None:
     """One scan of the signal generator (equations in the module docstring)."""
-    if x[S_STARTED] == 0.0:
-        x[S_STARTED] = 1.0
+    if x[X.started] == 0.0:
+        x[X.started] = 1.0
         cycle = 0.0
     else:
-        cycle = float(x[S_CYCLE]) + dt / float(p[PERIOD])
+        cycle = float(x[X.cycle]) + dt / float(p[P.period])
         if not cycle < MAX_CYCLES:  # dt/period beyond float resolution (or NaN): restart
             cycle = 0.0
         cycle = cycle - math.floor(cycle + EDGE_TOLERANCE)
         if cycle < EDGE_TOLERANCE:  # within the tolerance of a whole cycle: the cycle start
             cycle = 0.0
-    x[S_CYCLE] = cycle
-    amplitude = float(u[AMPLITUDE_IN])
+    x[X.cycle] = cycle
+    amplitude = float(u[U.amplitude])
     status = GOOD_NC
     if math.isnan(amplitude):  # not given: the parameter
-        amplitude = float(p[AMPLITUDE])
+        amplitude = float(p[P.amplitude])
     elif not usable(amplitude):  # ±inf or beyond float32: Bad input, the last usable one
-        amplitude = float(x[S_AMPLITUDE])
+        amplitude = float(x[X.amplitude])
         status = BAD
-    x[S_AMPLITUDE] = amplitude
-    out = float(p[BIAS]) + amplitude * wave(p[WAVEFORM], cycle, p[PHASE])
-    y[OUT] = out
-    ys[OUT] = status if usable(out) else BAD
+    x[X.amplitude] = amplitude
+    out = float(p[P.bias]) + amplitude * wave(p[P.waveform], cycle, p[P.phase])
+    y[Y.out] = out
+    ys[Y.out] = status if usable(out) else BAD
 
 
 @register
@@ -208,33 +215,32 @@ class SGGN(Block):
         Param("phase", 0.0, "deg", "phase advance; 0 starts with + [A] (spec 6.5)",
               lo=0.0, hi=360.0, lo_open=False),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("amplitude", math.nan, "out",
-             "amplitude, e.g. wired from the compensator's dither_amp; NaN = the parameter; "
-             "±inf or beyond float32 = Bad: the last usable amplitude, out Bad (spec 6.5)"),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("out", 0.0, "out", "bias + amplitude·wave (spec 6.5: DITHER_OUT)", status=True),
-    )
-    STATES: ClassVar[tuple[str, ...]] = ("cycle", "started", "amplitude")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         shape = {"square": SQUARE, "sine": SINE, "triangle": TRIANGLE}[prm["waveform"]]
-        return [shape, float(prm["amplitude"]), float(prm["period"]), float(prm["bias"]),
-                float(prm["phase"]) / 360.0]
+        return {"waveform": shape, "amplitude": float(prm["amplitude"]),
+                "period": float(prm["period"]), "bias": float(prm["bias"]),
+                "phase": float(prm["phase"]) / 360.0}
 
     def initial_state(self) -> list[float]:
         """At the cycle start, not started; the last usable amplitude is the parameter."""
-        return [0.0, 0.0, float(self.p[AMPLITUDE])]
+        x = [0.0] * self.n_x
+        x[X.amplitude] = float(self.p[P.amplitude])
+        return x
 
     def initial_outputs(self) -> list[float]:
         """Before the first scan (issue 11 point 8) ``out`` is the first scan's value for the
         amplitude as given (else the parameter): bias + A·wave(phase)."""
-        amplitude = float(self.u[AMPLITUDE_IN])
+        amplitude = float(self.u[U.amplitude])
         if not usable(amplitude):  # NaN (not given), or not a usable value
-            amplitude = float(self.x[S_AMPLITUDE])
-        return [float(self.p[BIAS]) + amplitude * wave(self.p[WAVEFORM], 0.0, self.p[PHASE])]
+            amplitude = float(self.x[X.amplitude])
+        return [float(self.p[P.bias])
+                + amplitude * wave(self.p[P.waveform], 0.0, self.p[P.phase])]
 
     @classmethod
     def split_table(cls, table: Mapping[str, Any]) -> tuple[dict[str, Any], dict[str, Any]]:

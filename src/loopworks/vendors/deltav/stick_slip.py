@@ -187,6 +187,7 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import finite
 from loopworks.blocks.registry import register
@@ -196,14 +197,50 @@ from loopworks.vendors.deltav.calc import FLOAT32_OVERFLOW as F32_OVERFLOW
 from loopworks.vendors.deltav.calc import input_status, shown_status
 from loopworks.vendors.deltav.calc import to_float32 as f32
 
-# Coefficient layout (p): the module parameters (as stored), then the options
-(RES, DB, PG, CA, VA, DF, KF, NF, KS, RESET, UPPER, LOWER, DEFERRED, SINGLE, HALF) = range(15)
-# Inputs (u, us)
-SIGNAL_IN, SP, PV, COMP_START, INITIALIZE, DITHER_OUT = range(6)
-# Outputs (y, ys)
-SIGNAL_OUT, DITHER_AMP, KICKER_OUT, NOISE_BAND, KICKER_DELT, DITHER_DELT = range(6)
-# State (x): the module parameters the expression writes, the internal dither's scan counter
-S_DA, S_KO, S_NB, S_KD, S_DD, S_COUNT, S_SO = range(7)
+_PCT = "%"
+# the module parameters of the seed's list, in the p layout order
+_SEED_PARAMS = ("resolution", "deadband", "process_gain", "cntrl_action", "valve_action",
+                "dither_factor", "kicker_factor", "noise_factor", "kick_start", "reset_time")
+
+INPUTS = (
+    Port("signal_in", 0.0, _PCT, "SIGNAL_IN, 'PID OUT (%)': the PID output (spec 6.2)",
+         status=True),
+    Port("sp", 0.0, "EU", "SP, 'PID Set Point (eu)' (spec 6.2)"),
+    Port("pv", 0.0, "EU", "PV, 'PID Process Variable (eu)' (spec 6.2)"),
+    Port("comp_start", 0.0, "",
+         "COMP_START: exactly 0 passes signal_in through; else compensate (spec 6.3)"),
+    Port("initialize", 0.0, "",
+         "INITIALIZE: exactly 1 with kick_start = 1 sets NOISE_BAND = 0 (spec 6.3)"),
+    Port("dither_out", math.nan, _PCT,
+         "DITHER_OUT, the SGGN1 output; NaN = internal square wave (spec 6.5)"),
+)
+OUTPUTS = (
+    Port("signal_out", 0.0, _PCT,
+         "SIGNAL_OUT, 'AO CAS_IN (%)': signal_in + kick + dither, no clamp; status = "
+         "signal_in's (spec 6.3 lines 26, 28)", status=True),
+    Port("dither_amp", 0.0, _PCT, "DITHER_AMP: dither amplitude, (RESOLUTION + "
+         "DEADBAND/2)·DITHER_FACTOR/2 (spec 6.3 line 2)", status=True),
+    Port("kicker_out", 0.0, _PCT, "KICKER_OUT: kick amplitude, (RESOLUTION + "
+         "DEADBAND/2)·KICKER_FACTOR/2 (spec 6.3 line 3)", status=True),
+    Port("noise_band", 0.0, "% of PV", "NOISE_BAND: PV noise band, DITHER_AMP·"
+         "PROCESS_GAIN·NOISE_FACTOR; 0 while INITIALIZE = KICK_START = 1 (spec 6.3 lines "
+         "5-9)", status=True),
+    Port("kicker_delt", 0.0, _PCT,
+         "KICKER_DELT: kick applied; held inside the band (spec 6.3 lines 16, 20)",
+         status=True),
+    Port("dither_delt", 0.0, _PCT,
+         "DITHER_DELT: dither applied; 0 while kicking (spec 6.3 lines 17, 21, 23)",
+         status=True),
+)
+#: the coefficient array p: the module parameters (as stored), then the options
+COEFFS = (*_SEED_PARAMS, "upper_band_factor", "lower_band_factor", "deferred", "single",
+          "half_period")
+#: the state array x: the module parameters the expression writes, the internal dither's
+#: scan counter
+STATES = (
+    "dither_amp", "kicker_out", "noise_band", "kicker_delt", "dither_delt", "dither_count",
+    "signal_out")
+P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 
 @primitive
@@ -240,31 +277,31 @@ def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     Each assignment is ``value = keep(v, old)``, ``flag = held(v)``: a non-finite result keeps
     the old value and marks the parameter held (Bad) for this scan, exactly as ``deltav.calc``
     stores."""
-    single = p[SINGLE]
-    deferred = p[DEFERRED] != 0.0
+    single = p[P.single]
+    deferred = p[P.deferred] != 0.0
     # the tuning parameters, as stored (float32-rounded by coefficients() in float32 precision)
-    resolution = float(p[RES])
-    deadband = float(p[DB])
-    process_gain = float(p[PG])
-    action = float(p[CA])
-    valve = float(p[VA])
+    resolution = float(p[P.resolution])
+    deadband = float(p[P.deadband])
+    process_gain = float(p[P.process_gain])
+    action = float(p[P.cntrl_action])
+    valve = float(p[P.valve_action])
     # the parameters the expression writes, as of the start of the scan
-    da0 = float(x[S_DA])
-    ko0 = float(x[S_KO])
-    nb0 = float(x[S_NB])
-    kicker_delt = float(x[S_KD])
-    dither_delt = float(x[S_DD])
-    signal_out = float(x[S_SO])
+    da0 = float(x[X.dither_amp])
+    ko0 = float(x[X.kicker_out])
+    nb0 = float(x[X.noise_band])
+    kicker_delt = float(x[X.kicker_delt])
+    dither_delt = float(x[X.dither_delt])
+    signal_out = float(x[X.signal_out])
     held_kd = 0.0  # KICKER_DELT, DITHER_DELT: assigned in some branches only
     held_dd = 0.0
     # -- SGGN1 (#3) before the CALC (#4): DITHER_OUT, spec 6.5 ---------------------------------
-    count = float(x[S_COUNT])
-    positive = count < p[HALF]
+    count = float(x[X.dither_count])
+    positive = count < p[P.half_period]
     count = count + 1.0
-    if count >= 2.0 * p[HALF]:
+    if count >= 2.0 * p[P.half_period]:
         count = 0.0
-    x[S_COUNT] = count
-    dither = float(u[DITHER_OUT])
+    x[X.dither_count] = count
+    dither = float(u[U.dither_out])
     if not math.isnan(dither):  # supplied (SGGN1 wired): the module parameter as stored
         dither = stored(dither, single)
     elif positive:  # not supplied: the internal square wave, ±DITHER_AMP of the last scan [A]
@@ -272,37 +309,37 @@ def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     else:
         dither = -da0
     # -- line 2, line 3 -------------------------------------------------------------------------
-    v = stored((resolution + 0.5 * deadband) * float(p[DF]) * 0.5, single)
+    v = stored((resolution + 0.5 * deadband) * float(p[P.dither_factor]) * 0.5, single)
     da = keep(v, da0)
     held_da = held(v)
-    v = stored((resolution + 0.5 * deadband) * float(p[KF]) * 0.5, single)
+    v = stored((resolution + 0.5 * deadband) * float(p[P.kicker_factor]) * 0.5, single)
     ko = keep(v, ko0)
     held_ko = held(v)
     # -- lines 5-9: NOISE_BAND ------------------------------------------------------------------
-    if stored(float(u[INITIALIZE]), single) == 1.0 and p[KS] == 1.0:
+    if stored(float(u[U.initialize]), single) == 1.0 and p[P.kick_start] == 1.0:
         v = 0.0
     else:
-        v = stored((da0 if deferred else da) * process_gain * float(p[NF]), single)
+        v = stored((da0 if deferred else da) * process_gain * float(p[P.noise_factor]), single)
     nb = keep(v, nb0)
     held_nb = held(v)
     # -- lines 11-27 ------------------------------------------------------------------------------
-    signal_in = stored(float(u[SIGNAL_IN]), single)
-    if stored(float(u[COMP_START]), single) == 0.0:
+    signal_in = stored(float(u[U.signal_in]), single)
+    if stored(float(u[U.comp_start]), single) == 0.0:
         v = signal_in  # line 12: pass-through; KICKER_DELT, DITHER_DELT untouched
     else:
-        pv = stored(float(u[PV]), single)
-        sp = stored(float(u[SP]), single)
+        pv = stored(float(u[U.pv]), single)
+        sp = stored(float(u[U.sp]), single)
         band = nb0 if deferred else nb
         kicker = ko0 if deferred else ko
         kd_read = kicker_delt  # line 26 reads these: the start-of-scan values when deferred
         dd_read = dither_delt
-        if pv > (sp + band * float(p[UPPER])):  # lines 15-17: high
+        if pv > (sp + band * float(p[P.upper_band_factor])):  # lines 15-17: high
             v = stored(kicker * action * valve, single)
             kicker_delt = keep(v, kicker_delt)
             held_kd = held(v)
             dither_delt = 0.0
             held_dd = 0.0
-        elif pv < (sp - band * float(p[LOWER])):  # lines 19-21: low
+        elif pv < (sp - band * float(p[P.lower_band_factor])):  # lines 19-21: low
             v = stored(-kicker * action * valve, single)
             kicker_delt = keep(v, kicker_delt)
             held_kd = held(v)
@@ -319,32 +356,26 @@ def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     signal_out = keep(v, signal_out)
     held_so = held(v)
     # -- line 28: SIGNAL_OUT.ST := SIGNAL_IN.ST (Bad while SIGNAL_IN is not finite) ------------
-    status = input_status(signal_in, int(us[SIGNAL_IN]))
+    status = input_status(signal_in, int(us[U.signal_in]))
     # -- store and the outputs --------------------------------------------------------------------
-    x[S_DA] = da
-    x[S_KO] = ko
-    x[S_NB] = nb
-    x[S_KD] = kicker_delt
-    x[S_DD] = dither_delt
-    x[S_SO] = signal_out
-    y[SIGNAL_OUT] = signal_out
-    y[DITHER_AMP] = da
-    y[KICKER_OUT] = ko
-    y[NOISE_BAND] = nb
-    y[KICKER_DELT] = kicker_delt
-    y[DITHER_DELT] = dither_delt
-    ys[SIGNAL_OUT] = shown_status(status, held_so)
-    ys[DITHER_AMP] = shown_status(GOOD_NC, held_da)
-    ys[KICKER_OUT] = shown_status(GOOD_NC, held_ko)
-    ys[NOISE_BAND] = shown_status(GOOD_NC, held_nb)
-    ys[KICKER_DELT] = shown_status(GOOD_NC, held_kd)
-    ys[DITHER_DELT] = shown_status(GOOD_NC, held_dd)
-
-
-_PCT = "%"
-# the module parameters of the seed's list, in the p layout order
-_SEED_PARAMS = ("resolution", "deadband", "process_gain", "cntrl_action", "valve_action",
-                "dither_factor", "kicker_factor", "noise_factor", "kick_start", "reset_time")
+    x[X.dither_amp] = da
+    x[X.kicker_out] = ko
+    x[X.noise_band] = nb
+    x[X.kicker_delt] = kicker_delt
+    x[X.dither_delt] = dither_delt
+    x[X.signal_out] = signal_out
+    y[Y.signal_out] = signal_out
+    y[Y.dither_amp] = da
+    y[Y.kicker_out] = ko
+    y[Y.noise_band] = nb
+    y[Y.kicker_delt] = kicker_delt
+    y[Y.dither_delt] = dither_delt
+    ys[Y.signal_out] = shown_status(status, held_so)
+    ys[Y.dither_amp] = shown_status(GOOD_NC, held_da)
+    ys[Y.kicker_out] = shown_status(GOOD_NC, held_ko)
+    ys[Y.noise_band] = shown_status(GOOD_NC, held_nb)
+    ys[Y.kicker_delt] = shown_status(GOOD_NC, held_kd)
+    ys[Y.dither_delt] = shown_status(GOOD_NC, held_dd)
 
 
 @register
@@ -392,68 +423,46 @@ class StickSlip(Block):
               "alternating every N scans [A] (spec 6.5)", "int", lo=1.0, hi=1e9,
               lo_open=False, hi_open=False),
     )
-    INPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("signal_in", 0.0, _PCT, "SIGNAL_IN, 'PID OUT (%)': the PID output (spec 6.2)",
-             status=True),
-        Port("sp", 0.0, "EU", "SP, 'PID Set Point (eu)' (spec 6.2)"),
-        Port("pv", 0.0, "EU", "PV, 'PID Process Variable (eu)' (spec 6.2)"),
-        Port("comp_start", 0.0, "",
-             "COMP_START: exactly 0 passes signal_in through; else compensate (spec 6.3)"),
-        Port("initialize", 0.0, "",
-             "INITIALIZE: exactly 1 with kick_start = 1 sets NOISE_BAND = 0 (spec 6.3)"),
-        Port("dither_out", math.nan, _PCT,
-             "DITHER_OUT, the SGGN1 output; NaN = internal square wave (spec 6.5)"),
-    )
-    OUTPUTS: ClassVar[tuple[Port, ...]] = (
-        Port("signal_out", 0.0, _PCT,
-             "SIGNAL_OUT, 'AO CAS_IN (%)': signal_in + kick + dither, no clamp; status = "
-             "signal_in's (spec 6.3 lines 26, 28)", status=True),
-        Port("dither_amp", 0.0, _PCT, "DITHER_AMP: dither amplitude, (RESOLUTION + "
-             "DEADBAND/2)·DITHER_FACTOR/2 (spec 6.3 line 2)", status=True),
-        Port("kicker_out", 0.0, _PCT, "KICKER_OUT: kick amplitude, (RESOLUTION + "
-             "DEADBAND/2)·KICKER_FACTOR/2 (spec 6.3 line 3)", status=True),
-        Port("noise_band", 0.0, "% of PV", "NOISE_BAND: PV noise band, DITHER_AMP·"
-             "PROCESS_GAIN·NOISE_FACTOR; 0 while INITIALIZE = KICK_START = 1 (spec 6.3 lines "
-             "5-9)", status=True),
-        Port("kicker_delt", 0.0, _PCT,
-             "KICKER_DELT: kick applied; held inside the band (spec 6.3 lines 16, 20)",
-             status=True),
-        Port("dither_delt", 0.0, _PCT,
-             "DITHER_DELT: dither applied; 0 while kicking (spec 6.3 lines 17, 21, 23)",
-             status=True),
-    )
-    STATES: ClassVar[tuple[str, ...]] = (
-        "dither_amp", "kicker_out", "noise_band", "kicker_delt", "dither_delt", "dither_count",
-        "signal_out")
+    INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
+    OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
+    COEFFS: ClassVar[tuple[str, ...]] = COEFFS
+    STATES: ClassVar[tuple[str, ...]] = STATES
 
-    def coefficients(self) -> list[float]:
+    def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         single = prm["precision"] == "float32"
-        coeffs = [0.0] * 15
-        for index, name in enumerate(_SEED_PARAMS):
+        coeffs: dict[str, Any] = {}
+        for name in _SEED_PARAMS:
             value = float(prm[name])
             if single and abs(value) >= F32_OVERFLOW:
                 raise ParameterError(
                     f"{self.kind}: parameter '{name}' = {value:g} is out of range: a float32 "
                     f"module parameter allows (-{F32_OVERFLOW:g}, {F32_OVERFLOW:g}), i.e. "
                     "values that round to a finite float32 (precision = float32, spec 6.1)")
-            coeffs[index] = f32(value) if single else value
-        coeffs[UPPER] = float(prm["upper_band_factor"])
-        coeffs[LOWER] = float(prm["lower_band_factor"])
-        coeffs[DEFERRED] = 1.0 if prm["deferred_param_reads"] else 0.0
-        coeffs[SINGLE] = 1.0 if single else 0.0
-        coeffs[HALF] = float(prm["dither_half_period"])
+            coeffs[name] = f32(value) if single else value
+        coeffs["upper_band_factor"] = float(prm["upper_band_factor"])
+        coeffs["lower_band_factor"] = float(prm["lower_band_factor"])
+        coeffs["deferred"] = 1.0 if prm["deferred_param_reads"] else 0.0
+        coeffs["single"] = 1.0 if single else 0.0
+        coeffs["half_period"] = float(prm["dither_half_period"])
         return coeffs
 
     def initial_state(self) -> list[float]:
         """The written module parameters at the seed's defaults (spec 6.2: all 0); the
         internal dither at its first scan."""
-        return [0.0] * len(self.STATES)
+        return [0.0] * self.n_x
 
     def initial_outputs(self) -> list[float]:
         """Before the first scan (issue 11 point 8): SIGNAL_OUT passes SIGNAL_IN through (no
         kick, no dither yet), the other outputs show the seed's defaults (0; SGGN1 reads
         DITHER_AMP 0 at the first scan, spec 6.5)."""
-        signal_in = stored(float(self.u[SIGNAL_IN]), self.p[SINGLE])
-        start = signal_in if finite(signal_in) else float(self.x[S_SO])
-        return [start, *(float(self.x[i]) for i in (S_DA, S_KO, S_NB, S_KD, S_DD))]
+        x = self.x
+        signal_in = stored(float(self.u[U.signal_in]), self.p[P.single])
+        y = [0.0] * len(self.OUTPUTS)
+        y[Y.signal_out] = signal_in if finite(signal_in) else float(x[X.signal_out])
+        y[Y.dither_amp] = float(x[X.dither_amp])
+        y[Y.kicker_out] = float(x[X.kicker_out])
+        y[Y.noise_band] = float(x[X.noise_band])
+        y[Y.kicker_delt] = float(x[X.kicker_delt])
+        y[Y.dither_delt] = float(x[X.dither_delt])
+        return y
