@@ -436,3 +436,25 @@ def test_set_params_changes_tuning_and_keeps_state() -> None:
     with pytest.raises(ParameterError, match="'k' = -1"):
         pid.set_params(k=-1.0)
     assert pid.params["k"] == 2.0             # a failed change leaves the block as it was
+
+
+@pytest.mark.parametrize(("kind", "params", "change"), [
+    ("deltav.calc", {}, {"expression": "OUT1 := IN1 * 3;"}),
+    ("ge.pid_ind", {}, {"integral_resolution": 0.01}),
+    ("process.fopdt", {}, {"delay_capacity": 50}),
+])
+def test_a_parameter_the_state_depends_on_cannot_change(
+        kind: str, params: dict[str, object], change: dict[str, object]) -> None:
+    """set_params refuses, naming the parameter and both values, to change what sizes the
+    state, gives its units or is the block's program (Block.FIXED_PARAMS): applying it would
+    run on a state that means something else (a calc block kept its old program while
+    reporting the new text; a GE remainder in thousandths read as ten-millionths)."""
+    block = loopworks.create_block(kind, **params)
+    block.step(0.1)
+    before = (block.p.copy(), block.x.copy(), dict(block.params))
+    (name,) = change
+    with pytest.raises(InputError, match=rf"{kind}: {name} .* cannot change .*make a new block"):
+        block.set_params(**change)
+    assert np.array_equal(block.p, before[0]) and np.array_equal(block.x, before[1],
+                                                                 equal_nan=True)
+    assert block.params == before[2]

@@ -99,6 +99,9 @@ class Block:
     COEFFS: ClassVar[tuple[Any, ...]] = ()
     #: the state array x: names and Arrays (an Array's size may follow the parameters)
     STATES: ClassVar[tuple[Any, ...]] = ()
+    #: parameters set_params() refuses to change, each with the reason (they size the state,
+    #: give its units, or make its program): a new block is needed
+    FIXED_PARAMS: ClassVar[dict[str, str]] = {}
     #: False for kinds whose array sizes vary per instance (``deltav.calc``): the compiled
     #: single-step wrapper is specialised to the sizes, so such kinds step through the kernel's
     #: standard entry point instead of compiling a wrapper per instance.
@@ -300,6 +303,10 @@ class Block:
         given = dict(self.given)
         given.update({k.lower(): v for k, v in changes.items()})
         params = validate(self.kind, self.PARAMS, given)
+        for name, why in self.FIXED_PARAMS.items():
+            if params[name] != self.params[name]:
+                raise InputError(f"{self.kind}: {name} {why} and cannot change "
+                                 f"({self.params[name]!r} → {params[name]!r}); make a new block")
         old_params, self.params = self.params, params
         try:
             coefficients = self._coefficients()

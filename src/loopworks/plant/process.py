@@ -216,7 +216,7 @@ from loopworks.blocks import layout
 from loopworks.blocks.block import Block, Outputs
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.layout import Array, index
-from loopworks.blocks.params import Param, Port, validate
+from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import finite, lag_step
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD, BAD_CONFIGURATION_ERROR, BAD_NON_SPECIFIC, GOOD_NC
@@ -547,7 +547,7 @@ class _LineProcess(Block):
     ``step()``."""
 
     FIXED_LAYOUT = False  # the state size follows delay_capacity (and max_order)
-    LAYOUT_PARAMS: ClassVar[tuple[str, ...]] = ("delay_capacity",)
+    FIXED_PARAMS: ClassVar[dict[str, str]] = {"delay_capacity": "sizes the block's state"}
 
     def __init__(self, *, jit: bool | None = None, **params: Any) -> None:
         super().__init__(jit=jit, **{k: _list_as_text(v) for k, v in params.items()})
@@ -589,17 +589,9 @@ class _LineProcess(Block):
         return super().step(dt, **inputs)
 
     def set_params(self, **changes: Any) -> None:
-        """Change parameters between scans, keeping the state (see :meth:`Block.set_params`).
-        The parameters that size the state cannot change."""
-        changes = {k: _list_as_text(v) for k, v in changes.items()}
-        given = dict(self.given)
-        given.update({k.lower(): v for k, v in changes.items()})
-        new = validate(self.kind, self.PARAMS, given)
-        for name in self.LAYOUT_PARAMS:
-            if new[name] != self.params[name]:
-                raise InputError(f"{self.kind}: {name} sizes the block's state and cannot "
-                                 f"change ({self.params[name]} → {new[name]}); make a new block")
-        super().set_params(**changes)
+        """Change parameters between scans, keeping the state (see :meth:`Block.set_params`;
+        the parameters that size the state, ``FIXED_PARAMS``, cannot change)."""
+        super().set_params(**{k: _list_as_text(v) for k, v in changes.items()})
 
 
 class _DeadTimeProcess(_LineProcess):
@@ -815,7 +807,8 @@ class TransferFunction(_LineProcess):
     summary = ("transfer function N/D in s (ZOH-discretised with scipy at sample_time) or z, "
                "with dead time")
     kernel = staticmethod(tf_kernel)
-    LAYOUT_PARAMS: ClassVar[tuple[str, ...]] = ("delay_capacity", "max_order")
+    FIXED_PARAMS: ClassVar[dict[str, str]] = {"delay_capacity": "sizes the block's state",
+                                              "max_order": "sizes the block's state"}
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("num", "1", "", "numerator coefficients N, descending powers (text '1, 2' = "
               "s + 2, or a list)", type="text"),

@@ -696,6 +696,10 @@ def _word_of(value: float, scale: float) -> int:
 class GEPIDBlock(Block):
     """Shared machinery of PID_IND and PID_ISA (one kernel, ``p[P.isa]`` selects the maths)."""
 
+    #: the integral's remainder (word 27) is kept in these units
+    FIXED_PARAMS: ClassVar[dict[str, str]] = {
+        "integral_resolution": "gives the units the integral remainder (word 27) is kept in"}
+
     kernel = staticmethod(ge_pid_kernel)
     INPUTS: ClassVar[tuple[Port, ...]] = INPUTS
     OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS

@@ -605,6 +605,8 @@ class Calc(Block):
                "stick-slip compensator)")
     kernel = staticmethod(calc_kernel)
     FIXED_LAYOUT = False  # array sizes differ from text to text: no per-size step wrapper
+    FIXED_PARAMS: ClassVar[dict[str, str]] = {
+        "expression": "is the block's program (compiled when the block is made)"}
 
     # The class declarations are the seed's; an instance sets its own from its expression.
     PARAMS: ClassVar[tuple[Param, ...]] = _SEED.params
