@@ -18,8 +18,9 @@ from loopworks.blocks import layout
 from loopworks.blocks.layout import Array
 from tests.blocks.test_block_model import VARIANTS
 
-SRC = Path(loopworks.__file__).resolve().parent
-DOCS = SRC.parent.parent / "docs" / "blocks"
+ROOT = Path(__file__).resolve().parents[2]  # the checkout (loopworks may be installed elsewhere)
+SRC = ROOT / "src" / "loopworks"
+DOCS = ROOT / "docs" / "blocks"
 
 
 def _referenced(fn: Any, seen: set[int] | None = None) -> Iterator[tuple[str, Any]]:
@@ -118,7 +119,9 @@ def test_no_layout_is_written_by_hand() -> None:
     """No module numbers its array slots itself (``A, B, C = range(3)``) or sizes an array by
     a literal (``[0.0] * 57``): index() and the declarations do that."""
     found = []
-    for path in sorted(SRC.rglob("*.py")):
+    paths = sorted(SRC.rglob("*.py"))
+    assert len(paths) > 40, f"the source is not at {SRC}"
+    for path in paths:
         text = path.read_text(encoding="utf-8")
         text = re.sub(r"\\\n", " ", text)
         for pattern in (LAYOUT_BY_HAND, SIZED_BY_HAND):
