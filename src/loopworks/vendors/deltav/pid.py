@@ -377,6 +377,15 @@ def to_pct(x: float, eu0: float, k: float) -> float:
 
 
 @primitive
+def p_term(p: FloatArray, sp_pct: float, pv_pct: float, single: bool) -> float:
+    """The proportional term in % of span, P = sign·GAIN·(BETA·SP% - PV%), 0 in the
+    structures without P (spec 4.2, 4.3, 4.7 step 5), stored as the kernel stores it."""
+    if p[P.has_p] == 0.0:
+        return 0.0
+    return rnd(p[P.sign] * p[P.gain] * (p[P.beta] * sp_pct - pv_pct), single)
+
+
+@primitive
 def first_order(y: float, target: float, dt: float, t: float, law: float) -> float:
     """PV/SP filter step (spec 4.7 step 3): y + dt/(T + dt)·(target - y) (backward Euler, [A])
     or y + (1 - e^(-dt/T))·(target - y) (exact); T = 0 passes the target through."""
@@ -542,8 +551,7 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
         sp_pct = to_pct(spf, p[P.pv_eu0], p[P.pv_k])  # step 4
         pv_pct = to_pct(pv, p[P.pv_eu0], p[P.pv_k])
         pe = rnd(s * g * (sp_pct - pv_pct), single)
-        if p[P.has_p] != 0.0:  # step 5
-            pterm = rnd(s * g * (p[P.beta] * sp_pct - pv_pct), single)
+        pterm = p_term(p, sp_pct, pv_pct, single)  # step 5
         dsig = p[P.gamma] * sp_pct - pv_pct  # step 6
         d_prev = x[X.d]
         dsig_prev = x[X.d_signal]
@@ -897,10 +905,7 @@ class DeltaVPID(Block):
             return
         sp_pct = to_pct(x[X.sp_filtered], p[P.pv_eu0], p[P.pv_k])
         pv_pct = to_pct(x[X.pv], p[P.pv_eu0], p[P.pv_k])
-        p_new = 0.0
-        if p[P.has_p] != 0.0:
-            p_new = rnd(p[P.sign] * p[P.gain] * (p[P.beta] * sp_pct - pv_pct),
-                        p[P.single] != 0.0)
+        p_new = p_term(p, sp_pct, pv_pct, p[P.single] != 0.0)
         x[X.r] = rnd(x[X.r] + (x[X.p] - p_new), p[P.single] != 0.0)
         x[X.p] = p_new
         x[X.d_signal] = p[P.gamma] * sp_pct - pv_pct
