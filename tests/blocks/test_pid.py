@@ -1074,3 +1074,25 @@ def test_retuning_in_man_needs_no_correction(make: Make) -> None:
     out(blk, 1.0, mode="MAN", man_out=30.0, sp=50.0, pv=40.0)
     blk.set_params(k=4.0)
     assert out(blk, 1.0, mode="AUTO") == approx(30.0 + 5.0)
+
+
+# ----------------------------------------------------------------------------------------------
+# antiwindup = integral_limits (simple-pid 2.0.1's rule: the integral itself within the limits)
+# ----------------------------------------------------------------------------------------------
+def test_integral_limits_keeps_the_integral_within_the_output_limits(make: Make) -> None:
+    """I_k = clamp(I_{k-1} + ki·dt·e, lo, hi); u = clamp(P + I + D, lo, hi). Hand values:
+    kp 2, ki 1, lo 0, hi 10, dt 1, sp 10."""
+    blk = make(form="parallel", kp=2.0, ki=1.0, out_lo=0.0, out_hi=10.0,
+               antiwindup="integral_limits")
+    # pv 0: P 20, I 0 + 10 = 10 (at hi), u = clamp(30) = 10
+    assert terms(blk, 1.0, sp=10.0, pv=0.0)[:3] == (10.0, 20.0, 10.0)
+    # pv 0 again: I stays at 10 (clamped), not 20 as 'none' would give
+    assert terms(blk, 1.0, pv=0.0)[:3] == (10.0, 20.0, 10.0)
+    # pv 12: P -4, I 10 - 2 = 8, u = 4: the output leaves the limit at once (no wound-up I;
+    # 'clamping' would have kept I at 0, P alone being beyond the limit: u = clamp(-6) = 0)
+    assert terms(blk, 1.0, pv=12.0)[:3] == (4.0, -4.0, 8.0)
+
+
+def test_integral_limits_needs_the_positional_algorithm() -> None:
+    with pytest.raises(ParameterError, match=r"integral_limits.*positional"):
+        loopworks.create_block("pid", algorithm="velocity", antiwindup="integral_limits")

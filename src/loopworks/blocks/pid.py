@@ -38,8 +38,11 @@ sec. 3.5, conditional integration); ``back_calculation`` adds the tracking term 
 constant Tt (``tt``; default sqrt(Ti·Td) when Td > 0, else Ti, same source; the tracking gain
 dt/Tt is capped at 1, because forward Euler of dI/dt = (u - v)/Tt overshoots for dt > Tt and
 diverges for dt > 2·Tt, where a rounding residue of u - v would grow without bound); ``none``
-integrates regardless. The velocity algorithm supports ``clamping`` (its accumulator is the
-limited output) and ``none`` (its accumulator is v, which can wind up).
+integrates regardless; ``integral_limits`` keeps the integral itself within
+out_lo..out_hi, I_k = clamp(I_{k-1} + ΔI_k, out_lo, out_hi), and sums v_k = P_k + I_k + D_k +
+ff_k + bias in that order (simple-pid 2.0.1, ``PID.__call__``, "Avoid integral windup": the
+rule of :class:`loopworks.compat.PID`). The velocity algorithm supports ``clamping`` (its
+accumulator is the limited output) and ``none`` (its accumulator is v, which can wind up).
 
 Dead bands: ``i_deadband`` freezes the integral (tracking term included) while
 abs(e) < i_deadband. ``e_deadband`` is a gap: while abs(e) < e_deadband the output is held at
@@ -98,7 +101,7 @@ from loopworks.blocks.status import (
 )
 from loopworks.errors import ParameterError
 
-AW_NONE, AW_CLAMPING, AW_BACK_CALCULATION = 0, 1, 2
+AW_NONE, AW_CLAMPING, AW_BACK_CALCULATION, AW_INTEGRAL_LIMITS = 0, 1, 2, 3
 BAD_HOLD, BAD_SAFE = 0, 1
 MAN, AUTO, CAS = 0, 1, 2  # values of the mode input
 
@@ -222,7 +225,12 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
                     di = max(0.0, upper - base)
                 elif di < 0.0 and base + di < lower:
                     di = min(0.0, lower - base)
-            v = base + di
+            i_sum = i_prev + di
+            if p[P.aw] == AW_INTEGRAL_LIMITS:  # positional only (coefficients() refuses velocity)
+                i_sum = clamp(i_sum, lo, hi)
+                v = pterm + i_sum + dterm + ff + bias
+            else:
+                v = base + di
             i_new = i_prev
             if gap:
                 out = u_prev
@@ -233,7 +241,7 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
                     acc = out if p[P.aw] == AW_CLAMPING else v
                     iterm = acc - pterm - dterm - ff - bias
                 else:
-                    i_new = i_prev + di
+                    i_new = i_sum
                     iterm = i_new
             # overflow is Bad input: a sum of finite numbers is finite unless one of them is
             # not, or the sum overflows (then the terms are beyond any usable scale anyway)
@@ -323,7 +331,7 @@ class PID(Block):
         Param("algorithm", "positional", "", "positional or velocity (incremental)", "choice",
               choices=("positional", "velocity")),
         Param("antiwindup", "clamping", "", "anti-windup strategy", "choice",
-              choices=("clamping", "back_calculation", "none")),
+              choices=("clamping", "back_calculation", "integral_limits", "none")),
         Param("tt", None, "s", "tracking time constant for back_calculation", lo=0.0,
               default_text="sqrt(Ti·Td) if Td > 0 else Ti"),
         Param("out_lo", 0.0, "out", "output low limit"),
@@ -421,11 +429,11 @@ class PID(Block):
                 f"pid: parameter 'out_hi' = {hi:g} must be greater than out_lo = {lo:g}")
         _check_finite(prm, given, kp, ki, kd, tf)
         velocity = prm["algorithm"] == "velocity"
-        aw = {"none": AW_NONE, "clamping": AW_CLAMPING,
-              "back_calculation": AW_BACK_CALCULATION}[prm["antiwindup"]]
-        if velocity and aw == AW_BACK_CALCULATION:
+        aw = {"none": AW_NONE, "clamping": AW_CLAMPING, "back_calculation": AW_BACK_CALCULATION,
+              "integral_limits": AW_INTEGRAL_LIMITS}[prm["antiwindup"]]
+        if velocity and aw in (AW_BACK_CALCULATION, AW_INTEGRAL_LIMITS):
             raise ParameterError(
-                "pid: antiwindup = 'back_calculation' needs algorithm = 'positional'; the "
+                f"pid: antiwindup = '{prm['antiwindup']}' needs algorithm = 'positional'; the "
                 "velocity algorithm takes 'clamping' (accumulate the limited output) or 'none'")
         tt_inv = 0.0
         if aw == AW_BACK_CALCULATION:

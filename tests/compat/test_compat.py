@@ -1,0 +1,140 @@
+"""``loopworks.compat.PID`` against simple-pid 2.0.1 itself (the independent reference), and
+what it does differently on purpose (its module docstring)."""
+
+from __future__ import annotations
+
+import math
+import random
+from typing import Any
+
+import pytest
+import simple_pid
+
+from loopworks.compat import PID
+from loopworks.errors import ParameterError
+
+
+def _settings(rng: random.Random) -> tuple[dict[str, Any], bool]:
+    kw: dict[str, Any] = {
+        "Kp": rng.choice([0.0, 0.5, 2.0]), "Ki": rng.choice([0.0, 0.3, 1.5]),
+        "Kd": rng.choice([0.0, 0.05, 0.4]), "setpoint": rng.uniform(-5, 5),
+        "sample_time": rng.choice([None, 0.01, 0.2]),
+        "output_limits": rng.choice([(None, None), (-3, 3), (0, None), (None, 1.0)]),
+        "proportional_on_measurement": rng.random() < 0.5,
+        "differential_on_measurement": rng.random() < 0.5,
+        "starting_output": rng.uniform(-2, 2)}
+    if rng.random() < 0.3:
+        kw["error_map"] = lambda e: max(-1.0, min(1.0, e))
+    direct = rng.random() < 0.3
+    if direct:
+        kw["Kp"], kw["Ki"], kw["Kd"] = -kw["Kp"], -kw["Ki"], -kw["Kd"]
+    return kw, direct
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_same_outputs_and_components_as_simple_pid(seed: int) -> None:
+    """Random settings (signs, limits, P and D on measurement or error, an error map,
+    sample_time) and a random session of 300 calls (dt given or from time_fn, setpoint and
+    Kp changes, manual and back, set_auto_mode with a last output) on a bounded plant: the
+    port's output and components equal simple-pid's to 1e-9 (relative) at every call."""
+    rng = random.Random(seed)
+    kw, direct = _settings(rng)
+    now = [0.0]
+    theirs = simple_pid.PID(time_fn=lambda: now[0], **kw)
+    ours = PID(time_fn=lambda: now[0], **kw)
+    pv = 0.0
+    for k in range(300):
+        now[0] += 0.1
+        if rng.random() < 0.02:
+            theirs.setpoint = ours.setpoint = rng.uniform(-5, 5)
+        if rng.random() < 0.02:
+            g = rng.uniform(0, 3)
+            theirs.Kp = ours.Kp = -g if direct else g
+        if rng.random() < 0.02:
+            auto = rng.random() < 0.5
+            theirs.auto_mode = ours.auto_mode = auto
+        if rng.random() < 0.01:
+            last = rng.uniform(-3, 0)
+            theirs.set_auto_mode(True, last)
+            ours.set_auto_mode(True, last)
+        dt = rng.choice([0.1, 0.05, 0.005, None])
+        a, b = theirs(pv, dt), ours(pv, dt)
+        if a is None:
+            assert b is None, k
+            continue
+        assert b is not None
+        assert b == pytest.approx(a, rel=1e-9, abs=1e-9), (k, kw)
+        assert ours.components == pytest.approx(theirs.components, rel=1e-9, abs=1e-9), k
+        pv += 0.1 * (max(-10.0, min(10.0, a)) - pv) + rng.uniform(-0.1, 0.1)
+
+
+def test_attributes_set_between_calls_take_effect() -> None:
+    """Kp, Ki, Kd, tunings, setpoint and output_limits set as attributes (simple-pid's way)."""
+    ours, theirs = PID(1, 0.5, 0.1, sample_time=None), simple_pid.PID(1, 0.5, 0.1,
+                                                                     sample_time=None)
+    for pid in (ours, theirs):
+        pid(1.0, dt=0.1)
+        pid.tunings = (3.0, 0.2, 0.0)
+        pid.setpoint = 4.0
+        pid.output_limits = (-1.0, 2.5)
+    for pv in (0.0, 1.0, 2.0, 5.0, 3.0):
+        assert ours(pv, dt=0.1) == pytest.approx(theirs(pv, dt=0.1), rel=1e-12)
+    assert ours.tunings == (3.0, 0.2, 0.0)
+    assert ours.output_limits == (-1.0, 2.5)
+
+
+def test_bad_input_holds_the_output_where_simple_pid_gives_nan() -> None:
+    """A NaN input is Bad input: the output holds (simple-pid returns NaN), and control
+    resumes bumplessly from the held output at the next good input."""
+    ours, theirs = PID(2, 1, 0, setpoint=5, sample_time=None), simple_pid.PID(
+        2, 1, 0, setpoint=5, sample_time=None)
+    held = ours(4.0, dt=0.1)
+    theirs(4.0, dt=0.1)
+    assert math.isnan(theirs(math.nan, dt=0.1))
+    assert ours(math.nan, dt=0.1) == held
+    assert ours(math.inf, dt=0.1) == held
+    nxt = ours(4.0, dt=0.1)
+    assert math.isfinite(nxt)
+    assert abs(nxt - held) < 1.0  # re-initialised from the held output: one I step, no jump
+
+
+def test_mixed_sign_gains_are_refused_with_their_values() -> None:
+    with pytest.raises(ParameterError, match=r"mixed signs \(Kp = 1, Ki = -0.5\)"):
+        PID(1, -0.5, 0)
+    pid = PID(1, 0.5, 0)
+    pid.Ki = -0.5
+    with pytest.raises(ParameterError, match="mixed signs"):
+        pid(0.0, dt=0.1)
+
+
+def test_negative_dt_is_refused_as_simple_pid_does() -> None:
+    with pytest.raises(ValueError, match="dt has negative value -1"):
+        PID()(0.0, dt=-1)
+
+
+def test_loopworks_keywords_filter_and_antiwindup() -> None:
+    """derivative_filter Tf: D_k = (Tf·D_{k-1} - Kd·Δinput)/(Tf + dt) (the generic pid's
+    backward-Euler filter); antiwindup = clamping stops the integral where P + I meets the
+    limit, where integral_limits lets I reach the limit itself."""
+    pid = PID(0, 0, 1.0, sample_time=None, derivative_filter=0.1)
+    pid(0.0, dt=0.1)
+    assert pid(1.0, dt=0.1) == pytest.approx(-1.0 / 0.2)  # (0.1·0 - 1·1)/(0.1 + 0.1)
+    assert pid(1.0, dt=0.1) == pytest.approx(0.1 * (-5.0) / 0.2)
+    simple = PID(2, 1, 0, setpoint=10, output_limits=(0, 10), sample_time=None)
+    clamped = PID(2, 1, 0, setpoint=10, output_limits=(0, 10), sample_time=None,
+                  antiwindup="clamping")
+    for pid in (simple, clamped):
+        pid(0.0, dt=1.0)
+        pid(0.0, dt=1.0)
+    assert simple.components[1] == 10.0  # I at the limit (simple-pid)
+    assert clamped.components[1] == 0.0  # P = 20 alone is beyond the limit: I does not move
+    assert "antiwindup='clamping'" in repr(clamped)
+    assert eval(repr(clamped), {"PID": PID}).antiwindup == "clamping"
+
+
+def test_equal_limits_give_that_output() -> None:
+    """simple-pid allows lower == upper (only upper < lower is refused)."""
+    pid = PID(1, 1, 0, setpoint=3, output_limits=(2.0, 2.0), sample_time=None)
+    assert pid(0.0, dt=0.1) == 2.0
+    with pytest.raises(ValueError, match="lower limit must be less than upper limit"):
+        pid.output_limits = (3.0, 1.0)
