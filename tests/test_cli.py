@@ -423,7 +423,7 @@ def test_blocks_prints_bracketed_text_as_written() -> None:
     """Rich markup once swallowed "[output: its initial value]" (deltav.calc) and other
     bracketed text; every kind's every meaning now reads as declared."""
     from loopworks.blocks import reference
-    from loopworks.blocks.registry import block_class, kinds
+    from loopworks.catalog import block_class, kinds
 
     calc = invoke("blocks", "deltav.calc", columns=250)
     assert calc.exit_code == 0, calc.output
@@ -480,7 +480,7 @@ def test_help_of_create_block_names_every_kind() -> None:
     import re
 
     import loopworks
-    from loopworks.blocks.registry import kinds
+    from loopworks.catalog import kinds
 
     shown = pydoc.plain(pydoc.render_doc(loopworks.create_block))  # what help() prints
     kinds_part = shown.split("The kinds")[1].split(">>>")[0]

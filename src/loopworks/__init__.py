@@ -43,21 +43,21 @@ def create_block(kind: str, **params: Any) -> Block:
     >>> create_block("process.fopdt", gain=2.0, time_constant=10.0, dead_time=1.0).kind
     'process.fopdt'
     """
-    from loopworks.blocks.registry import create_block as _create
+    from loopworks.catalog import create_block as _create
 
     return _create(kind, **params)
 
 
 def kinds() -> list[str]:
     """Every registered block kind."""
-    from loopworks.blocks.registry import kinds as _kinds
+    from loopworks.catalog import kinds as _kinds
 
     return _kinds()
 
 
 def block_class(kind: str) -> type[Block]:
     """The class of a block kind."""
-    from loopworks.blocks.registry import block_class as _bc
+    from loopworks.catalog import block_class as _bc
 
     return _bc(kind)
 

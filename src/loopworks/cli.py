@@ -178,6 +178,9 @@ def blocks(
     kind: Annotated[str | None, typer.Argument(help="a block kind to describe")] = None,
     markdown: Annotated[bool, typer.Option(
         "--markdown", help="print the kind's reference page in Markdown (docs/blocks/)")] = False,
+    as_json: Annotated[bool, typer.Option(
+        "--json", help="print the kind's whole declaration as JSON (docs/blocks-json.md); "
+        "without KIND, the kinds and their summaries")] = False,
 ) -> None:
     """List the block kinds, or describe one: parameters, inputs and outputs."""
     from rich.console import Console
@@ -185,8 +188,18 @@ def blocks(
     from rich.table import Table
 
     from loopworks.blocks import reference
-    from loopworks.blocks.registry import block_class, kinds
+    from loopworks.catalog import block_class, kinds
 
+    if as_json:
+        import json
+
+        from loopworks.blocks.controller import Controller
+
+        data: Any = ([{"kind": k, "summary": block_class(k).describe(),
+                       "controller": issubclass(block_class(k), Controller)} for k in kinds()]
+                     if kind is None else reference.declaration(block_class(kind)))
+        typer.echo(json.dumps(data, indent=2, allow_nan=False))
+        return
     console = Console()
     if kind is None:
         table = Table(title="block kinds")
@@ -231,7 +244,7 @@ def replay(
         "--dt", help="scan time in seconds, when the CSV has no t or dt column")] = None,
 ) -> None:
     """Run recorded inputs from a CSV file through one block and write its outputs."""
-    from loopworks.blocks.registry import block_class
+    from loopworks.catalog import block_class
     from loopworks.sim.replay import replay as run_replay
 
     cls = block_class(kind)
@@ -462,7 +475,7 @@ def compile_kinds(
 
     import loopworks
     from loopworks.blocks import plan
-    from loopworks.blocks.registry import block_class
+    from loopworks.catalog import block_class
 
     if jobs < 1:
         _fail(f"--jobs {jobs}: expected a whole number of processes >= 1")
@@ -482,11 +495,11 @@ def compile_kinds(
         task = bar.add_task("compiling", total=len(work))
         if jobs == 1:
             for kind in work:
-                done.append(plan.compile_kind(kind))
+                done.append(plan.compile_kind(block_class(kind)))
                 bar.advance(task)
         else:
             with ProcessPoolExecutor(jobs, mp_context=get_context("spawn")) as pool:
-                for result in pool.map(plan.compile_kind, work):
+                for result in pool.map(plan.compile_kind, [block_class(k) for k in work]):
                     done.append(result)
                     bar.advance(task)
     made = [d for d in done if d[2]]

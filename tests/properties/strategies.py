@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 import loopworks
 from loopworks.blocks.block import Block
 from loopworks.blocks.params import Param
-from loopworks.blocks.registry import block_class
+from loopworks.catalog import block_class
 from loopworks.errors import LoopworksError
 from tests.blocks.test_block_model import VARIANTS
 

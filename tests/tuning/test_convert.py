@@ -8,7 +8,7 @@ import random
 
 import pytest
 
-from loopworks.blocks.registry import create_block
+from loopworks.catalog import create_block
 from loopworks.errors import ParameterError
 from loopworks.tuning.convert import (
     KINDS,

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from loopworks.blocks.registry import create_block
+from loopworks.catalog import create_block
 from loopworks.tuning.convert import convert
 
 DT = 1.0

@@ -79,9 +79,11 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
+from loopworks.blocks.controller import Action, Controller, Handover, Roles
 from loopworks.blocks.forms import series_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive, sees_nonfinite
 from loopworks.blocks.layout import index
@@ -296,7 +298,7 @@ _GAINS_PARALLEL = ("kp", "ki", "kd")
 
 
 @register
-class PID(Block):
+class PID(Controller, Block):
     """Generic PID: ideal, parallel or series form; positional or velocity algorithm."""
 
     kind = "pid"
@@ -356,6 +358,19 @@ class PID(Block):
     OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
     COEFFS: ClassVar[tuple[str, ...]] = COEFFS
     STATES: ClassVar[tuple[str, ...]] = STATES
+    # the controller interface (loopworks.blocks.controller)
+    ROLES: ClassVar[Roles] = Roles(sp="sp", pv="pv", out="out", ff="ff", mode="mode",
+                                   man_out="man_out", track="track", track_value="track_value")
+    AUTOMATIC: ClassVar[dict[str, Any]] = {"mode": "AUTO"}
+    MANUAL: ClassVar[dict[str, Any]] = {"mode": "MAN"}
+    ACTION: ClassVar[Action] = Action("action", "=", "direct")
+    #: a relay test drives the tracking switch and value (bumpless: the integral follows)
+    HANDOVER: ClassVar[Handover] = Handover((("track", "active"), ("track_value", "out")))
+
+    @classmethod
+    def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
+        """``out_lo``..``out_hi``."""
+        return float(params["out_lo"]), float(params["out_hi"])
 
     def set_params(self, **changes: Any) -> None:
         """Change parameters between scans (see :meth:`Block.set_params`). With

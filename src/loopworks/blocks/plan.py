@@ -42,9 +42,12 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from loopworks.blocks.block import Block
 
 #: called with a one-line message before the first plan of a process that has to be compiled
 #: (not loaded from the cache); the CLI sets it to print the line, a library user hears nothing
@@ -446,28 +449,25 @@ _announced = False
 
 
 def _kind(kernel: Any) -> str:
-    """A kernel's name as a user knows it: the kinds that run it (``deltav.pid``), else its
-    function's name."""
-    from loopworks.blocks.registry import block_class, kinds
+    """A kernel's name as a user knows it: the registered kinds that run it (``deltav.pid``),
+    else its function's name."""
+    from loopworks.blocks.registry import registered
 
-    names = [k for k in kinds() if block_class(k).kernel is kernel]
+    names = sorted(k for k, cls in registered().items() if cls.kernel is kernel)
     return "/".join(names) if names else str(getattr(kernel, "__name__", "kernel"))
 
 
-def compile_kind(kind: str) -> tuple[str, float, bool]:
-    """Compile ``kind``'s kernel into the cache (its ``call`` entry, which every other plan
-    calls), or load it when it is there: (kind, seconds, True when it had to compile).
-    ``loopworks compile`` runs this for many kinds, in several processes."""
+def compile_kind(cls: type[Block]) -> tuple[str, float, bool]:
+    """Compile the kernel of block class ``cls`` into the cache (its ``call`` entry, which
+    every other plan calls), or load it when it is there: (its kind, seconds, True when it had
+    to compile). ``loopworks compile`` runs this for many kinds, in several processes."""
     import time
 
-    from loopworks.blocks.registry import block_class
-
-    cls = block_class(kind)
     slots = layout([(cls.kernel, 0, 0, 0, 0, not cls.SOUND_KERNEL)])
     cached = is_cached(slots, "call")
     start = time.perf_counter()
     entry(slots, "call", CALL_SIGNATURE)
-    return kind, time.perf_counter() - start, not cached
+    return cls.kind, time.perf_counter() - start, not cached
 
 
 def entry_point(slots: Sequence[Slot], what: str, signature: str) -> Any:

@@ -1,5 +1,6 @@
-"""A block kind's reference, generated from its declarations: for ``loopworks blocks KIND``
-and for the pages in ``docs/blocks/`` (``loopworks blocks KIND --markdown``).
+"""A block kind's reference, generated from its declarations: for ``loopworks blocks KIND``,
+for the pages in ``docs/blocks/`` (``loopworks blocks KIND --markdown``) and, as data, for
+``loopworks blocks KIND --json`` (:func:`declaration`, documented in ``docs/blocks-json.md``).
 
 The pages cite the project's specifications ("spec 4.4", "plant-and-tuning 2.3", "R42",
 "seed 000", "[A]"), which are not shipped; :func:`citations` finds every such citation on a
@@ -17,6 +18,8 @@ from typing import Any
 
 from loopworks.blocks import sources
 from loopworks.blocks.block import Block
+from loopworks.blocks.controller import Controller
+from loopworks.blocks.params import Param, Port
 
 
 def show(value: Any) -> str:
@@ -49,6 +52,61 @@ def input_rows(cls: type[Block]) -> list[tuple[str, str, str, str]]:
 def output_rows(cls: type[Block]) -> list[tuple[str, str, str, str]]:
     """(name, unit, status, meaning) for every output."""
     return [(p.name, p.unit, "yes" if p.status else "", p.meaning) for p in cls.OUTPUTS]
+
+
+def json_value(value: Any) -> Any:
+    """A value for JSON: numbers, text, true/false and null as they are; a non-finite float
+    as the text a scenario file or a CSV writes (``"nan"``, ``"inf"``, ``"-inf"``)."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return show(value)
+    return value
+
+
+def _parameter(p: Param) -> dict[str, Any]:
+    numeric = p.type in ("float", "int")
+    bounds = {"lo": json_value(p.lo), "lo_open": p.lo_open,
+              "hi": json_value(p.hi), "hi_open": p.hi_open} if numeric else None
+    return {"name": p.name, "unit": p.unit, "type": p.type, "default": json_value(p.default),
+            "default_text": p.default_text, "range": bounds, "range_text": p.range_text(),
+            "choices": list(p.choices), "meaning": p.meaning}
+
+
+def _port(p: Port) -> dict[str, Any]:
+    return {"name": p.name, "unit": p.unit, "default": json_value(p.default),
+            "status": p.status,
+            "choices": [{"code": code, "name": name} for code, name in enumerate(p.choices)],
+            "meaning": p.meaning}
+
+
+def _controller(cls: type[Controller], defaults: dict[str, Any]) -> dict[str, Any]:
+    action = cls.ACTION
+    return {
+        "roles": cls.ROLES.as_dict(),
+        "automatic": {k: json_value(v) for k, v in cls.AUTOMATIC.items()},
+        "manual": {k: json_value(v) for k, v in cls.MANUAL.items()},
+        "action": {"parameter": action.parameter, "op": action.op,
+                   "value": json_value(action.value), "rule": action.rule(),
+                   "default": "direct" if cls.direct_acting(defaults) else "reverse"},
+        "handover": {"inputs": [{"input": name, "from": source}
+                                for name, source in cls.HANDOVER.inputs],
+                     "params": {k: json_value(v) for k, v in cls.HANDOVER.params.items()}},
+    }
+
+
+def declaration(cls: type[Block]) -> dict[str, Any]:
+    """Everything ``cls`` declares, as JSON-ready data (``loopworks blocks KIND --json``; every
+    key is described in ``docs/blocks-json.md``): kind, summary, parameters, inputs, outputs,
+    and for a controller (:class:`~loopworks.blocks.controller.Controller`) its roles,
+    automatic and manual input values, action and handover, else ``controller`` is null."""
+    defaults = {p.name: p.default for p in cls.PARAMS}
+    return {
+        "kind": cls.kind,
+        "summary": cls.describe(),
+        "parameters": [_parameter(p) for p in cls.PARAMS],
+        "inputs": [_port(p) for p in cls.INPUTS],
+        "outputs": [_port(p) for p in cls.OUTPUTS],
+        "controller": _controller(cls, defaults) if issubclass(cls, Controller) else None,
+    }
 
 
 def layout_rows(entries: tuple[Any, ...]) -> list[tuple[str, ...]]:

@@ -146,7 +146,7 @@ class SimResult:
 
     def _panels(self) -> list[tuple[str, list[str]]]:
         """Controllers get an SP/PV panel and an OUT panel; other blocks their outputs."""
-        from loopworks.blocks.registry import block_class
+        from loopworks.catalog import block_class
 
         panels: list[tuple[str, list[str]]] = []
         for name, kind in self.kinds.items():

@@ -265,7 +265,7 @@ def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]]
     if name not in variants:
         raise FileFormatError(f"{where}: variant = {name!r} is not a [compare] variant of this "
                               f"scenario ({', '.join(variants)})")
-    from loopworks.blocks.registry import block_class
+    from loopworks.catalog import block_class
 
     for ref in at.process_gain:
         block, sep, param = ref.rpartition(".")
@@ -340,7 +340,7 @@ def run_autotune(sc: Scenario, progress: Callable[[float], None] | None = None
 
 def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Module:
     """One module from the block tables (names lower-cased), the wires and the events."""
-    from loopworks.blocks.registry import block_class
+    from loopworks.catalog import block_class
 
     blocks = {}
     constants: dict[str, dict[str, Any]] = {}

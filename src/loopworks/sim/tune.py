@@ -9,8 +9,9 @@ runs the procedure of 3.4 on the module's own plant:
    std(Δ²) = √6·σ), which neither a drift nor a smoothly settling transient inflates: first
    differences would read the changing slope of a loop still settling as noise).
 2. A ``relay`` block is put between the controller and what it drives; the controller tracks
-   the relay's output while the test runs (its LO/manual-tracking path, the hand-over table
-   ``HANDOVER``), so it hands back bumplessly when the test ends.
+   the relay's output while the test runs (its LO/manual-tracking path, the controller
+   class's ``HANDOVER``, :mod:`loopworks.blocks.controller`), so it hands back bumplessly when
+   the test ends.
 3. Hysteresis ε defaults to 3σn (3.4 item 2: above the noise band, 2-3 σn); the relay
    amplitude d defaults to 5 % of the controller's output span. With ``biased`` (default) a
    symmetric stage is followed by a second stage for the static gain: a biased relay with
@@ -36,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from loopworks.blocks.block import Block
+from loopworks.blocks.controller import Controller
 from loopworks.blocks.relay import PHASE_NAMES, RUNNING, Relay
 from loopworks.errors import InputError
 from loopworks.sim.module import Module
@@ -49,16 +51,6 @@ from loopworks.tuning.identify import (
 )
 from loopworks.tuning.rules import Tuning
 
-#: kind: (output port, pv port, sp port, [(controller input, relay output)], params to set)
-HANDOVER: dict[str, tuple[str, str, str, list[tuple[str, str]], dict[str, Any]]] = {
-    "pid": ("out", "pv", "sp", [("track", "active"), ("track_value", "out")], {}),
-    "deltav.pid": ("out", "pv", "sp", [("trk_in_d", "active"), ("trk_val", "out")],
-                   {"track_enable": True}),
-    "ge.pid_ind": ("cv", "pv", "sp", [("man", "active"), ("manual_command", "out")], {}),
-    "ge.pid_isa": ("cv", "pv", "sp", [("man", "active"), ("manual_command", "out")], {}),
-    "s5.pid": ("y", "x", "w", [("auto", "inactive"), ("yh", "out")], {}),
-    "e2.pid": ("out", "pv", "sp", [("override", "override")], {"override_updates_pid": True}),
-}
 RELAY = "relay_test"
 
 
@@ -101,8 +93,8 @@ class RelayTestRefused(IdentificationRefused):
 
 
 def controllers(module: Module) -> list[str]:
-    """The blocks of ``module`` that ``relay_test`` can tune (kinds in ``HANDOVER``)."""
-    return [name for name, block in module.blocks.items() if block.kind in HANDOVER]
+    """The blocks of ``module`` that ``relay_test`` can tune (the controllers)."""
+    return [name for name, block in module.blocks.items() if isinstance(block, Controller)]
 
 
 def default_loop(module: Module) -> str:
@@ -112,8 +104,10 @@ def default_loop(module: Module) -> str:
     if len(names) == 1:
         return names[0]
     if not names:
+        from loopworks.catalog import controller_kinds
+
         raise InputError("the scenario has no controller to tune (kinds: "
-                         + ", ".join(HANDOVER) + ")")
+                         + ", ".join(controller_kinds()) + ")")
     raise InputError("--loop is required: the scenario has several controllers: "
                      + ", ".join(names))
 
@@ -137,29 +131,11 @@ def _why(outcome: str, relay: Relay, dt: float) -> str:
     return reasons.get(outcome, f"the test ended with '{outcome}'")
 
 
-def direct_acting(block: Block) -> bool:
-    """True when the controller's error is PV - SP (the output rises with the PV): deltav and
-    GE ``direct_acting``, pid ``action = direct``, E2 ``error_sign = input_minus_setpoint``
-    (its default, vendor-blocks 3.3), S5 with K < 0 (vendor-blocks 2.5)."""
-    prm = block.params
-    return bool({"pid": lambda: prm["action"] == "direct",
-                 "deltav.pid": lambda: prm["direct_acting"],
-                 "ge.pid_ind": lambda: prm["direct_acting"],
-                 "ge.pid_isa": lambda: prm["direct_acting"],
-                 "e2.pid": lambda: prm["error_sign"] == "input_minus_setpoint",
-                 "s5.pid": lambda: prm["k"] < 0}[block.kind]())
-
-
-def _controller_limits(block: Block) -> tuple[float, float]:
-    """The controller's output range in its own units (for the default amplitude, limits)."""
-    prm = block.params
-    for lo, hi in (("out_lo", "out_hi"), ("output_min", "output_max"), ("bgug", "bgog"),
-                   ("lower_clamp", "upper_clamp"), ("out_lo_lim", "out_hi_lim")):
-        if lo in prm and prm[lo] is not None and prm[hi] is not None:
-            return float(prm[lo]), float(prm[hi])
-    if block.kind == "deltav.pid":
-        return float(prm["out_scale_eu_0"]), float(prm["out_scale_eu_100"])
-    return 0.0, 100.0
+def _interface(block: Block) -> type[Controller]:
+    """The controller interface of ``block``'s class (a controller, checked before)."""
+    cls = type(block)
+    assert issubclass(cls, Controller), block.kind
+    return cls
 
 
 def _relay_setup(module: Module, loop: str, dt: float, start: float | None,
@@ -173,20 +149,20 @@ def _relay_setup(module: Module, loop: str, dt: float, start: float | None,
     if loop not in module.blocks:
         raise InputError(f"--loop '{loop}': no such block; blocks: {', '.join(module.blocks)}")
     ctrl = module.blocks[loop]
-    if ctrl.kind not in HANDOVER:
+    if not isinstance(ctrl, Controller):
         raise InputError(f"--loop '{loop}' is a {ctrl.kind} block, not a controller; "
-                         "controllers: " + ", ".join(n for n, b in module.blocks.items()
-                                                     if b.kind in HANDOVER))
-    if ctrl.kind == "s5.pid" and ctrl.params["velocity"]:
-        raise InputError(f"--loop '{loop}': an s5.pid in velocity mode outputs increments; "
-                         "the relay test needs the positioning algorithm (velocity = false)")
-    pv_port = HANDOVER[ctrl.kind][1]
+                         "controllers: " + ", ".join(controllers(module)))
+    why = ctrl.incremental(ctrl.params)
+    if why is not None:
+        raise InputError(f"--loop '{loop}': this {ctrl.kind} outputs increments ({why}); the "
+                         "relay test needs a controller whose output is the position")
+    pv_port = ctrl.ROLES.pv
     pv_src = module.wires.get(f"{loop}.{pv_port}")
     if pv_src is None:
         raise InputError(f"--loop '{loop}': its input '{pv_port}' is not wired to a PV")
     if not 0.0 < dt < math.inf:
         raise InputError(f"dt = {dt!r} s is not allowed: dt must be > 0 and finite")
-    lo, hi = _controller_limits(ctrl)
+    lo, hi = ctrl.output_range(ctrl.params)
     d = 0.05 * (hi - lo) if amplitude is None else float(amplitude)
     relay_params: dict[str, Any] = {
         "amplitude": d, "out_lo": lo, "out_hi": hi, "timeout": timeout,
@@ -195,7 +171,7 @@ def _relay_setup(module: Module, loop: str, dt: float, start: float | None,
     if biased:
         relay_params["amplitude_down"] = bias_ratio * d
         relay_params["offset"] = offset
-    if direct_acting(ctrl):
+    if ctrl.direct_acting(ctrl.params):
         relay_params["action"] = "direct"
     start = _default_start(module, dt) if start is None else float(start)
     if not 0.0 <= start < math.inf:
@@ -229,7 +205,9 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
     ctrl, pv_src, relay_params, d, start = _relay_setup(
         module, loop, dt, start, amplitude, hysteresis, biased, bias_ratio, offset, timeout,
         stable_cycles, max_deviation)
-    out_port, _, sp_port, links, settings = HANDOVER[ctrl.kind]
+    iface = _interface(ctrl)
+    out_port, sp_port, working_sp = iface.ROLES.out, iface.ROLES.sp, iface.ROLES.working_sp
+    links, settings = iface.HANDOVER.inputs, iface.HANDOVER.params
 
     # settle under the controller (events up to start only)
     module.events = [e for e in module.events if e.t < start - 1e-9]
@@ -253,8 +231,8 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
     wires[f"{RELAY}.u_in"] = f"{loop}.{out_port}"
     wires[f"{RELAY}.pv"] = pv_src
     sp_value: float | None = None
-    if "working_sp" in ctrl._out_index:
-        wires[f"{RELAY}.sp"] = f"{loop}.working_sp"
+    if working_sp is not None:
+        wires[f"{RELAY}.sp"] = f"{loop}.{working_sp}"
     elif f"{loop}.{sp_port}" in module.wires:
         wires[f"{RELAY}.sp"] = module.wires[f"{loop}.{sp_port}"]
     else:
@@ -421,7 +399,8 @@ def tune_loop(module: Module, loop: str, dt: float, *, rule: str | None = None,
     context = {k: v for k, v in ctrl.params.items() if v is not None}
     # the relay oscillated under the loop's own action, so that action is the right one
     conversion = from_loop_units(run.kind, ideal.kc, ideal.ti, ideal.td,
-                                 direct=direct_acting(ctrl), sample_time=dt, context=context)
+                                 direct=_interface(ctrl).direct_acting(ctrl.params),
+                                 sample_time=dt, context=context)
     return TuneReport(run, run.identification, tuning, conversion, _handback_jump(run))
 
 

@@ -97,7 +97,7 @@ from loopworks.blocks.forms import (
     series_to_ideal,
 )
 from loopworks.blocks.params import validate
-from loopworks.blocks.registry import block_class, create_block
+from loopworks.catalog import block_class, create_block
 from loopworks.errors import ParameterError
 from loopworks.tuning.settings import Ideal
 

@@ -1,32 +1,19 @@
 """The common currency of the tuning layer: controller settings and process data.
 
-``Ideal`` is a controller in the ideal (ISA, non-interacting) form of plant-and-tuning 3.5, in
-continuous time::
-
-    u = s·Kc·[ e + (1/Ti)·∫e dt + Td·p/(1 + Tf·p)·e ]      s = +1 reverse, -1 direct
-
-with ``kc`` in % of output span per % of PV span (normalised, as DeltaV's GAIN), unless a
-function says it works in loop (port) units. ``ProcessData`` carries what a relay test or a
+``Ideal`` (defined in :mod:`loopworks.blocks.law`, below the vendors, and re-exported here) is
+a controller in the ideal (ISA, non-interacting) form of plant-and-tuning 3.5, in continuous
+time, with ``kc`` in % of output span per % of PV span, unless a function says it works in
+loop (port) units. ``ProcessData`` carries what a relay test or a
 model gives the tuning rules.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+from loopworks.blocks.law import Ideal
 
-@dataclass(frozen=True)
-class Ideal:
-    """Ideal-form settings: gain ``kc``, integral time ``ti`` (s, inf = none), derivative time
-    ``td`` (s, 0 = none), derivative filter time constant ``tf`` (s, 0 = none) and ``direct``
-    action (e = PV - SP) instead of reverse (e = SP - PV)."""
-
-    kc: float
-    ti: float = math.inf
-    td: float = 0.0
-    tf: float = 0.0
-    direct: bool = False
+__all__ = ["Ideal", "ProcessData"]
 
 
 @dataclass(frozen=True)

@@ -173,9 +173,11 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
+from loopworks.blocks.controller import Action, Controller, Handover, Roles
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
@@ -373,7 +375,7 @@ def pwm_times(percent: float, period: float) -> tuple[float, float]:
 
 
 @register
-class E2PID(Block):
+class E2PID(Controller, Block):
     """Emerson E2 PID cell with its Filter and Override cells (spec vendor-blocks 3)."""
 
     kind = "e2.pid"
@@ -449,6 +451,21 @@ class E2PID(Block):
     OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
     COEFFS: ClassVar[tuple[str, ...]] = COEFFS
     STATES: ClassVar[tuple[str, ...]] = STATES
+    # the controller interface (loopworks.blocks.controller): the E2 has no mode input; the
+    # Override cell is its manual (spec 3.7): a finite override is the output, NaN releases it
+    ROLES: ClassVar[Roles] = Roles(sp="sp", pv="pv", out="out", man_out="override")
+    AUTOMATIC: ClassVar[dict[str, Any]] = {"override": math.nan}
+    MANUAL: ClassVar[dict[str, Any]] = {}
+    ACTION: ClassVar[Action] = Action("error_sign", "=", "input_minus_setpoint")  # spec 3.3
+    #: a relay test overrides the output; the PID's stored output follows the override
+    #: (override_updates_pid), so the PID continues from it when the override ends
+    HANDOVER: ClassVar[Handover] = Handover((("override", "override"),),
+                                            {"override_updates_pid": True})
+
+    @classmethod
+    def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
+        """Output at Minimum..Output at Maximum, % (spec 3.4)."""
+        return float(params["output_min"]), float(params["output_max"])
 
     def coefficients(self) -> dict[str, float]:
         prm: dict[str, Any] = self.params

@@ -267,15 +267,16 @@ gives ``cv`` = 8000, 8000, 8150, 8300 (the ``t`` column is the controller clock)
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
+from loopworks.blocks.controller import Action, Controller, Handover, Roles
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.primitives import clamp, finite, lag_step
-from loopworks.blocks.registry import block_class, register
+from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD, GOOD_NC
 from loopworks.errors import ParameterError
 
@@ -693,7 +694,21 @@ def _word_of(value: float, scale: float) -> int:
     return int(math.copysign(math.floor(abs(value) * scale + 0.5), value))
 
 
-class GEPIDBlock(Block):
+def config_bits(kind: str, params: Mapping[str, Any], given: Iterable[str]) -> dict[str, bool]:
+    """The Config Word (word 13) bits by flag name (spec 1.3), from validated ``params``: the
+    bits of ``config_word`` when it is given, else the flags; ``given``: the parameter names
+    the user gave (a flag given beside ``config_word`` is a ParameterError)."""
+    if params["config_word"] is not None:
+        cw = int(params["config_word"])
+        both = sorted(set(given) & set(CONFIG_FLAGS))
+        if both:
+            raise ParameterError(f"{kind}: give either 'config_word' or the flags, not both: "
+                                 f"'config_word' = {cw} and '{both[0]}' were given")
+        return {name: bool(cw >> bit & 1) for bit, name in enumerate(CONFIG_FLAGS)}
+    return {name: bool(params[name]) for name in CONFIG_FLAGS}
+
+
+class GEPIDBlock(Controller, Block):
     """Shared machinery of PID_IND and PID_ISA (one kernel, ``p[P.isa]`` selects the maths)."""
 
     #: the integral's remainder (word 27) is kept in these units
@@ -706,6 +721,21 @@ class GEPIDBlock(Block):
     COEFFS: ClassVar[tuple[str, ...]] = COEFFS
     STATES: ClassVar[tuple[str, ...]] = STATES
     IS_ISA: ClassVar[bool] = False
+    # the controller interface (loopworks.blocks.controller): MAN and Manual Command, spec 1.1
+    ROLES: ClassVar[Roles] = Roles(sp="sp", pv="pv", out="cv", mode="man",
+                                   man_out="manual_command")
+    AUTOMATIC: ClassVar[dict[str, Any]] = {"man": 0.0}
+    MANUAL: ClassVar[dict[str, Any]] = {"man": 1.0}
+    ACTION: ClassVar[Action] = Action("direct_acting", "=", True)  # Config Word bit 0, spec 1.3
+    #: a relay test puts the block in Manual with the relay's output as Manual Command; the
+    #: integral tracks the output in Manual, so Auto continues from it (spec 1.7)
+    HANDOVER: ClassVar[Handover] = Handover((("man", "active"), ("manual_command", "out")))
+
+    @classmethod
+    def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
+        """CV Lower Clamp..CV Upper Clamp (words 11, 10), counts, before the polarity
+        inversion (``invert_output`` is not applied)."""
+        return float(params["lower_clamp"]), float(params["upper_clamp"])
 
     def _fail(self, message: str) -> ParameterError:
         return ParameterError(f"{self.kind}: {message}")
@@ -792,15 +822,12 @@ class GEPIDBlock(Block):
 
     def config_bits(self) -> dict[str, bool]:
         """The Config Word (word 13) bits by flag name."""
-        prm = self.params
-        if prm["config_word"] is not None:
-            cw = int(prm["config_word"])
-            given = set(self.given) & set(CONFIG_FLAGS)
-            if given:
-                raise self._fail(f"give either 'config_word' or the flags, not both: "
-                                 f"'config_word' = {cw} and '{sorted(given)[0]}' were given")
-            return {name: bool(cw >> bit & 1) for bit, name in enumerate(CONFIG_FLAGS)}
-        return {name: bool(prm[name]) for name in CONFIG_FLAGS}
+        return config_bits(self.kind, self.params, self.given)
+
+    @classmethod
+    def direct_acting(cls, params: Mapping[str, Any]) -> bool:
+        """Config Word bit 0 (spec 1.3): ``direct_acting``, or bit 0 of ``config_word``."""
+        return config_bits(cls.kind, params, ())["direct_acting"]
 
     def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
@@ -1053,4 +1080,5 @@ def from_reference_array(words: Sequence[int], kind: str | None = None,
         params.update(kc=signed(6) / 100.0, td=signed(7) / 100.0,
                       ti=math.inf if w8 == 0 else 1000.0 / w8)
     params.update(options)
-    return block_class(kind)(**params)
+    cls: type[GEPIDBlock] = GEPIDIndependent if kind == "ge.pid_ind" else GEPIDISA
+    return cls(**params)

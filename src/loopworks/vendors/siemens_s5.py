@@ -210,9 +210,11 @@ again and continues from DW 48: 75).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
+from loopworks.blocks.controller import Action, Controller, Handover, Roles
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
@@ -474,7 +476,7 @@ def _word_param(name: str, default: int, meaning: str, lo: float = WORD_MIN,
 
 
 @register
-class S5PID(Block):
+class S5PID(Controller, Block):
     """Siemens SIMATIC S5 OB 251 PID (16-bit fixed point, velocity/positioning, DB words)."""
 
     kind = "s5.pid"
@@ -536,6 +538,26 @@ class S5PID(Block):
     OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
     COEFFS: ClassVar[tuple[str, ...]] = COEFFS
     STATES: ClassVar[tuple[str, ...]] = STATES
+    # the controller interface (loopworks.blocks.controller); D 11.0 and YH, spec 2.9
+    ROLES: ClassVar[Roles] = Roles(sp="w", pv="x", out="y", ff="z", mode="auto", man_out="yh")
+    AUTOMATIC: ClassVar[dict[str, Any]] = {"auto": "AUTO"}
+    MANUAL: ClassVar[dict[str, Any]] = {"auto": "MAN"}
+    #: XW = W - X with K > 0 is reverse acting (Siemens calls it "direct"), spec 2.5
+    ACTION: ClassVar[Action] = Action("k", "<", 0)
+    #: a relay test puts the block in Manual (D 11.0 = 0) following YH; DW 48 keeps the
+    #: manual value, so Auto continues from it bumplessly (spec 2.7, 2.9)
+    HANDOVER: ClassVar[Handover] = Handover((("auto", "inactive"), ("yh", "out")))
+
+    @classmethod
+    def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
+        """BGUG..BGOG (DW 16, DW 14), counts: Y's limits (the increment's in velocity mode)."""
+        return float(params["bgug"]), float(params["bgog"])
+
+    @classmethod
+    def incremental(cls, params: Mapping[str, Any]) -> str | None:
+        """The velocity algorithm (D 11.3) outputs the increment dY_k (spec 2.7)."""
+        return ("velocity = true: y is the increment dY (the positioning algorithm, "
+                "velocity = false, gives the position)" if params["velocity"] else None)
 
     def coefficients(self) -> dict[str, float]:
         prm: dict[str, Any] = self.params

@@ -236,11 +236,13 @@ gives ``out`` 50, 60, 61, 62 (float32 values) and ``out.ST`` 131 (Man: constant)
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
 
 from loopworks.blocks.block import Block
+from loopworks.blocks.controller import Action, Controller, Handover, Roles
 from loopworks.blocks.forms import series_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.layout import index
@@ -708,7 +710,7 @@ def _eu(name: str, default: float | None, unit: str, meaning: str, text: str = "
 
 
 @register
-class DeltaVPID(Block):
+class DeltaVPID(Controller, Block):
     """Emerson DeltaV standard PID function block (spec vendor-blocks 4)."""
 
     kind = "deltav.pid"
@@ -856,6 +858,24 @@ class DeltaVPID(Block):
     OUTPUTS: ClassVar[tuple[Port, ...]] = OUTPUTS
     COEFFS: ClassVar[tuple[str, ...]] = COEFFS
     STATES: ClassVar[tuple[str, ...]] = STATES
+    # the controller interface (loopworks.blocks.controller); modes spec 4.5
+    ROLES: ClassVar[Roles] = Roles(sp="sp", pv="pv", out="out", ff="ff_val", mode="mode",
+                                   man_out="man_out", track="trk_in_d", track_value="trk_val",
+                                   working_sp="working_sp")
+    AUTOMATIC: ClassVar[dict[str, Any]] = {"mode": "AUTO"}
+    MANUAL: ClassVar[dict[str, Any]] = {"mode": "MAN"}
+    ACTION: ClassVar[Action] = Action("direct_acting", "=", True)  # spec 4.2, 4.9
+    #: a relay test holds the block in LO through TRK_IN_D/TRK_VAL (spec 4.5), which needs the
+    #: Track enable option; the reset is back-calculated, so the return to Auto is bumpless
+    HANDOVER: ClassVar[Handover] = Handover((("trk_in_d", "active"), ("trk_val", "out")),
+                                            {"track_enable": True})
+
+    @classmethod
+    def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
+        """OUT_LO_LIM..OUT_HI_LIM when both are given, else the OUT_SCALE span (OUT EU)."""
+        if params["out_lo_lim"] is not None and params["out_hi_lim"] is not None:
+            return float(params["out_lo_lim"]), float(params["out_hi_lim"])
+        return float(params["out_scale_eu_0"]), float(params["out_scale_eu_100"])
 
     def set_params(self, **changes: Any) -> None:
         """Change parameters between scans (see :meth:`Block.set_params`).
