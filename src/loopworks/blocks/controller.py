@@ -15,7 +15,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from loopworks.blocks.law import DiscreteLaw, Realisation
+from loopworks.blocks.law import DiscreteLaw, Realisation, span
 
 
 @dataclass(frozen=True)
@@ -90,6 +90,7 @@ class Controller:
     ``ACTION``, ``HANDOVER``. Methods read the block's validated parameters (``params``, as
     ``Block.params`` holds them)."""
 
+    kind: ClassVar[str]  # the block kind (Block's)
     ROLES: ClassVar[Roles]
     AUTOMATIC: ClassVar[Mapping[str, Any]]
     MANUAL: ClassVar[Mapping[str, Any]]
@@ -118,12 +119,21 @@ class Controller:
     LAW_CONTEXT: ClassVar[tuple[str, ...]] = ()
     #: the parameters ``law()`` reads; a conversion names the others as not converted
     LAW_PARAMS: ClassVar[tuple[str, ...]] = ()
+    #: True when the law's gains are per sample (S5, E2): the parameters fix the sample time;
+    #: False when they are continuous-time and the block runs the law at any Δ
+    PER_SAMPLE: ClassVar[bool] = False
+
+    #: the context names of the PV and output spans and their defaults (port units of 100 %)
+    SPANS: ClassVar[tuple[tuple[str, float], tuple[str, float]]] = (
+        ("pv_span", 100.0), ("out_span", 100.0))
 
     @classmethod
     def spans(cls, context: Mapping[str, Any]) -> tuple[float, float]:
         """(pv_span, out_span): the port units that make 100 % of PV and of output span, from
-        the context values (or parameters) in ``context`` (lower-case names)."""
-        raise NotImplementedError  # pragma: no cover - each controller says
+        the context values (or parameters) in ``context`` (lower-case names): ``SPANS``."""
+        (pv, pv_default), (out, out_default) = cls.SPANS
+        return (span(context, pv, pv_default, cls.kind),
+                span(context, out, out_default, cls.kind))
 
     @classmethod
     def law(cls, params: Mapping[str, Any], dt: float | None,

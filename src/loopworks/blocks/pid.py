@@ -84,10 +84,16 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.controller import Action, Controller, Handover, Roles
-from loopworks.blocks.forms import series_to_ideal
+from loopworks.blocks.forms import (
+    ideal_to_parallel,
+    ideal_to_series,
+    parallel_to_ideal,
+    series_to_ideal,
+)
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive, sees_nonfinite
+from loopworks.blocks.law import DiscreteLaw, Ideal, ParamValue, Realisation, no_ideal
 from loopworks.blocks.layout import index
-from loopworks.blocks.params import Param, Port
+from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import (
@@ -371,6 +377,74 @@ class PID(Controller, Block):
     def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
         """``out_lo``..``out_hi``."""
         return float(params["out_lo"]), float(params["out_hi"])
+
+    # -- the discrete law (loopworks.blocks.law), both ways ---------------------------------
+    LAW_CONTEXT: ClassVar[tuple[str, ...]] = ("pv_span", "out_span")
+    LAW_PARAMS: ClassVar[tuple[str, ...]] = ("form", "k", "ti", "td", "kp", "ki", "kd", "n",
+                                             "tf", "action", "b", "c")
+
+    @classmethod
+    def law(cls, params: Mapping[str, Any], dt: float | None,
+            context: Mapping[str, Any]) -> DiscreteLaw:
+        """The reference law (:mod:`loopworks.blocks.law`): P = Kc·e; ΔI_k = (Kc/Ti)·Δ·e_k;
+        D_k = (Tf·D_{k-1} + Kc·Td·Δe_k)/(Tf + Δ), at any Δ. k, ti, td (ideal); kp, ki, kd
+        (parallel: Kc = kp, Ti = kp/ki, Td = kd/kp); series k', ti', td' through
+        ``series_to_ideal`` (plant-and-tuning 3.5). Tf = ``tf``, else Td/``n`` (n = 10 by
+        default: a pid without ``tf`` filters its D). b, c the setpoint weights of P and D.
+        Kc (%/%) = k·pv_span/out_span."""
+        prm: dict[str, Any] = validate(cls.kind, cls.PARAMS, dict(params))
+        pv_span, out_span = cls.spans(context)
+        form = prm["form"]
+        if form == "parallel":
+            kp = 1.0 if prm["kp"] is None else float(prm["kp"])
+            ki = 0.0 if prm["ki"] is None else float(prm["ki"])
+            kd = 0.0 if prm["kd"] is None else float(prm["kd"])
+            if not kp > 0.0:
+                raise no_ideal(cls.kind, "kp", kp)
+            k, ti, td = parallel_to_ideal(kp, ki, kd)
+        else:
+            k = 1.0 if prm["k"] is None else float(prm["k"])
+            ti = math.inf if prm["ti"] is None else float(prm["ti"])
+            td = 0.0 if prm["td"] is None else float(prm["td"])
+            if form == "series" and td > 0.0:
+                k, ti, td = series_to_ideal(k, ti, td)
+        if prm["tf"] is not None:
+            tf = float(prm["tf"])
+        else:
+            n = 10.0 if prm["n"] is None else float(prm["n"])
+            tf = 0.0 if td == 0.0 or n == math.inf else td / n
+        notes: tuple[str, ...] = ()
+        if prm["tf"] is None and td > 0.0 and tf > 0.0:
+            notes = (f"The pid filters its derivative with Tf = Td/n = {tf:g} s (n default "
+                     "10).",)
+        ideal = Ideal(k * pv_span / out_span, ti, td, tf if td > 0.0 else 0.0,
+                      prm["action"] == "direct")
+        return DiscreteLaw(ideal, b=float(prm["b"]), c=float(prm["c"]), dt=dt, notes=notes)
+
+    @classmethod
+    def from_law(cls, law: DiscreteLaw, dt: float | None,
+                 context: Mapping[str, Any]) -> Realisation:
+        """k, ti, td in the context's ``form`` (ideal by default; parallel, series), tf, the
+        action and the setpoint weights b, c: the reference law itself, at any Δ."""
+        ideal = law.ideal
+        pv_span, out_span = cls.spans(context)
+        k = ideal.kc * out_span / pv_span
+        form = str(context.get("form", "ideal")).lower()
+        out: dict[str, ParamValue] = {"form": form}
+        if form == "parallel":
+            kp, ki, kd = ideal_to_parallel(k, ideal.ti, ideal.td)
+            out.update(kp=kp, ki=ki, kd=kd)
+        elif form == "series":
+            ks, tis, tds = ideal_to_series(k, ideal.ti, ideal.td)
+            out.update(k=ks, ti=tis, td=tds)
+        elif form == "ideal":
+            out.update(k=k, ti=ideal.ti, td=ideal.td)
+        else:
+            raise ParameterError(f"pid: parameter 'form' = {form!r} is not allowed: expected "
+                                 "one of ideal, parallel, series")
+        out.update(tf=ideal.tf if ideal.td > 0.0 else 0.0,
+                   action="direct" if ideal.direct else "reverse", b=law.b, c=law.c)
+        return Realisation(out, dt)
 
     def set_params(self, **changes: Any) -> None:
         """Change parameters between scans (see :meth:`Block.set_params`). With

@@ -179,8 +179,17 @@ from typing import Any, ClassVar
 from loopworks.blocks.block import Block
 from loopworks.blocks.controller import Action, Controller, Handover, Roles
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.law import (
+    DiscreteLaw,
+    Ideal,
+    ParamValue,
+    Realisation,
+    no_ideal,
+    number,
+    span,
+)
 from loopworks.blocks.layout import index
-from loopworks.blocks.params import Param, Port
+from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.pid import measured
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
@@ -466,6 +475,99 @@ class E2PID(Controller, Block):
     def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
         """Output at Minimum..Output at Maximum, % (spec 3.4)."""
         return float(params["output_min"]), float(params["output_max"])
+
+    # -- the discrete law (loopworks.blocks.law), both ways ---------------------------------
+    LAW_CONTEXT: ClassVar[tuple[str, ...]] = ("pv_span",)
+    LAW_PARAMS: ClassVar[tuple[str, ...]] = (
+        "throttling_range", "kp", "ki", "kd", "update_interval", "error_sign",
+        "i_tr_normalise", "d_tr_normalise", "d_form", "min_accumulated_error", "filter_period")
+    PER_SAMPLE: ClassVar[bool] = True
+
+    @classmethod
+    def spans(cls, context: Mapping[str, Any]) -> tuple[float, float]:
+        """Context ``pv_span`` EU (default 100); the output is in % (span 100)."""
+        return span(context, "pv_span", 100.0, cls.kind), 100.0
+
+    @classmethod
+    def law(cls, params: Mapping[str, Any], dt: float | None,
+            context: Mapping[str, Any]) -> DiscreteLaw:
+        """Spec 3.2, 3.3: per update Δ (``update_interval``; ``dt`` when that is not given):
+        Padj = kp·Δe·100/TR, Iadj = ki·e, Dadj = kd·(e - 2e₋₁ + e₋₂); summed: P gain
+        kp·100/TR %/EU, I gain ki/Δ %/(EU·s), D gain kd·Δ %·s/EU, an unfiltered backward
+        difference: the pid's law with Tf = 0 (``i_tr_normalise`` / ``d_tr_normalise``
+        multiply ki / kd by 100/TR). e = input - setpoint is direct action."""
+        kind = cls.kind
+        given = {str(k).lower() for k in params}
+        prm: dict[str, Any] = validate(kind, cls.PARAMS, dict(params))
+        pv_span, _ = cls.spans(context)
+        notes: list[str] = []
+        if "update_interval" in given or dt is None:
+            step = float(prm["update_interval"])
+            if "update_interval" not in given:
+                notes.append(f"E2 update_interval not given: the block default {step:g} s.")
+        else:
+            step = dt
+        if prm["d_form"] == "as_printed":
+            raise ParameterError("e2.pid: parameter 'd_form' = 'as_printed' has no continuous "
+                                 "equivalent (it adds an error to an error per minute): "
+                                 "allowed second_difference")
+        tr = float(prm["throttling_range"])
+        kp = float(prm["kp"])
+        if not kp > 0.0:
+            raise no_ideal(kind, "kp", kp)
+        kc_port = kp * 100.0 / tr  # %/EU
+        ki = float(prm["ki"]) * (100.0 / tr if prm["i_tr_normalise"] else 1.0) / step
+        kd = float(prm["kd"]) * (100.0 / tr if prm["d_tr_normalise"] else 1.0) * step
+        flags: list[str] = []
+        mae = float(prm["min_accumulated_error"])
+        if mae > 0.0 and ki > 0.0:
+            flags.append(f"E2 min_accumulated_error = {mae:g} EU stops the I action while "
+                         "abs(e) <= MAE (a dead band the target does not have; set it to 0).")
+        if float(prm["filter_period"]) > 0.0:
+            flags.append("The E2 filter cell (filter_period > 0) lags the output (not "
+                         "converted).")
+        ideal = Ideal(kc_port * pv_span / 100.0, kc_port / ki if ki > 0.0 else math.inf,
+                      kd / kc_port, 0.0, prm["error_sign"] == "input_minus_setpoint")
+        return DiscreteLaw(ideal, dt=step, flags=tuple(flags), notes=tuple(notes))
+
+    @classmethod
+    def from_law(cls, law: DiscreteLaw, dt: float | None,
+                 context: Mapping[str, Any]) -> Realisation:
+        """Per-update gains for Δ = context ``update_interval``, else ``dt``: kp = 1 and
+        TR = 100/Kc (or TR = context ``throttling_range`` and kp chosen), ki = Kc·Δ/Ti,
+        kd = Kc·Td/Δ (times TR/100 with the normalise options); MAE 0."""
+        kind = cls.kind
+        ideal = law.ideal
+        step = context.get("update_interval", dt)
+        if step is None:
+            raise ParameterError("e2.pid: parameter 'update_interval' (s) is required for the "
+                                 "per-update gains: give sample_time; allowed (0, inf) s")
+        step = number("update_interval", step, kind=kind)
+        pv_span, _ = cls.spans(context)
+        kc_port = ideal.kc * 100.0 / pv_span  # %/EU
+        if "throttling_range" in context:
+            tr = number("throttling_range", context["throttling_range"], kind=kind)
+            kp = kc_port * tr / 100.0
+        else:
+            kp = 1.0
+            tr = 100.0 / kc_port
+        i_norm = bool(context.get("i_tr_normalise", False))
+        d_norm = bool(context.get("d_tr_normalise", False))
+        ki = kc_port / ideal.ti * step if ideal.ti < math.inf else 0.0
+        kd = kc_port * ideal.td / step
+        if i_norm:
+            ki *= tr / 100.0
+        if d_norm:
+            kd *= tr / 100.0
+        out: dict[str, ParamValue] = {
+            "throttling_range": tr, "kp": kp, "ki": ki, "kd": kd, "update_interval": step,
+            "error_sign": "input_minus_setpoint" if ideal.direct else "setpoint_minus_input",
+            "min_accumulated_error": 0.0}
+        if i_norm:
+            out["i_tr_normalise"] = True
+        if d_norm:
+            out["d_tr_normalise"] = True
+        return Realisation(out, step)
 
     def coefficients(self) -> dict[str, float]:
         prm: dict[str, Any] = self.params

@@ -272,9 +272,20 @@ from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.controller import Action, Controller, Handover, Roles
+from loopworks.blocks.forms import ideal_to_parallel, parallel_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.law import (
+    TOL,
+    DiscreteLaw,
+    Ideal,
+    ParamValue,
+    Realisation,
+    no_ideal,
+    number,
+    word,
+)
 from loopworks.blocks.layout import index
-from loopworks.blocks.params import Param, Port
+from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.primitives import clamp, finite, lag_step
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD, GOOD_NC
@@ -829,6 +840,159 @@ class GEPIDBlock(Controller, Block):
         """Config Word bit 0 (spec 1.3): ``direct_acting``, or bit 0 of ``config_word``."""
         return config_bits(cls.kind, params, ())["direct_acting"]
 
+    # -- the discrete law (loopworks.blocks.law), both ways ---------------------------------
+    LAW_CONTEXT: ClassVar[tuple[str, ...]] = ("pv_span", "cv_span", "word6", "word7", "word8")
+    #: the parameters the law reads besides the gains (each form adds its three)
+    LAW_PARAMS: ClassVar[tuple[str, ...]] = (
+        "direct_acting", "derivative_on_pv", "derivative_filter", "derivative_filter_time",
+        "config_word", "sample_period", "arithmetic", "deadband_pos", "deadband_neg")
+
+    #: context ``pv_span``, ``cv_span``: counts of 100 % (default 32000, 32000)
+    SPANS: ClassVar[tuple[tuple[str, float], tuple[str, float]]] = (
+        ("pv_span", 32000.0), ("cv_span", 32000.0))
+
+    @classmethod
+    def law(cls, params: Mapping[str, Any], dt: float | None,
+            context: Mapping[str, Any]) -> DiscreteLaw:
+        """Spec 1.2, 1.5, 1.6: P = Kp·e, ΔI = Ki·e·dt, D = Kd·Δ/dt (no filter), so Kc = Kp,
+        Ti = Kp/Ki, Td = Kd/Kp; ISA: Kp = Kc, Ki = Kc/Ti, Kd = Kc·Td. Words: word6 = 100·Kp
+        (Kc), word7 = 100·Kd (Td, s), word8 = 1000·Ki (IND) or 1000/Ti (ISA), given in the
+        context instead of the values if wanted. The generic pid's law with Tf = 0;
+        ``derivative_on_pv`` is c = 0; the derivative filter (bit 5) an exponential lag
+        (``derivative = "exp"``). Native arithmetic runs the rounded words (the law does too);
+        ``arithmetic = "float"`` the values. Spans: ``pv_span``, ``cv_span`` counts."""
+        kind = cls.kind
+        given = {str(k).lower() for k in params}
+        prm: dict[str, Any] = validate(kind, cls.PARAMS, dict(params))
+        pv_span, cv_span = cls.spans(context)
+        isa = cls.IS_ISA
+        names = ("kc", "td", "ti") if isa else ("kp", "kd", "ki")
+        scales = {6: 100.0, 7: 100.0, 8: 1000.0}
+        words: dict[int, int] = {}
+        for n, name in zip((6, 7, 8), names, strict=True):
+            wname = f"word{n}"
+            if wname in context:
+                w = number(wname, context[wname], 0.0, lo_open=False, kind=kind)
+                if w != int(w) or w > 32767:
+                    raise ParameterError(f"{kind}: parameter '{wname}' = {context[wname]!r} is "
+                                         "out of range: allowed 0..32767 (integer)")
+                if name in given:  # both (a conversion's output): they must agree
+                    v = float(prm[name])
+                    want = ((0 if v == math.inf else _word_of(1000.0 / v, 1.0))
+                            if (isa and n == 8) else _word_of(v, scales[n]))
+                    if want != int(w):
+                        raise ParameterError(f"{kind}: parameter '{wname}' = {int(w)} does "
+                                             f"not match '{name}' = {v:g} (word {want}): give "
+                                             "one")
+                    continue
+                words[n] = int(w)
+        native = prm["arithmetic"] == "native"
+        notes: list[str] = []
+
+        def value(n: int, name: str) -> float:
+            scale = scales[n]
+            if n in words:
+                return words[n] / scale
+            v = float(prm[name])
+            if native and math.isfinite(v):
+                w = _word_of(v, scale)
+                if abs(w / scale - v) > TOL * abs(v):
+                    notes.append(f"Native arithmetic runs {name} = {v:g} as word {n} = {w} "
+                                 f"({w / scale:g}); the conversion uses the word.")
+                return w / scale
+            return v
+
+        if isa:
+            kc = value(6, "kc")
+            td = value(7, "td")
+            if 8 in words:
+                ti = math.inf if words[8] == 0 else 1000.0 / words[8]
+            else:
+                ti = float(prm["ti"])
+                if native and math.isfinite(ti):
+                    w8 = _word_of(1000.0 / ti, 1.0)
+                    if w8 == 0:
+                        raise ParameterError(f"{kind}: parameter 'ti' = {ti:g} s is out of "
+                                             "range: word 8 = 1000/ti would round to 0")
+                    if abs(1000.0 / w8 - ti) > TOL * ti:
+                        notes.append(f"Native arithmetic runs ti = {ti:g} s as word 8 = {w8} "
+                                     f"(Ti = {1000.0 / w8:g} s); the conversion uses the word.")
+                    ti = 1000.0 / w8
+            if not kc > 0.0:
+                raise no_ideal(kind, "kc", kc)
+            kp = kc
+        else:
+            kp = value(6, "kp")
+            kd = value(7, "kd")
+            ki = value(8, "ki")
+            if not kp > 0.0:
+                raise no_ideal(kind, "kp", kp)
+            _, ti, td = parallel_to_ideal(kp, ki, kd)
+        bits = config_bits(kind, prm, given)
+        derivative = "backward"
+        tf = 0.0
+        if bits["derivative_filter"] and td > 0.0:
+            derivative = "exp"
+            tf = (float(prm["derivative_filter_time"])
+                  if prm["derivative_filter_time"] is not None
+                  else (td if isa else kp * td) / 10.0)
+            if tf == 0.0:
+                derivative = "backward"
+        flags: list[str] = []
+        if float(prm["deadband_pos"]) != 0.0 or float(prm["deadband_neg"]) != 0.0:
+            flags.append("The GE error dead band (words 4, 5) is a non-linearity the target "
+                         "does not have (not converted).")
+        period = float(prm["sample_period"])
+        law_dt = max(period, 0.01) if period > 0.0 else dt
+        ideal = Ideal(kp * pv_span / cv_span, ti, td, tf, bits["direct_acting"])
+        return DiscreteLaw(ideal, b=1.0, c=0.0 if bits["derivative_on_pv"] else 1.0,
+                           dt=law_dt, derivative=derivative, words=native, flags=tuple(flags),
+                           notes=tuple(notes))
+
+    @classmethod
+    def from_law(cls, law: DiscreteLaw, dt: float | None,
+                 context: Mapping[str, Any]) -> Realisation:
+        """Words 6-8 rounded half up (and the values they stand for, in native arithmetic;
+        the unrounded values with context ``arithmetic = "float"``), the action, derivative
+        on PV for c = 0, and ``sample_period`` = the context's or ``dt``."""
+        kind = cls.kind
+        ideal = law.ideal
+        if "sample_period" in context:
+            dt = number("sample_period", context["sample_period"], kind=kind)
+        pv_span, cv_span = cls.spans(context)
+        k = ideal.kc * cv_span / pv_span
+        native = str(context.get("arithmetic", "native")).lower() != "float"
+        out: dict[str, ParamValue] = {}
+        if cls.IS_ISA:
+            w6 = word("word6", k * 100.0, kind)
+            w7 = word("word7", ideal.td * 100.0, kind)
+            w8 = 0 if ideal.ti == math.inf else word("word8", 1000.0 / ideal.ti, kind)
+            if ideal.ti != math.inf and w8 == 0:
+                raise ParameterError(f"{kind}: parameter 'ti' = {ideal.ti:g} s is out of "
+                                     "range: allowed up to 2000 s (word 8 = 1000/ti >= 1) or "
+                                     "inf")
+            if native:
+                out.update(kc=w6 / 100.0, ti=math.inf if w8 == 0 else 1000.0 / w8,
+                           td=w7 / 100.0)
+            else:
+                out.update(kc=k, ti=ideal.ti, td=ideal.td)
+        else:
+            kp, ki, kd = ideal_to_parallel(k, ideal.ti, ideal.td)
+            w6 = word("word6", kp * 100.0, kind)
+            w7 = word("word7", kd * 100.0, kind)
+            w8 = word("word8", ki * 1000.0, kind)
+            if native:
+                out.update(kp=w6 / 100.0, ki=w8 / 1000.0, kd=w7 / 100.0)
+            else:
+                out.update(kp=kp, ki=ki, kd=kd)
+        out.update(word6=w6, word7=w7, word8=w8, direct_acting=ideal.direct,
+                   derivative_on_pv=law.c == 0.0 and ideal.td > 0.0)
+        if not native:
+            out["arithmetic"] = "float"
+        if dt is not None:
+            out["sample_period"] = dt
+        return Realisation(out, dt)
+
     def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         native = prm["arithmetic"] == "native"
@@ -955,6 +1119,7 @@ class GEPIDIndependent(GEPIDBlock):
 
     kind = "ge.pid_ind"
     summary = "GE PACSystems PID_IND (independent form, 16-bit counts, spec 1)"
+    LAW_PARAMS: ClassVar[tuple[str, ...]] = ("kp", "ki", "kd", *GEPIDBlock.LAW_PARAMS)
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("kp", 1.0, "CV counts/PV count", "Kp (word 6, 0.01 steps): P = Kp·e, spec "
               "1.2/1.5", lo=0.0, hi=_GAIN_MAX, lo_open=False, hi_open=False),
@@ -987,6 +1152,7 @@ class GEPIDISA(GEPIDBlock):
     kind = "ge.pid_isa"
     summary = "GE PACSystems PID_ISA (ISA form, 16-bit counts, spec 1)"
     IS_ISA: ClassVar[bool] = True
+    LAW_PARAMS: ClassVar[tuple[str, ...]] = ("kc", "ti", "td", *GEPIDBlock.LAW_PARAMS)
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("kc", 1.0, "CV counts/PV count", "Kc (word 6, 0.01 steps), multiplies P, I and "
               "D, spec 1.2/1.6", lo=0.0, hi=_GAIN_MAX, lo_open=False, hi_open=False),

@@ -216,8 +216,17 @@ from typing import Any, ClassVar
 from loopworks.blocks.block import Block
 from loopworks.blocks.controller import Action, Controller, Handover, Roles
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.law import (
+    DiscreteLaw,
+    Ideal,
+    ParamValue,
+    Realisation,
+    no_ideal,
+    number,
+    word,
+)
 from loopworks.blocks.layout import index
-from loopworks.blocks.params import Param, Port
+from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.primitives import clamp, finite
 from loopworks.blocks.registry import register
 from loopworks.errors import ParameterError
@@ -257,6 +266,8 @@ STATES = ("dw48", "xw1", "pw1", "dd1", "z1", "xz1", "pz1", "w", "x", "yh", "manu
 # XS, not X: X is the S5's actual value (DW 22), the input U.x
 P, XS, U, Y = index(COEFFS, "P"), index(STATES, "XS"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
+#: the coefficient words' divisor by ``scale`` (spec 2.2: the manual's ×0.001 is ÷1024)
+SCALES: dict[str, float] = {"exact": 1024.0, "nominal": 1000.0}
 _ROUNDINGS = ("nearest_even", "nearest", "floor", "truncate")
 _ISUPS = ("recompute", "flag", "none")
 
@@ -559,6 +570,111 @@ class S5PID(Controller, Block):
         return ("velocity = true: y is the increment dY (the positioning algorithm, "
                 "velocity = false, gives the position)" if params["velocity"] else None)
 
+    # -- the discrete law (loopworks.blocks.law), both ways ---------------------------------
+    LAW_CONTEXT: ClassVar[tuple[str, ...]] = ("pv_span", "out_span", "sample_time")
+    LAW_PARAMS: ClassVar[tuple[str, ...]] = ("k", "r", "ti", "td", "scale", "dd_decay",
+                                             "xz_on", "arithmetic")
+    PER_SAMPLE: ClassVar[bool] = True
+
+    #: context ``pv_span``, ``out_span``: counts of 100 % (default 1000, 1000)
+    SPANS: ClassVar[tuple[tuple[str, float], tuple[str, float]]] = (
+        ("pv_span", 1000.0), ("out_span", 1000.0))
+
+    @classmethod
+    def law(cls, params: Mapping[str, Any], dt: float | None,
+            context: Mapping[str, Any]) -> DiscreteLaw:
+        """Spec 2.2, 2.5, 2.6: K = k/scale, R = r/scale, TI = ti/scale, TD = td/scale (scale
+        1024 exact, 1000 nominal), TA = the OB 13 interval (context ``sample_time``, else
+        ``dt``). The velocity law dY = K[R·PW + TI·XW + dD] summed gives the position
+        Y = K·R·XW + K·TI·ΣXW + K·ΣdD, so Kc = |K|·R and Ti = R·TA/TI (= R·TN). Law A,
+        dD_k = d(TD·QW_k + dD_{k-1}) with d = dd_decay, sums to
+        ΣdD = d·TD(1 - z⁻¹)/(1 - d·z⁻¹)·E: the pid's backward-Euler filtered D with
+        Tf = d·TA/(1 - d) and Kc·Td = |K|·d·TD·TA/(1 - d) (for d = 0.5: Tf = TA, Td = TV/R).
+        d = 1 (the literal law) is extra P: Kc = |K|(R + TD), no D. K < 0 is direct action
+        (spec 2.5: the Siemens "direct" for K > 0 is ISA reverse)."""
+        kind = cls.kind
+        prm: dict[str, Any] = validate(kind, cls.PARAMS, dict(params))
+        ta = context.get("sample_time", dt)
+        if ta is None:
+            raise ParameterError("s5.pid: parameter 'sample_time' (the OB 13 interval TA, s) "
+                                 "is required: allowed (0, inf) s")
+        ta = number("sample_time", ta, kind=kind)
+        pv_span, out_span = cls.spans(context)
+        scale = SCALES[prm["scale"]]
+        big_k = prm["k"] / scale
+        r, ti_c, td_c = prm["r"] / scale, prm["ti"] / scale, prm["td"] / scale
+        d = float(prm["dd_decay"])
+        mag = abs(big_k)
+        flags: list[str] = []
+        if d >= 1.0:  # the literal law: D acts as extra P of gain TD (spec 2.6)
+            kc = mag * (r + td_c)
+            kd = 0.0
+            tf = 0.0
+        else:
+            kc = mag * r
+            kd = mag * d * td_c * ta / (1.0 - d)
+            tf = d * ta / (1.0 - d) if kd > 0.0 else 0.0
+        if not kc > 0.0:
+            raise no_ideal(kind, "k·r" if mag > 0.0 else "k", prm["k"] if mag == 0.0 else
+                           f"{prm['k']}·{prm['r']}")
+        ti = kc * ta / (mag * ti_c) if ti_c > 0.0 else math.inf
+        if prm["xz_on"]:
+            flags.append("xz_on: the S5 differentiates the XZ input, not the error (not "
+                         "converted; treated as D on the error).")
+        notes = [f"S5 at TA = {ta:g} s, scale {prm['scale']} (÷{scale:g}), dd_decay {d:g}."]
+        if prm["arithmetic"] == "native":
+            notes.append("Native fixed point rounds every product (about a count per scan); "
+                         "that is signal rounding, not counted here.")
+        ideal = Ideal(kc * pv_span / out_span, ti, kd / kc, tf, big_k < 0.0)
+        return DiscreteLaw(ideal, dt=ta, flags=tuple(flags), notes=tuple(notes), words=True)
+
+    @classmethod
+    def from_law(cls, law: DiscreteLaw, dt: float | None,
+                 context: Mapping[str, Any]) -> Realisation:
+        """The words K, R, TI, TD for TA = context ``sample_time``, else ``dt``: R = context
+        ``r`` (default the scale: 1.0), K = Kc/R, TI = R·TA/Ti, TD = R·Td·(1 - d)/(d·TA) with
+        d = context ``dd_decay`` (default 0.5, law A), rounded half up to words; K < 0 for
+        direct action."""
+        kind = cls.kind
+        ideal = law.ideal
+        if "sample_time" in context:
+            dt = number("sample_time", context["sample_time"], kind=kind)
+        if dt is None:
+            raise ParameterError("s5.pid: parameter 'sample_time' (the OB 13 interval TA, s) "
+                                 "is required: allowed (0, inf) s")
+        pv_span, out_span = cls.spans(context)
+        scale_name = str(context.get("scale", "exact")).lower()
+        if scale_name not in SCALES:
+            raise ParameterError(f"s5.pid: parameter 'scale' = {scale_name!r} is not allowed: "
+                                 "expected one of " + ", ".join(SCALES))
+        scale = SCALES[scale_name]
+        d = number("dd_decay", context.get("dd_decay", 0.5), 0.0, lo_open=False, kind=kind)
+        kc = ideal.kc * out_span / pv_span
+        r_word = int(context["r"]) if "r" in context else int(scale)
+        if not 0 < r_word <= 32767:
+            raise ParameterError(f"s5.pid: parameter 'r' = {r_word} is out of range: allowed "
+                                 "1..32767 (integer word)")
+        r = r_word / scale
+        big_k = kc / r
+        ti_c = r * dt / ideal.ti if ideal.ti < math.inf else 0.0
+        td_c = 0.0
+        if ideal.td > 0.0:
+            if not 0.0 < d < 1.0:
+                raise ParameterError(f"s5.pid: parameter 'dd_decay' = {d:g} is out of range "
+                                     "for a derivative: allowed (0, 1) (law A: 0.5)")
+            td_c = r * ideal.td * (1.0 - d) / (d * dt)
+        k_word = word("k", big_k * scale, kind)
+        td_word = word("td", td_c * scale, kind)
+        out: dict[str, ParamValue] = {
+            "k": -k_word if ideal.direct else k_word, "r": r_word,
+            "ti": word("ti", ti_c * scale, kind, 9999.0), "td": td_word,
+            "scale": scale_name, "dd_decay": d}
+        notes = [f"S5 words for TA = {dt:g} s."]
+        if k_word > 1500 and td_word > 0:
+            notes.append("|k| > 1500 with a D part can overflow the 16-bit products in native "
+                         "arithmetic (spec 2.2).")
+        return Realisation(out, dt, {"sample_time": dt}, tuple(notes))
+
     def coefficients(self) -> dict[str, float]:
         prm: dict[str, Any] = self.params
         if prm["bgug"] > prm["bgog"]:
@@ -568,7 +684,7 @@ class S5PID(Controller, Block):
         return {"k": float(prm["k"]), "r": float(prm["r"]), "ti": float(prm["ti"]),
                 "td": float(prm["td"]), "bgog": float(prm["bgog"]), "bgug": float(prm["bgug"]),
                 "y0": float(prm["y0"]),
-                "scale": 1024.0 if prm["scale"] == "exact" else 1000.0,
+                "scale": SCALES[prm["scale"]],
                 "native": 1.0 if prm["arithmetic"] == "native" else 0.0,
                 "rounding": float(_ROUNDINGS.index(prm["rounding"])),
                 "wrap": 1.0 if prm["overflow"] == "wrap" else 0.0,

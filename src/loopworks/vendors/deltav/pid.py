@@ -243,10 +243,11 @@ import numpy as np
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.controller import Action, Controller, Handover, Roles
-from loopworks.blocks.forms import series_to_ideal
+from loopworks.blocks.forms import ideal_to_series, series_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
+from loopworks.blocks.law import DiscreteLaw, Ideal, ParamValue, Realisation
 from loopworks.blocks.layout import index
-from loopworks.blocks.params import Param, Port
+from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.primitives import clamp, finite, lag_step
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import (
@@ -876,6 +877,117 @@ class DeltaVPID(Controller, Block):
         if params["out_lo_lim"] is not None and params["out_hi_lim"] is not None:
             return float(params["out_lo_lim"]), float(params["out_hi_lim"])
         return float(params["out_scale_eu_0"]), float(params["out_scale_eu_100"])
+
+    # -- the discrete law (loopworks.blocks.law), both ways ---------------------------------
+    LAW_PARAMS: ClassVar[tuple[str, ...]] = (
+        "form", "structure", "gain", "reset", "rate", "alpha", "beta", "gamma",
+        "direct_acting", "series_derivative", "reset_discretisation",
+        "derivative_discretisation", "reset_feedback", "ideadband", "pv_scale_eu_0",
+        "pv_scale_eu_100", "out_scale_eu_0", "out_scale_eu_100")
+
+    @classmethod
+    def spans(cls, context: Mapping[str, Any]) -> tuple[float, float]:
+        """The PV_SCALE and OUT_SCALE spans (EU of 100 %; default 100, 100), spec 4.1."""
+        spans = []
+        for scale in ("pv_scale", "out_scale"):
+            e0 = float(context.get(f"{scale}_eu_0", 0.0))
+            e100 = float(context.get(f"{scale}_eu_100", 100.0))
+            if not e100 > e0:
+                raise ParameterError(f"{cls.kind}: parameter '{scale}_eu_100' = {e100:g} must "
+                                     f"be greater than {scale}_eu_0 = {e0:g}")
+            spans.append(e100 - e0)
+        return spans[0], spans[1]
+
+    @classmethod
+    def law(cls, params: Mapping[str, Any], dt: float | None,
+            context: Mapping[str, Any]) -> DiscreteLaw:
+        """Spec 4.1, 4.2, 4.7: GAIN %/% on PV_SCALE/OUT_SCALE, RESET s/repeat (inf or 0 = no
+        I), RATE s, filter ALPHA·RATE. Standard: D as the pid's with Tf = α·RATE; the reset
+        R_k = R_{k-1} + (Δ/RESET)·Kc·e_{k-1} integrates the *previous* error (forward Euler:
+        the Euler reset law with reset_feedback error). Series (lead_lag): (P + D)·(1 + I)
+        with D of gain K'(1 - α)RATE', i.e. K'(1 + 1/(RESET's))(1 + RATE's)/(α·RATE's + 1);
+        its Ideal is ``series_to_ideal`` ignoring the filter. STRUCTURE gives b = BETA,
+        c = GAMMA (spec 4.3)."""
+        kind = cls.kind
+        prm: dict[str, Any] = validate(kind, cls.PARAMS, dict(params))
+        structure = prm["structure"]
+        has_p, beta, gamma, has_i = STRUCTURES[structure]
+        if not has_p:
+            raise ParameterError(f"deltav.pid: parameter 'structure' = '{structure}' has no "
+                                 "ideal form (no P action): allowed a structure with P")
+        if structure == "two_degrees_of_freedom":
+            beta, gamma = float(prm["beta"]), float(prm["gamma"])
+        gain, reset, rate = float(prm["gain"]), float(prm["reset"]), float(prm["rate"])
+        if reset == 0.0 or not has_i:
+            reset = math.inf
+        alpha = float(prm["alpha"])
+        direct = bool(prm["direct_acting"])
+        flags: list[str] = []
+        if prm["reset_discretisation"] != "euler" and reset < math.inf:
+            flags.append(f"DeltaV reset_discretisation = {prm['reset_discretisation']} "
+                         "changes the integral gain per scan (converted as RESET).")
+        if prm["derivative_discretisation"] != "backward" and rate > 0.0:
+            flags.append("DeltaV derivative_discretisation = exact (step invariant) is not the "
+                         "backward-Euler filter (converted as α·RATE).")
+        if (prm["reset_feedback"] == "output" and (rate > 0.0 or beta != 1.0)
+                and reset < math.inf):
+            flags.append("DeltaV reset_feedback = output integrates D and the setpoint "
+                         "weighting too (converted as the spec 4.2 equations).")
+        if float(prm["ideadband"]) > 0.0 and reset < math.inf:
+            flags.append("DeltaV IDEADBAND freezes the reset near the setpoint (not "
+                         "converted).")
+        if dt is not None and reset < dt:
+            flags.append(f"RESET = {reset:g} s is shorter than the scan {dt:g} s: the Euler "
+                         "reset gain is capped at 1.")
+        cls.spans(prm)  # checks the scales
+        filt = alpha * rate if rate > 0.0 else 0.0
+        if prm["form"] == "series":
+            k, ti, td = series_to_ideal(gain, reset, rate)
+            d_factor = 1.0 - alpha if prm["series_derivative"] == "lead_lag" else 1.0
+            return DiscreteLaw(Ideal(k, ti, td, filt, direct), b=beta, c=gamma, dt=dt,
+                               integral="forward", series=(gain, reset, rate, d_factor, filt),
+                               flags=tuple(flags))
+        return DiscreteLaw(Ideal(gain, reset, rate, filt, direct), b=beta, c=gamma, dt=dt,
+                           integral="forward", flags=tuple(flags))
+
+    @classmethod
+    def from_law(cls, law: DiscreteLaw, dt: float | None,
+                 context: Mapping[str, Any]) -> Realisation:
+        """GAIN, RESET, RATE in the context's ``form`` (standard by default, or series),
+        ALPHA = context ``alpha``, else Tf/Td (within 0.05..1), else 0.125; the STRUCTURE
+        with the law's setpoint weights (two_degrees_of_freedom with BETA, GAMMA when no
+        other has them); the context's ``series_derivative`` and scales carried over."""
+        ideal, b, c = law.ideal, law.b, law.c
+        form = str(context.get("form", "standard")).lower()
+        if "alpha" in context:
+            alpha = float(context["alpha"])
+        elif ideal.td > 0.0 and ideal.tf > 0.0:
+            alpha = min(max(ideal.tf / ideal.td, 0.05), 1.0)
+        else:
+            alpha = 0.125
+        out: dict[str, ParamValue] = {"form": form}
+        if form == "series":
+            gain, reset, rate = ideal_to_series(ideal.kc, ideal.ti, ideal.td)
+        elif form == "standard":
+            gain, reset, rate = ideal.kc, ideal.ti, ideal.td
+        else:
+            raise ParameterError(f"deltav.pid: parameter 'form' = {form!r} is not allowed: "
+                                 "expected one of standard, series")
+        weights = (b, c if ideal.td > 0.0 else 0.0)
+        structure = next((name for name, (has_p, beta, gamma, has_i) in STRUCTURES.items()
+                          if has_p and has_i and (beta, gamma) == weights),
+                         "two_degrees_of_freedom")
+        if ideal.td == 0.0 and b == 1.0:
+            structure = "pi_action_on_error_d_action_on_pv"
+        out.update(structure=structure, gain=gain, reset=reset, rate=rate, alpha=alpha,
+                   direct_acting=ideal.direct)
+        if structure == "two_degrees_of_freedom":
+            out.update(beta=b, gamma=c)
+        for name in ("series_derivative", "pv_scale_eu_0", "pv_scale_eu_100", "out_scale_eu_0",
+                     "out_scale_eu_100"):
+            if name in context:
+                out[name] = context[name]
+        return Realisation(out, dt)
 
     def set_params(self, **changes: Any) -> None:
         """Change parameters between scans (see :meth:`Block.set_params`).
