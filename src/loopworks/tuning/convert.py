@@ -78,6 +78,9 @@ class Conversion:
     exact: bool
     note: str
     ideal: Ideal
+    #: where not exact, the stated controller frequency-response errors as data:
+    #: (ω rad/s, |C_t(jω) - C_s(jω)|/|C_s(jω)|) at ω = 1/Ti and 1/Td (the note's figures)
+    response_errors: tuple[tuple[float, float], ...] = ()
 
 
 # ----------------------------------------------------------------------------------------------
@@ -240,20 +243,31 @@ def _compare(src: DiscreteLaw, tgt: DiscreteLaw) -> tuple[bool, list[str]]:
     why.extend(tgt.flags)
     if not why:
         return True, []
-    bounds = []
+    errors = _response_errors(src, tgt, dt)
+    text = [f"{e:.3g} at ω = {label} = {w:.4g} rad/s" if w is not None
+            else f"{e:.3g} (P only, any ω)" for label, w, e in errors]
+    where = f"discrete, Δ = {dt:g} s" if dt is not None else "continuous, no Δ given"
+    why.append("Controller frequency-response error |C_t - C_s|/|C_s| "
+               f"({where}): " + "; ".join(text) + ".")
+    return False, why
+
+
+def _response_errors(src: DiscreteLaw, tgt: DiscreteLaw, dt: float | None
+                     ) -> list[tuple[str, float | None, float]]:
+    """(label, ω, |C_t(jω) - C_s(jω)|/|C_s(jω)|) at ω = 1/Ti and 1/Td of the source (each law
+    discrete at its own Δ, else at ``dt``); with neither, the P-only error (ω None)."""
+    s = src.ideal
+    found: list[tuple[str, float | None, float]] = []
     for label, w in (("1/Ti", 1.0 / s.ti if s.ti < math.inf else 0.0),
                      ("1/Td", 1.0 / s.td if s.td > 0.0 else 0.0)):
         if w > 0.0:
             cs = _response(src, w, src.dt if src.dt is not None else dt)
             ct = _response(tgt, w, tgt.dt if tgt.dt is not None else dt)
-            bounds.append(f"{abs(ct - cs) / abs(cs):.3g} at ω = {label} = {w:.4g} rad/s")
-    if not bounds:
+            found.append((label, w, abs(ct - cs) / abs(cs)))
+    if not found:
         cs, ct = _response(src, 1.0, None), _response(tgt, 1.0, None)
-        bounds.append(f"{abs(ct - cs) / abs(cs):.3g} (P only, any ω)")
-    where = f"discrete, Δ = {dt:g} s" if dt is not None else "continuous, no Δ given"
-    why.append("Controller frequency-response error |C_t - C_s|/|C_s| "
-               f"({where}): " + "; ".join(bounds) + ".")
-    return False, why
+        found.append(("", None, abs(ct - cs) / abs(cs)))
+    return found
 
 
 def _rect(ti: float, dt: float) -> str:
@@ -299,8 +313,11 @@ def _from_law(kind: str, law: DiscreteLaw, dt: float | None, ctx: dict[str, Any]
     notes = [*law.notes, *made.notes]
     if not cls.PER_SAMPLE and law.dt is not None:
         notes.append(f"Run the target at Δ = {law.dt:g} s.")
+    errors = () if exact else tuple(
+        (w, e) for _, w, e in _response_errors(law, tgt, law.dt if law.dt is not None
+                                                else tgt.dt) if w is not None)
     return Conversion(params=made.params, exact=exact, note=_note(notes + why, exact),
-                      ideal=law.ideal)
+                      ideal=law.ideal, response_errors=errors)
 
 
 def from_ideal(kind: str, ideal: Ideal, *, sample_time: float | None = None,
