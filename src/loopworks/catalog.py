@@ -1,22 +1,25 @@
 """The block kinds of loopworks: ``create_block(kind, **params)``, ``kinds()``,
 ``block_class(kind)``.
 
-The modules in ``BLOCK_MODULES`` define the kinds (each registers its classes with
-:func:`loopworks.blocks.registry.register`); they are imported on first use, so
+The kinds are registered by the modules that define them (with
+:func:`loopworks.blocks.registry.register`): every module of the packages in
+``KIND_PACKAGES`` (the vendors' blocks and the plant's, found by walking the packages) and the
+generic kinds of the bottom layer in ``BLOCK_MODULES``. They are imported on first use, so
 ``import loopworks`` stays light. This module sits above ``blocks/``, ``vendors/`` and
-``plant/`` (it names their modules) and below ``tuning/``, ``sim/`` and the CLI, which look
-kinds up here. A new kind is one module that registers it, listed here.
+``plant/`` and below ``tuning/``, ``sim/`` and the CLI, which look kinds up here. A new vendor
+block is one module in ``loopworks/vendors/`` that registers its class: nothing here changes.
 
-Why a module and not ``[project.entry-points."loopworks.kinds"]``: entry points live in the
-installed package's metadata, so a kind added to the source is missing until the package is
-installed again (a stale editable install lists the old kinds, silently); and loopworks has
-no third-party kinds to discover yet. A plugin can still register its own classes with
+Why not ``[project.entry-points."loopworks.kinds"]``: entry points live in the installed
+package's metadata, so a kind added to the source is missing until the package is installed
+again (a stale editable install lists the old kinds, silently); and loopworks has no
+third-party kinds to discover yet. A plugin can still register its own classes with
 ``register`` when it is imported.
 """
 
 from __future__ import annotations
 
 import importlib
+import pkgutil
 from typing import Any
 
 from loopworks.blocks.block import Block
@@ -24,23 +27,11 @@ from loopworks.blocks.controller import Controller
 from loopworks.blocks.registry import registered
 from loopworks.errors import UnknownKindError
 
-BLOCK_MODULES: tuple[str, ...] = (
-    "loopworks.blocks.pid",
-    "loopworks.plant.process",
-    "loopworks.vendors.ge_pacsystems",
-    "loopworks.vendors.siemens_s5",
-    "loopworks.vendors.emerson_e2",
-    "loopworks.vendors.deltav.pid",
-    "loopworks.vendors.deltav.stick_slip",
-    "loopworks.vendors.deltav.sggn",
-    "loopworks.vendors.deltav.calc",
-    "loopworks.plant.valve",
-    "loopworks.plant.karnopp",
-    "loopworks.plant.sensor",
-    "loopworks.plant.disturbance",
-    "loopworks.blocks.compensators",
-    "loopworks.blocks.relay",
-)
+#: packages whose every module may define kinds
+KIND_PACKAGES: tuple[str, ...] = ("loopworks.vendors", "loopworks.plant")
+#: the generic kinds of the bottom layer (blocks/ also holds the block model itself)
+BLOCK_MODULES: tuple[str, ...] = ("loopworks.blocks.pid", "loopworks.blocks.compensators",
+                                  "loopworks.blocks.relay")
 
 _loaded = False
 
@@ -50,6 +41,10 @@ def _load() -> None:
     if not _loaded:
         for name in BLOCK_MODULES:
             importlib.import_module(name)
+        for package in KIND_PACKAGES:
+            path = importlib.import_module(package).__path__
+            for module in pkgutil.walk_packages(path, package + "."):
+                importlib.import_module(module.name)
         _loaded = True
 
 

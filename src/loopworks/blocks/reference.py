@@ -320,6 +320,6 @@ def markdown(cls: type[Block]) -> str:
         NUMERIC_CONTRACT,
         "",
     ]
-    document = sources.KIND_DOCUMENT.get(cls.kind, sources.VENDOR)
+    document = sources.kind_document(cls.__module__)
     body = "\n".join(parts)
     return body + "\n" + sources_section(citations(body, document), document) + "\n"

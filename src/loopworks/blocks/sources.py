@@ -16,7 +16,7 @@ two documents, tags and source lists removed), ``REFERENCES`` the bibliographic 
 vendor-blocks' reference list (title, vendor, document number, pages; the URLs of the mirrors
 left out), ``SEEDS`` the vendor excerpts, ``TAGS`` the confidence tags of each document's
 section 0 (vendor-blocks) or preamble (plant-and-tuning; the two documents give [V] different
-meanings), ``PROJECT_TAGS`` loopworks' own tags, and ``KIND_DOCUMENT`` the document a bare
+meanings), ``PROJECT_TAGS`` loopworks' own tags, and ``kind_document`` the document a bare
 "spec X.Y" means on each kind's page. A page that cites anything missing here fails
 ``tests/test_docs.py``: add the entry when adding the citation.
 """
@@ -272,32 +272,8 @@ PROJECT_TAGS: dict[str, str] = {
     "practice": "common industrial practice, not from a single source",
 }
 
-KIND_DOCUMENT: dict[str, str] = {
-    "compensator.constant_reinforcement": PLANT,
-    "compensator.knocker": PLANT,
-    "compensator.two_move": PLANT,
-    "deltav.calc": VENDOR,
-    "deltav.pid": VENDOR,
-    "deltav.sggn": VENDOR,
-    "deltav.stick_slip": VENDOR,
-    "disturbance.load": PLANT,
-    "e2.pid": VENDOR,
-    "ge.pid_ind": VENDOR,
-    "ge.pid_isa": VENDOR,
-    "pid": PLANT,
-    "process.first_order": PLANT,
-    "process.fopdt": PLANT,
-    "process.ipdt": PLANT,
-    "process.sopdt": PLANT,
-    "process.tf": PLANT,
-    "relay": PLANT,
-    "s5.pid": VENDOR,
-    "sensor.transmitter": PLANT,
-    "valve.backlash": PLANT,
-    "valve.choudhury": PLANT,
-    "valve.he": PLANT,
-    "valve.kano": PLANT,
-    "valve.karnopp": PLANT,
-    "valve.quantiser": PLANT,
-    "valve.resolution": PLANT,
-}
+def kind_document(module: str) -> str:
+    """The document a bare "spec X.Y" means on the page of a kind defined in ``module``: the
+    vendor specification for the vendors' blocks (``loopworks.vendors.*``), plant-and-tuning
+    for every other kind (the generic pid, compensators, relay, plant)."""
+    return VENDOR if module.startswith("loopworks.vendors.") else PLANT
