@@ -589,3 +589,23 @@ def test_compile_fills_the_cache_so_later_commands_compile_nothing(tmp_path: Pat
     assert "valve.nope" in wrong.stderr and "valve.backlash" in wrong.stderr
     zero = run("compile", "pid", "--jobs", "0")
     assert zero.returncode == 2 and "--jobs 0" in zero.stderr
+
+
+def test_convert_json_gives_the_stated_errors_as_data() -> None:
+    """docs/conversion.md: --json has "response_errors", the note's controller
+    frequency-response errors at ω = 1/Ti and 1/Td; [] for an exact conversion."""
+    args = ["convert", "--from", "pid", "--to", "s5.pid", "-p", "k=2", "-p", "ti=16", "-p",
+            "td=2", "-p", "tf=0", "-p", "c=1", "--sample-time", "1", "--json"]
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["exact"] is False
+    omegas = [e["omega"] for e in data["response_errors"]]
+    assert omegas == [1 / 16, 1 / 2]  # 1/Ti, 1/Td
+    for entry in data["response_errors"]:
+        assert f"{entry['error']:.3g} at ω" in data["note"]
+    exact = CliRunner().invoke(app, ["convert", "--from", "pid", "--to", "ge.pid_isa", "-p",
+                                     "k=2", "-p", "ti=16", "-t",
+                                     "arithmetic=float", "--json"])
+    assert exact.exit_code == 0, exact.output
+    assert json.loads(exact.stdout)["response_errors"] == []

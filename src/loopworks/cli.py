@@ -420,7 +420,9 @@ def convert(
     result = run_convert(from_kind, _pairs(param, "-p"), to_kind, sample_time=sample_time,
                          target=_pairs(target, "-t"))
     if as_json:
-        data = {**dict(result.params), "exact": result.exact, "note": result.note}
+        data = {**dict(result.params), "exact": result.exact, "note": result.note,
+                "response_errors": [{"omega": w, "error": e}
+                                    for w, e in result.response_errors]}
         typer.echo(json.dumps(_json_safe(data), indent=2))
         return
     for key, value in result.params.items():

@@ -266,3 +266,9 @@ def test_round_trips_exact_pairs() -> None:
         assert pair in exact_pairs, pair
     # DeltaV's one-scan-late reset is never exact against a backward-Euler integral
     assert ("deltav.pid", "pid") not in exact_pairs
+
+
+def test_an_unknown_target_is_named_before_the_source_is_read() -> None:
+    """An S5 source without its sample time is an error too; the unknown target comes first."""
+    with pytest.raises(ParameterError, match="kind 'foo' is not allowed"):
+        convert("s5.pid", {"k": 1}, "foo")

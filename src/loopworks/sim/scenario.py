@@ -39,6 +39,7 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
+from loopworks.blocks.controller import Controller
 from loopworks.errors import FileFormatError, LoopworksError
 from loopworks.sim.module import Event, Module, check_record_size, scan_count
 
@@ -312,7 +313,6 @@ def run_autotune(sc: Scenario, progress: Callable[[float], None] | None = None
     if test is None:
         return None
     from loopworks.sim.tune import relay_test
-    from loopworks.tuning.convert import port_spans
 
     where = f"{sc.source}: [autotune]"
     module = test.build()
@@ -326,8 +326,8 @@ def run_autotune(sc: Scenario, progress: Callable[[float], None] | None = None
         raise FileFormatError(f"{where}: the relay test on '{test.loop}' ended with "
                               f"'{run.outcome}' and gave no process gain{why}")
     ctrl = module.blocks[test.loop]
-    pv_span, out_span = port_spans(ctrl.kind, {k: v for k, v in ctrl.params.items()
-                                               if v is not None})
+    assert isinstance(ctrl, Controller)  # relay_test refuses any other block
+    pv_span, out_span = ctrl.spans({k: v for k, v in ctrl.params.items() if v is not None})
     gain = idn.process_gain * out_span / pv_span
     sc.variants = test.rebuild(gain)
     sc.module = next(iter(sc.variants.values()))

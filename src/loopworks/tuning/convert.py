@@ -340,6 +340,7 @@ def convert(from_kind: str, params: Mapping[str, Any], to_kind: str, *,
     ``sample_time`` (s) is the loop's sample time: the S5's OB 13 interval TA, the E2's update
     interval and GE's sample period when they are not given, and the scan of pid / DeltaV.
     ``target`` is the target's context (see :func:`from_ideal`)."""
+    _controller(to_kind)  # an unknown target is named before the source is read
     dt = None if sample_time is None else number("sample_time", sample_time)
     law = _law_of(from_kind, params, dt, None)
     ctx = {str(k).lower(): v for k, v in (target or {}).items()}
