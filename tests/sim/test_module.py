@@ -197,6 +197,32 @@ def test_metrics_follow_the_wires_to_each_loops_valve() -> None:
         assert r.metrics(f"pid_{n}")["valve travel"] == pytest.approx(expected)
 
 
+def test_every_vendor_controller_is_a_loop_of_the_result() -> None:
+    """GE (sp, pv -> cv) and S5 (w, x -> y) are controllers too: their roles (issue 13) name
+    the ports the metrics read (they were missed by an sp/pv/out port test)."""
+    blocks = {"ge": create_block("ge.pid_isa", kc=1.0, ti=20.0, bias=16000.0, jit=False),
+              "proc_ge": create_block("process.first_order", gain=1.0, time_constant=10.0,
+                                      y0=16000.0, jit=False),
+              "s5": create_block("s5.pid", k=1024, ti=50, y0=500, bgug=0, bgog=1000,
+                                 jit=False),
+              "proc_s5": create_block("process.first_order", gain=1.0, time_constant=10.0,
+                                      y0=500.0, jit=False)}
+    wires = {"proc_ge.u": "ge.cv", "ge.pv": "proc_ge.y",
+             "proc_s5.u": "s5.y", "s5.x": "proc_s5.y"}
+    m = Module(blocks, wires=wires, inputs={"ge": {"sp": 17000.0}, "s5": {"w": 520.0}})
+    r = m.run(60.0, 1.0, plan="python")
+    assert r.controllers() == ["ge", "s5"]
+    for loop, sp, pv, out in (("ge", "sp", "pv", "cv"), ("s5", "w", "x", "y")):
+        np.testing.assert_array_equal(r.pv(loop), r[f"{loop}.{pv}"])
+        np.testing.assert_array_equal(r.out(loop), r[f"{loop}.{out}"])
+        e = r[f"{loop}.{sp}"] - r[f"{loop}.{pv}"]
+        assert r.metrics(loop)["IAE"] == pytest.approx(float(np.sum(np.abs(e))) * 1.0)
+        assert r.metrics(loop)["IAE"] > 0.0
+    with pytest.raises(KeyError, match="'proc_ge' is a process.first_order block, not a "
+                                       "controller; controllers: ge, s5"):
+        r.metrics("proc_ge")
+
+
 # -- enumerated inputs take only enumerated wires (issue 11 point 3) --------------------------
 
 

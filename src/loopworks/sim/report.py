@@ -123,8 +123,8 @@ def zoom_span(t: np.ndarray, window: tuple[float, float] | None,
 def _loop_signals(result: SimResult, loop: str) -> dict[str, np.ndarray]:
     """PV, working SP, controller output and, through the valve the loop drives, its position
     and command (the signal at its op input)."""
-    signals = {"pv": result[f"{loop}.pv"], "sp": result.working_sp(loop),
-               "out": result[f"{loop}.out"]}
+    signals = {"pv": result.pv(loop), "sp": result.working_sp(loop),
+               "out": result.out(loop)}
     valve = result.valve_of(loop)
     if valve is not None:
         signals["position"] = result[f"{valve}.position"]
@@ -254,7 +254,7 @@ def _trend_figure(result: SimResult, title: str,
                              squeeze=False, layout="constrained")
     ax = axes[0, 0]
     for loop in loops:
-        ax.plot(result.t, result[f"{loop}.pv"], label=f"{loop} PV", lw=0.8)
+        ax.plot(result.t, result.pv(loop), label=f"{loop} PV", lw=0.8)
         ax.plot(result.t, result.working_sp(loop), label=f"{loop} SP", ls="--", lw=1.0)
     ax.set_ylabel("PV, SP (PV units)")
     ax = axes[1, 0]
@@ -263,7 +263,7 @@ def _trend_figure(result: SimResult, title: str,
         ax.plot(result.t, result[f"{comp}.{port}"], label=f"{comp} {port}", lw=0.6,
                 color="0.6")
     for loop in loops:
-        ax.plot(result.t, result[f"{loop}.out"], label=f"{loop} OUT", lw=0.8)
+        ax.plot(result.t, result.out(loop), label=f"{loop} OUT", lw=0.8)
     ax.set_ylabel("controller output (%)")
     if valves:
         ax = axes[2, 0]

@@ -5,9 +5,12 @@ from __future__ import annotations
 import csv
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from loopworks.blocks.controller import Roles
 
 
 @dataclass
@@ -35,10 +38,18 @@ class SimResult:
         """Every signal name, ``block.port``."""
         return list(self.values)
 
+    def roles(self, block: str) -> Roles | None:
+        """The controller roles of ``block`` (which of its ports are SP, PV, OUT, ...: the
+        kind's :class:`~loopworks.blocks.controller.Roles`), None when it is no controller."""
+        from loopworks.blocks.controller import Controller
+        from loopworks.catalog import block_class
+
+        cls = block_class(self.kinds[block])
+        return cls.ROLES if issubclass(cls, Controller) else None
+
     def controllers(self) -> list[str]:
-        """Blocks that look like controllers by the port convention (sp, pv in; out out)."""
-        return [n for n in self.kinds if f"{n}.sp" in self.values and f"{n}.pv" in self.values
-                and f"{n}.out" in self.values]
+        """The controller blocks (every vendor's: GE's ``cv``, S5's ``w``/``x``/``y`` too)."""
+        return [n for n in self.kinds if self.roles(n) is not None]
 
     def metrics(self, loop: str | None = None, valve: str | None = None,
                 window: tuple[float, float] | None = None) -> dict[str, float]:
@@ -53,19 +64,36 @@ class SimResult:
         loops = self.controllers()
         if loop is None:
             if not loops:
-                raise KeyError("no controller (a block with sp and pv inputs and an out output)")
+                raise KeyError("no controller block (kinds: pid, deltav.pid, e2.pid, s5.pid, "
+                               "ge.pid_ind, ge.pid_isa)")
             loop = loops[0]
         if valve is None:
             valve = self.valve_of(loop)
         position = self.values[f"{valve}.position"] if valve is not None else None
         command = self.values.get(f"{valve}.op") if valve is not None else None
-        return loop_metrics(self.t, self.working_sp(loop), self[f"{loop}.pv"],
-                            self[f"{loop}.out"], position=position, window=window,
-                            command=command)
+        return loop_metrics(self.t, self.working_sp(loop), self.pv(loop), self.out(loop),
+                            position=position, window=window, command=command)
+
+    def pv(self, loop: str) -> np.ndarray:
+        """The PV controller ``loop`` saw (its PV role's input: ``pv``, S5's ``x``)."""
+        return self[f"{loop}.{self._roles_of(loop).pv}"]
+
+    def out(self, loop: str) -> np.ndarray:
+        """The output of controller ``loop`` (its OUT role: ``out``, GE's ``cv``, S5's ``y``)."""
+        return self[f"{loop}.{self._roles_of(loop).out}"]
+
+    def _roles_of(self, loop: str) -> Roles:
+        if loop not in self.kinds:
+            raise KeyError(f"no block '{loop}'; blocks: {', '.join(self.kinds)}")
+        roles = self.roles(loop)
+        if roles is None:
+            raise KeyError(f"'{loop}' is a {self.kinds[loop]} block, not a controller; "
+                           f"controllers: {', '.join(self.controllers())}")
+        return roles
 
     def valve_of(self, loop: str) -> str | None:
-        """The first block with a ``position`` output downstream of ``loop.out`` along the
-        wires (through compensators), or None."""
+        """The first block with a ``position`` output downstream of the loop's output along
+        the wires (through compensators), or None."""
         frontier, seen = [loop], {loop}
         while frontier:
             block = frontier.pop(0)
@@ -81,12 +109,13 @@ class SimResult:
         return None
 
     def working_sp(self, loop: str) -> np.ndarray:
-        """The setpoint a controller worked to: its ``working_sp`` output when it has one
-        (deltav.pid), else ``cas_sp`` in the scans its ``mode`` was CAS (code 2, the generic
-        pid), else its ``sp`` input."""
-        if f"{loop}.working_sp" in self.values:
-            return self.values[f"{loop}.working_sp"]
-        sp = self[f"{loop}.sp"]
+        """The setpoint a controller worked to: its ``working_sp`` role's output when it has
+        one (deltav.pid), else ``cas_sp`` in the scans its ``mode`` was CAS (code 2, the
+        generic pid), else its SP input."""
+        roles = self._roles_of(loop)
+        if roles.working_sp is not None:
+            return self.values[f"{loop}.{roles.working_sp}"]
+        sp = self[f"{loop}.{roles.sp}"]
         if f"{loop}.cas_sp" in self.values and f"{loop}.mode" in self.values:
             return np.where(self.values[f"{loop}.mode"] == 2.0, self.values[f"{loop}.cas_sp"],
                             sp)
@@ -150,12 +179,12 @@ class SimResult:
 
         panels: list[tuple[str, list[str]]] = []
         for name, kind in self.kinds.items():
-            cls = block_class(kind)
-            ins = {p.name for p in cls.INPUTS}
-            outs = [p.name for p in cls.OUTPUTS]
-            if {"sp", "pv"} <= ins:
-                panels.append((f"{name} ({kind}): setpoint and PV", [f"{name}.sp", f"{name}.pv"]))
-                panels.append((f"{name} ({kind}): output", [f"{name}.{outs[0]}"]))
+            outs = [p.name for p in block_class(kind).OUTPUTS]
+            roles = self.roles(name)
+            if roles is not None:
+                panels.append((f"{name} ({kind}): setpoint and PV",
+                               [f"{name}.{roles.sp}", f"{name}.{roles.pv}"]))
+                panels.append((f"{name} ({kind}): output", [f"{name}.{roles.out}"]))
             else:
                 panels.append((f"{name} ({kind})", [f"{name}.{o}" for o in outs]))
         return panels
