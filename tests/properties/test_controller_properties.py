@@ -82,9 +82,21 @@ values = st.floats(-100.0, 200.0, allow_nan=False)
 
 def settle_check(block: Block, held: float, dt: float, scale: float, n: int,
                  **inputs: Any) -> None:
-    """n scans at PV = SP after a switch: the output stays at ``held`` (no jump)."""
+    """n scans at PV = SP after a switch: the output stays at ``held`` (no jump).
+
+    With ``antiwindup = "integral_limits"`` (pid docstring) the return re-initialises the
+    integral to u - P - D - ff - bias and then keeps it within out_lo..out_hi, as simple-pid's
+    set_auto_mode does: the output continues from ``held`` while that integral lies within
+    the limits, and otherwise from P + clamp(integral) + ff + bias (D is 0 at the return, and
+    the integral does not move at PV = SP), limited, and stays there."""
     for k in range(n):
-        out = block.step(dt, **inputs)["out"]
+        outputs = block.step(dt, **inputs)
+        if k == 0 and block.params["antiwindup"] == "integral_limits":
+            lo, hi = block.params["out_lo"], block.params["out_hi"]
+            p, ff, bias = outputs["p_term"].value, float(inputs["ff"]), block.params["bias"]
+            integral = min(max(held - p - ff - bias, lo), hi)
+            held = min(max(p + integral + ff + bias, lo), hi)
+        out = outputs["out"]
         assert close(out.value, held, scale), (
             f"scan {k} after the switch: out {out.value} != {held} ({block!r})")
 

@@ -56,7 +56,10 @@ switch: no tracking). Rate limiting acts
 in AUTO and CAS only. Any scan that does not compute the output (MAN, tracking, bad input, the
 error gap) re-initialises the controller at the next computing scan: the integral (or the
 velocity accumulator) is set so that the output continues from where it was and d_{k-1} = d_k,
-so every return to control is bumpless. With no integral action (ti = inf, ki = 0) the
+so every return to control is bumpless; with ``antiwindup = "integral_limits"`` only while
+that integral, u - P - D - ff - bias, lies within out_lo..out_hi (the rule keeps it there, as
+simple-pid's ``set_auto_mode`` does; otherwise the output continues from
+P + clamp(integral) + ff + bias). With no integral action (ti = inf, ki = 0) the
 re-initialised integral is a frozen manual reset.
 
 Bad input (issue 11 point 1): in AUTO/CAS, a ``pv`` that is not a usable measurement (NaN,
