@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-__all__ = ["Module", "Signal", "__version__", "block_class", "create_block", "kinds"]
+__all__ = ["Module", "Signal", "__version__", "block_class", "create_block", "kinds", "sweep"]
 
 if TYPE_CHECKING:
     from loopworks.blocks.block import Block
@@ -63,7 +63,7 @@ def block_class(kind: str) -> type[Block]:
 
 
 def __dir__() -> list[str]:
-    """The module's names, with the lazily imported ``Module`` and ``Signal``."""
+    """The module's names, with the lazily imported ``Module``, ``Signal`` and ``sweep``."""
     return sorted({*globals(), *__all__})
 
 
@@ -76,4 +76,8 @@ def __getattr__(name: str) -> Any:
         from loopworks.sim.module import Module
 
         return Module
+    if name == "sweep":  # loopworks.sweep(scenario, vary={...}, samples=...): sim/sweep.py
+        from loopworks.sim.sweep import sweep
+
+        return sweep
     raise AttributeError(f"module 'loopworks' has no attribute {name!r}")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import sys
 import tomllib
 from collections.abc import Callable
 from pathlib import Path
@@ -453,6 +454,91 @@ def read_params_file(path: Path, kind: str) -> dict[str, Any]:
             raise FileFormatError(f"{path}: '{key}' is a table or array: expected a flat table "
                                   "of parameter = value")
     return table
+
+
+@app.command()
+@_user_errors
+def sweep(
+    scenario: Annotated[Path | None, typer.Argument(
+        help="scenario TOML file; omit to sweep the built-in scenario")] = None,
+    vary: Annotated[list[str] | None, typer.Option(
+        "--vary", metavar="NAME=SPEC", help="block.parameter or block.input = a:b:n, "
+        "v1,v2,..., uniform(a,b), loguniform(a,b), normal(m,s) or choice(v1,v2,...) "
+        "(repeatable)")] = None,
+    samples: Annotated[int, typer.Option(
+        "--samples", help="Latin-hypercube samples of the distributions")] = 100,
+    seed: Annotated[int | None, typer.Option(
+        "--seed", help="the sweep's seed (default: the scenario's [simulation] seed, else 0)")
+    ] = None,
+    variant: Annotated[str | None, typer.Option(
+        "--variant", help="sweep only this [compare] variant")] = None,
+    workers: Annotated[int | None, typer.Option(
+        "--workers", help="processes (default: the cores)")] = None,
+    scheduler: Annotated[str | None, typer.Option(
+        "--scheduler", help="a Dask distributed scheduler address (tcp://HOST:PORT)")] = None,
+    metric: Annotated[str | None, typer.Option(
+        "--metric", help="the metric the summary plots and ranks (default: PV std)")] = None,
+    output: Annotated[Path, typer.Option(
+        "--output", "-o", help="directory: results.parquet, results.csv, summary.html")] = Path(
+        "loopworks-sweep"),
+    as_json: Annotated[bool, typer.Option(
+        "--json", help="print the per-variant summary as JSON")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+) -> None:
+    """Run a scenario over a grid or a Monte Carlo of parameter values; write the results table
+    and a summary with plots."""
+    import json
+    import time
+
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+    from rich.table import Table
+
+    from loopworks.sim import sweep_report
+    from loopworks.sim.sweep import sweep as run_sweep
+
+    _check_report_directory(output)
+    console = Console(stderr=as_json)
+    started = time.perf_counter()
+    with Progress("[progress.description]{task.description}", BarColumn(),
+                  MofNCompleteColumn(), "[progress.elapsed]{task.fields[rate]}",
+                  TimeRemainingColumn(), console=console, transient=True,
+                  disable=quiet) as bar:
+        task = bar.add_task("sweeping", total=None, rate="")
+
+        def tick(done: int, total: int) -> None:
+            rate = done / max(time.perf_counter() - started, 1e-9)
+            bar.update(task, completed=done, total=total, rate=f"{rate:.1f} instances/s")
+
+        result = run_sweep(scenario, vary or [], samples=samples, seed=seed, variant=variant,
+                           workers=workers, scheduler=scheduler, progress=tick)
+    if metric is not None and metric not in result.metrics:
+        _fail(f"--metric '{metric}': no such metric; metrics: {', '.join(result.metrics)}")
+    sweep_report.write_results(result, output)
+    command = "loopworks sweep " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else \
+        "loopworks sweep"
+    title = f"sweep of {scenario if scenario is not None else 'the built-in scenario'}"
+    sweep_report.write_summary(result, output, title, command, metric)
+    chosen = sweep_report._metric(result, metric)
+    rows = sweep_report.summary_table(result, chosen)
+    if as_json:
+        typer.echo(json.dumps(_json_safe({
+            "instances": len(result), "design": result.design, "varied": result.varied,
+            "seconds": result.seconds, "metric": chosen,
+            "variants": {v: {"median": a, "p5": b, "p95": c, "best": d}
+                         for v, a, b, c, d in rows},
+            "best": result.best(chosen), "output": str(output)}), indent=2))
+        return
+    table = Table(title=escape(f"{title}: {result.design}, {len(result)} runs in "
+                               f"{result.seconds:.1f} s"))
+    for col in ("variant", f"{chosen}: median", "5 %", "95 %", "best"):
+        table.add_column(escape(col), justify="right")
+    for v, a, b, c, d in rows:
+        table.add_row(escape(v), *(f"{x:.4g}" for x in (a, b, c, d)))
+    console.print(table)
+    console.print(f"wrote {output / 'results.parquet'}, results.csv and summary.html",
+                  markup=False)
 
 
 @app.command("compile")

@@ -172,6 +172,17 @@ def _splitmix64(state: int) -> tuple[int, int]:
     return state, z ^ (z >> 31)
 
 
+def mix_seed(seed: int, run: int) -> int:
+    """A block's seed in run number ``run`` (a scenario's ``[simulation] seed``, a sweep
+    instance's seed): two SplitMix64 steps of seed·φ + run (φ = 0x9E3779B97F4A7C15), the top 53
+    bits (the ``seed`` parameter's range). Different runs give independent streams; so do two
+    blocks with different seeds in one run."""
+    state = (int(seed) * 0x9E3779B97F4A7C15 + int(run)) & _MASK64
+    state, _ = _splitmix64(state)
+    _, z = _splitmix64(state)
+    return z >> 11
+
+
 def rng_seed_state(seed: int, stream: int) -> list[float]:
     """The six MRG32k3a starting integers (as floats) for ``seed`` and a ``stream`` number.
 

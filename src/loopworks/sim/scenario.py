@@ -1,7 +1,11 @@
 """Scenario files (TOML): build a :class:`~loopworks.sim.module.Module` and its run settings.
 
-    [simulation]            dt (s), duration (s), seed, optional order = ["process", "pid"],
-                            optional metrics_window = [t0, t1] (s) for the scores
+    [simulation]            dt (s), duration (s), optional order = ["process", "pid"],
+                            optional metrics_window = [t0, t1] (s) for the scores, optional
+                            seed: the run's seed; every block with a ``seed`` parameter
+                            then draws from mix_seed(its seed, run seed), so one number
+                            changes every noise stream of the run (a sweep gives each
+                            instance its own; without it the blocks' own seeds are used)
     [blocks.NAME]           kind = "pid", then parameters, and constants for unwired inputs
     [wires]                 "process.u" = "pid.out"    (destination = source)
     [[events]]              t = 100.0, set = "pid.sp", value = 60.0   (an input or a parameter)
@@ -31,7 +35,7 @@ from __future__ import annotations
 import math
 import re
 import tomllib
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
@@ -111,6 +115,22 @@ class Scenario:
     autotune: dict[str, Any] | None = None
     autotune_test: AutotuneTest | None = None
     warnings: list[str] = field(default_factory=list)
+    #: every variant's block tables (names and keys lower-cased), as built
+    tables: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict, repr=False)
+    _model: Any = field(default=None, repr=False)
+
+    def build(self, variant: str, changes: Mapping[str, Any] | None = None,
+              seed: int | None = None) -> Module:
+        """A fresh module of ``variant`` with ``changes`` ("block.parameter" or "block.input"
+        = value) applied and, with ``seed``, every seeded block's seed mixed with it (as a
+        ``[simulation] seed`` would: :func:`loopworks.plant.sensor.mix_seed`). A wrong name or
+        value is a FileFormatError naming it."""
+        tables = {name: dict(table) for name, table in self.tables[variant].items()}
+        for key, value in (changes or {}).items():
+            block, _, fname = key.lower().rpartition(".")
+            tables[block][fname] = value
+        where = self.source if variant == "base" else f"{self.source} (compare.{variant})"
+        return _build(self._model, tables, where, self.seed if seed is None else seed)
 
 
 @dataclass
@@ -204,7 +224,7 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         raise FileFormatError(f"{source}: [simulation]: {exc}") from None
     window = _window(sim, n, source)
     # every variant built and checked before anything runs (the autotune test included)
-    modules = {name: _build(sc, t, where(name)) for name, t in variants.items()}
+    modules = {name: _build(sc, t, where(name), sim.seed) for name, t in variants.items()}
     try:
         check_record_size(sum(m.record_bytes(n) for m in modules.values()), sim.duration,
                           sim.dt, n)
@@ -225,12 +245,12 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
                 for ref in targets:
                     block, _, param = ref.rpartition(".")
                     table[block.lower()][param.lower()] = gain
-            return {name: _build(sc, t, where(name)) for name, t in variants.items()}
+            return {name: _build(sc, t, where(name), sim.seed) for name, t in variants.items()}
 
         test.rebuild = rebuild
     first = next(iter(modules.values()))
     return Scenario(first, sim.dt, sim.duration, sim.seed, sim.title, source, modules, text,
-                    window, None, test, warnings)
+                    window, None, test, warnings, variants, sc)
 
 
 def _window(sim: _Simulation, n: int, source: str) -> tuple[float, float] | None:
@@ -338,9 +358,13 @@ def run_autotune(sc: Scenario, progress: Callable[[float], None] | None = None
     return sc.autotune
 
 
-def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Module:
-    """One module from the block tables (names lower-cased), the wires and the events."""
+def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str,
+           seed: int | None = None) -> Module:
+    """One module from the block tables (names lower-cased), the wires and the events; with
+    a run ``seed`` (``[simulation] seed``), every block with a ``seed`` parameter draws from
+    ``mix_seed(its seed, run seed)``."""
     from loopworks.catalog import block_class
+    from loopworks.plant.sensor import mix_seed
 
     blocks = {}
     constants: dict[str, dict[str, Any]] = {}
@@ -355,6 +379,9 @@ def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str) -> Mod
         try:
             params, constants[name] = cls.split_table(table)
             blocks[name] = cls(**params)
+            if seed is not None and "seed" in blocks[name].params:  # validated first
+                params["seed"] = mix_seed(int(blocks[name].params["seed"]), seed)
+                blocks[name] = cls(**params)
         except LoopworksError as exc:
             raise FileFormatError(f"{where}: {exc}") from None
     for name, values in constants.items():

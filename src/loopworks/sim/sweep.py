@@ -1,0 +1,423 @@
+r"""Parameter sweeps: many instances of a scenario's loop, each with its own parameter values
+and noise, scored by the loop metrics (issue 14).
+
+Varied names and specs (``loopworks sweep SCENARIO --vary NAME=SPEC``): NAME is
+``block.parameter`` or ``block.input`` (an input's constant), SPEC one of
+
+==================  ===========================================================
+``a:b:n``           n values from a to b, evenly spaced (grid)
+``v1,v2,v3``        a list of numbers or names (grid)
+``uniform(a,b)``    sampled: a + (b - a)·u
+``loguniform(a,b)`` sampled: exp(ln a + (ln b - ln a)·u), 0 < a < b
+``normal(m,s)``     sampled: m + s·Φ⁻¹(u)
+``choice(v1,v2)``   sampled: v_⌊k·u⌋ of the k values
+==================  ===========================================================
+
+Lists and ranges form a full grid. The distributions are sampled ``samples`` times by a seeded
+Latin hypercube (McKay, Beckman & Conover 1979, Technometrics 21(2)): each distribution's u in
+[0, 1) is cut into ``samples`` equal strata, one uniform draw in each, the strata in a random
+order independently per distribution, and the value is the distribution's inverse CDF at u.
+With both, every grid point runs with every sample: grid × samples points.
+
+Instances: every point runs in every ``[compare]`` variant (or the one named). Point i has the
+seed s_i = ``mix_seed(sweep seed, i)`` (:func:`loopworks.plant.sensor.mix_seed`) and runs as the
+scenario would with ``[simulation] seed = s_i``: each noisy block draws from
+``mix_seed(its seed, s_i)``, so points are independent, the variants of one point share their
+noise (as ``simulate``'s variants do), and a row of the results is reproduced by
+``loopworks simulate`` with that seed and those values. The scenario's ``[autotune]`` relay
+test runs once, before the sweep, on the scenario as written (as ``simulate`` runs it), and its
+process gain goes into every instance. Metrics are those of ``simulate`` over the scenario's
+``metrics_window``, for every controller of the module.
+
+Execution: each worker process parses the scenario text once and runs its share of the
+instances through the module's compiled execution plan (loaded from the plan cache after the
+first instance); only the metrics come back, so memory stays bounded by the instances' metrics,
+not their trajectories.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import statistics
+import time
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from itertools import product
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from loopworks.errors import InputError, LoopworksError
+
+Value = float | int | str
+
+_RANGE = re.compile(r"^\s*([^:]+):([^:]+):([^:]+)\s*$")
+_CALL = re.compile(r"^\s*([a-z]+)\s*\((.*)\)\s*$", re.IGNORECASE)
+DISTRIBUTIONS = ("uniform", "loguniform", "normal", "choice")
+
+
+@dataclass(frozen=True)
+class Axis:
+    """One varied name: grid ``values``, or a sampled ``distribution`` with its ``args``."""
+
+    name: str
+    values: tuple[Value, ...] = ()
+    distribution: str = ""
+    args: tuple[Value, ...] = ()
+
+    @property
+    def sampled(self) -> bool:
+        return bool(self.distribution)
+
+    def at(self, u: float) -> Value:
+        """The distribution's value at u in [0, 1) (its inverse CDF)."""
+        kind, args = self.distribution, self.args
+        if kind == "choice":
+            return args[min(int(u * len(args)), len(args) - 1)]
+        a, b = float(args[0]), float(args[1])
+        if kind == "uniform":
+            return a + (b - a) * u
+        if kind == "loguniform":
+            return math.exp(math.log(a) + (math.log(b) - math.log(a)) * u)
+        return a + b * statistics.NormalDist().inv_cdf(min(max(u, 1e-12), 1.0 - 1e-12))
+
+
+def _number(text: str, where: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise InputError(f"{where}: '{text.strip()}' is not a number") from None
+    if not math.isfinite(value):
+        raise InputError(f"{where}: '{text.strip()}' is not a finite number")
+    return value
+
+
+def _item(text: str) -> Value:
+    """A list item: an int, a float, else a name (a mode, a choice)."""
+    t = text.strip()
+    for cast in (int, float):
+        try:
+            return cast(t)
+        except ValueError:
+            pass
+    return t
+
+
+def parse_vary(text: str) -> Axis:
+    """``NAME=SPEC`` as an :class:`Axis`; an InputError that quotes it and says what was
+    expected."""
+    name, sep, spec = text.partition("=")
+    name, spec = name.strip(), spec.strip()
+    where = f"--vary {text}"
+    if not sep or "." not in name or not spec:
+        raise InputError(f"{where}: expected NAME=SPEC with NAME block.parameter or "
+                         "block.input, SPEC a:b:n, v1,v2,..., uniform(a,b), loguniform(a,b), "
+                         "normal(m,s) or choice(v1,v2,...)")
+    call = _CALL.match(spec)
+    if call:
+        kind, inner = call.group(1).lower(), call.group(2)
+        parts = [p for p in inner.split(",")]
+        if kind not in DISTRIBUTIONS:
+            raise InputError(f"{where}: unknown distribution '{call.group(1)}': expected one "
+                             "of " + ", ".join(DISTRIBUTIONS))
+        if kind == "choice":
+            items = tuple(_item(p) for p in parts if p.strip())
+            if len(items) < 1:
+                raise InputError(f"{where}: choice() needs at least one value")
+            return Axis(name, distribution=kind, args=items)
+        if len(parts) != 2:
+            raise InputError(f"{where}: {kind}() takes two numbers, got {len(parts)}")
+        a, b = (_number(p, where) for p in parts)
+        if kind in ("uniform", "loguniform") and not a < b:
+            raise InputError(f"{where}: {kind}(a, b) needs a < b, got a = {a:g}, b = {b:g}")
+        if kind == "loguniform" and not a > 0.0:
+            raise InputError(f"{where}: loguniform(a, b) needs 0 < a, got a = {a:g}")
+        if kind == "normal" and not b > 0.0:
+            raise InputError(f"{where}: normal(m, s) needs s > 0, got s = {b:g}")
+        return Axis(name, distribution=kind, args=(a, b))
+    grid = _RANGE.match(spec)
+    if grid:
+        a, b = _number(grid.group(1), where), _number(grid.group(2), where)
+        n_text = grid.group(3).strip()
+        if not n_text.isdigit() or int(n_text) < 1:
+            raise InputError(f"{where}: in a:b:n, n = '{n_text}' must be a whole number >= 1")
+        n = int(n_text)
+        values = (a,) if n == 1 else tuple(float(v) for v in np.linspace(a, b, n))
+        return Axis(name, values=values)
+    items = tuple(_item(p) for p in spec.split(","))
+    if any(v == "" for v in items):
+        raise InputError(f"{where}: an empty value in the list")
+    return Axis(name, values=items)
+
+
+def latin_hypercube(n: int, d: int, rng: np.random.Generator) -> np.ndarray:
+    """n × d points in [0, 1)^d, one in each of the n strata of every dimension (module
+    docstring)."""
+    u = np.empty((n, d))
+    for j in range(d):
+        u[:, j] = (rng.permutation(n) + rng.random(n)) / n
+    return u
+
+
+def design(axes: Sequence[Axis], samples: int, seed: int) -> list[dict[str, Value]]:
+    """The points of a sweep: the grid of the grid axes, each with every Latin-hypercube sample
+    of the sampled axes (``samples`` of them; one point when there are none)."""
+    grid_axes = [a for a in axes if not a.sampled]
+    dist_axes = [a for a in axes if a.sampled]
+    if dist_axes and samples < 1:
+        raise InputError(f"--samples {samples}: the distributions need at least 1 sample")
+    draws: list[dict[str, Value]] = [{}]
+    if dist_axes:
+        u = latin_hypercube(samples, len(dist_axes), np.random.default_rng(seed))
+        draws = [{a.name: a.at(float(u[i, j])) for j, a in enumerate(dist_axes)}
+                 for i in range(samples)]
+    points: list[dict[str, Value]] = []
+    for combo in product(*(a.values for a in grid_axes)):
+        fixed = {a.name: v for a, v in zip(grid_axes, combo, strict=True)}
+        points.extend({**fixed, **draw} for draw in draws)
+    return points
+
+
+# -- running ------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Job:
+    """One instance: its point number, variant, changes (varied values and the autotune's
+    gain) and seed."""
+
+    point: int
+    variant: str
+    changes: dict[str, Value]
+    seed: int
+
+
+_CACHE: dict[tuple[str, str], Any] = {}
+
+
+def _scenario(text: str, source: str) -> Any:
+    """The parsed scenario, once per process."""
+    from loopworks.sim.scenario import parse_scenario
+
+    key = (text, source)
+    if key not in _CACHE:
+        _CACHE.clear()
+        _CACHE[key] = parse_scenario(text, source)
+    return _CACHE[key]
+
+
+def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, float]]:
+    """The metrics of each job's instance (``{"loop: metric" or "metric": value}``)."""
+    sc = _scenario(text, source)
+    rows = []
+    for job in jobs:
+        try:
+            module = sc.build(job.variant, job.changes, job.seed)
+            result = module.run(sc.duration, sc.dt)
+        except LoopworksError as exc:
+            values = ", ".join(f"{k} = {v!r}" for k, v in job.changes.items())
+            raise InputError(f"instance {job.point} ({job.variant}; {values}): {exc}") from None
+        loops = result.controllers()
+        metrics: dict[str, float] = {}
+        for loop in loops:
+            for name, value in result.metrics(loop, window=sc.metrics_window).items():
+                metrics[name if len(loops) == 1 else f"{loop}: {name}"] = float(value)
+        rows.append(metrics)
+    return rows
+
+
+@dataclass
+class SweepResult:
+    """One row per instance: ``columns`` (variant, point, seed, the varied names, then every
+    metric of every loop), as equal-length lists; ``varied`` the varied names; ``design``:
+    "grid", "monte carlo" or "grid × monte carlo"; ``seconds`` the run's wall time."""
+
+    columns: dict[str, list[Any]]
+    varied: list[str]
+    design: str
+    grid_shape: tuple[int, ...] = ()
+    seconds: float = 0.0
+    metrics: list[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.columns["variant"])
+
+    def to_arrow(self) -> Any:
+        """A pyarrow Table of the rows."""
+        import pyarrow as pa
+
+        return pa.table(self.columns)
+
+    def to_pandas(self) -> Any:
+        """A pandas DataFrame of the rows (pandas is optional: ``pip install pandas``)."""
+        try:
+            import pandas  # noqa: F401
+        except ImportError:
+            raise ImportError("to_pandas() needs pandas: pip install pandas") from None
+        return self.to_arrow().to_pandas()
+
+    def best(self, metric: str, *, largest: bool = False) -> dict[str, Any]:
+        """The row with the smallest (``largest``: the largest) finite ``metric``."""
+        if metric not in self.columns:
+            raise KeyError(f"no metric '{metric}'; metrics: {', '.join(self.metrics)}")
+        values = [v if isinstance(v, float) and math.isfinite(v) else math.nan
+                  for v in self.columns[metric]]
+        finite = [i for i, v in enumerate(values) if not math.isnan(v)]
+        if not finite:
+            raise KeyError(f"'{metric}' is n/a in every instance")
+        pick = (max if largest else min)(finite, key=lambda i: values[i])
+        return {k: col[pick] for k, col in self.columns.items()}
+
+    def plot(self, metric: str | None = None, directory: Path | None = None) -> list[Path]:
+        """The summary figures (:mod:`loopworks.sim.sweep_report`), written to ``directory``
+        (default: the current directory); returns their paths."""
+        from loopworks.sim.sweep_report import figures
+
+        return figures(self, directory or Path("."), metric)
+
+
+def sweep(scenario: str | Path | None, vary: Mapping[str, str] | Iterable[str], *,
+          samples: int = 100, seed: int | None = None, variant: str | None = None,
+          workers: int | None = None, scheduler: str | None = None,
+          progress: Callable[[int, int], None] | None = None) -> SweepResult:
+    """Sweep ``scenario`` (a TOML path; None: the built-in one) over ``vary`` (``{name: spec}``
+    or ``["name=spec", ...]``, module docstring): ``samples`` Latin-hypercube samples of the
+    distributions, ``seed`` (default: the scenario's ``[simulation] seed``, else 0), every
+    ``[compare]`` variant or only ``variant``, in ``workers`` processes (default: the cores)
+    or on the Dask scheduler at ``scheduler``. ``progress(done, total)`` is called as
+    instances finish. Every name and value is checked before anything runs."""
+    from loopworks.sim.scenario import load_scenario, run_autotune
+
+    texts = [f"{k}={v}" for k, v in vary.items()] if isinstance(vary, Mapping) else list(vary)
+    if not texts:
+        raise InputError("nothing to vary: give at least one --vary NAME=SPEC")
+    axes = [parse_vary(t) for t in texts]
+    names = [a.name for a in axes]
+    if len(set(n.lower() for n in names)) != len(names):
+        raise InputError("a name is varied twice: " + ", ".join(names))
+    sc = load_scenario(scenario)
+    variants = list(sc.variants)
+    if variant is not None:
+        if variant not in sc.variants:
+            raise InputError(f"--variant '{variant}': no such variant; variants: "
+                             + ", ".join(variants))
+        variants = [variant]
+    for axis in axes:
+        _check_axis(sc, axis, variants)
+    sweep_seed = (sc.seed if sc.seed is not None else 0) if seed is None else int(seed)
+    points = design(axes, samples, sweep_seed)
+    for i, point in enumerate(points):
+        for name, value in point.items():
+            _check_value(sc, name, value, variants, f"instance {i}")
+    base: dict[str, Value] = {}
+    if sc.autotune_test is not None:
+        at = run_autotune(sc)
+        assert at is not None and sc._model.autotune is not None
+        base = {ref.lower(): float(at["process_gain"])
+                for ref in sc._model.autotune.process_gain}
+    from loopworks.plant.sensor import mix_seed
+
+    seeds = [mix_seed(sweep_seed, i) for i in range(len(points))]
+    jobs = [Job(i, v, {**base, **point}, seeds[i])
+            for v in variants for i, point in enumerate(points)]
+    start = time.perf_counter()
+    metrics = _execute(sc.text, sc.source, jobs, workers, scheduler, progress)
+    seconds = time.perf_counter() - start
+    metric_names = list(dict.fromkeys(k for row in metrics for k in row))
+    columns: dict[str, list[Any]] = {"variant": [j.variant for j in jobs],
+                                     "point": [j.point for j in jobs],
+                                     "seed": [j.seed for j in jobs]}
+    for name in names:
+        columns[name] = [j.changes[name] for j in jobs]
+    for m in metric_names:
+        columns[m] = [row.get(m, math.nan) for row in metrics]
+    grid_axes = [a for a in axes if not a.sampled]
+    kind = ("grid" if not any(a.sampled for a in axes) else
+            "monte carlo" if not grid_axes else "grid × monte carlo")
+    return SweepResult(columns, names, kind, tuple(len(a.values) for a in grid_axes),
+                       seconds, metric_names)
+
+
+def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:
+    """The varied name is a parameter or an input of a block of the scenario."""
+    from loopworks.catalog import block_class
+
+    block, _, fname = axis.name.lower().rpartition(".")
+    tables = sc.tables[variants[0]]
+    if block not in tables:
+        raise InputError(f"--vary {axis.name}: no block '{block}' in {sc.source}; blocks: "
+                         + ", ".join(tables))
+    cls = block_class(str(tables[block]["kind"]))
+    params = {p.name for p in cls.PARAMS}
+    inputs = {p.name for p in cls.INPUTS}
+    if fname == "kind" or fname not in params | inputs:
+        raise InputError(f"--vary {axis.name}: '{fname}' is not a parameter or input of "
+                         f"{block} ({cls.kind}); parameters: {', '.join(sorted(params))}; "
+                         f"inputs: {', '.join(sorted(inputs))}")
+
+
+def _check_value(sc: Any, name: str, value: Value, variants: list[str], where: str) -> None:
+    """The value is allowed for the parameter (its range) or the input (a finite number or a
+    name it takes)."""
+    from loopworks.catalog import block_class
+
+    block, _, fname = name.lower().rpartition(".")
+    cls = block_class(str(sc.tables[variants[0]][block]["kind"]))
+    try:
+        for p in cls.PARAMS:
+            if p.name == fname:
+                p.check(value, cls.kind)
+                return
+        port = next(p for p in cls.INPUTS if p.name == fname)
+        if isinstance(value, float) and not math.isfinite(value):
+            raise InputError(f"{cls.kind}: input '{fname}' must be a finite number")
+        port.parse(value)
+    except (LoopworksError, ValueError) as exc:
+        raise InputError(f"--vary {name}: {where}: {name} = {value!r}: {exc}") from None
+
+
+def _chunks(jobs: Sequence[Job], size: int) -> list[list[Job]]:
+    return [list(jobs[i:i + size]) for i in range(0, len(jobs), size)]
+
+
+def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
+             scheduler: str | None, progress: Callable[[int, int], None] | None
+             ) -> list[dict[str, float]]:
+    """Every job's metrics, in job order: in this process (one worker), in ``workers``
+    processes, or on a Dask scheduler."""
+    total = len(jobs)
+    if scheduler is not None:
+        from loopworks.sim.cluster import run_on_cluster
+
+        return run_on_cluster(scheduler, text, source, jobs, progress)
+    n = workers if workers is not None else (os.cpu_count() or 1)
+    if n < 1:
+        raise InputError(f"--workers {n}: expected a whole number >= 1")
+    if n == 1 or total <= 1:
+        out: list[dict[str, float]] = []
+        for chunk in _chunks(jobs, max(1, total // 100)):
+            out.extend(run_jobs(text, source, chunk))
+            if progress is not None:
+                progress(len(out), total)
+        return out
+    size = max(1, min(64, total // (4 * n)))
+    chunks = _chunks(jobs, size)
+    results: list[list[dict[str, float]] | None] = [None] * len(chunks)
+    done = 0
+    with ProcessPoolExecutor(n, mp_context=get_context("spawn")) as pool:
+        futures = {pool.submit(run_jobs, text, source, chunk): k
+                   for k, chunk in enumerate(chunks)}
+        try:
+            for future in as_completed(futures):
+                k = futures[future]
+                results[k] = future.result()
+                done += len(chunks[k])
+                if progress is not None:
+                    progress(done, total)
+        except BaseException:
+            pool.shutdown(cancel_futures=True)
+            raise
+    return [row for part in results if part is not None for row in part]

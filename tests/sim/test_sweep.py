@@ -1,0 +1,271 @@
+"""Sweeps (issue 14): the grammar of --vary, the Latin hypercube, a grid equal to separate
+``simulate`` runs, reproducible Monte Carlo, located errors before anything runs, the output
+files, and a Dask LocalCluster giving the local numbers."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+from typer.testing import CliRunner
+
+from loopworks.cli import app
+from loopworks.errors import InputError
+from loopworks.sim.sweep import Axis, design, latin_hypercube, parse_vary, sweep
+
+#: a noisy loop with two variants: a transmitter with noise (seeded), a random-walk load
+SCENARIO = """\
+[simulation]
+dt = 0.5
+duration = 120.0
+metrics_window = [20.0, 120.0]
+
+[blocks.pid]
+kind = "pid"
+k = 1.0
+ti = 20.0
+sp = 50.0
+bias = 50.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 10.0
+dead_time = 1.0
+u0 = 50.0
+
+[blocks.load]
+kind = "disturbance.load"
+walk_std = 0.2
+seed = 5
+
+[blocks.tx]
+kind = "sensor.transmitter"
+noise_std = 0.3
+seed = 9
+
+[wires]
+"process.u" = "pid.out"
+"load.u" = "process.y"
+"tx.y" = "load.y"
+"pid.pv" = "tx.pv"
+
+[compare.base]
+
+[compare.faster]
+"pid.ti" = 10.0
+"""
+
+
+def same_table(a: dict[str, list[object]], b: dict[str, list[object]]) -> None:
+    """Equal column by column, NaN equal to NaN (an n/a metric)."""
+    assert list(a) == list(b)
+    for name in a:
+        np.testing.assert_array_equal(np.array(a[name]), np.array(b[name]), err_msg=name)
+
+
+@pytest.fixture(scope="module")
+def scenario(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("sweep") / "loop.toml"
+    path.write_text(SCENARIO, encoding="utf-8")
+    return path
+
+
+# -- the grammar -------------------------------------------------------------------------------
+def test_specs() -> None:
+    assert parse_vary("pid.k=1:2:3") == Axis("pid.k", values=(1.0, 1.5, 2.0))
+    assert parse_vary("pid.mode=AUTO,MAN") == Axis("pid.mode", values=("AUTO", "MAN"))
+    assert parse_vary("pid.k = 1, 2.5") == Axis("pid.k", values=(1, 2.5))
+    u = parse_vary("valve.s=uniform(1,3)")
+    assert u.sampled and u.at(0.0) == 1.0 and u.at(0.5) == 2.0
+    lg = parse_vary("valve.s=loguniform(1,100)")
+    assert lg.at(0.5) == pytest.approx(10.0)
+    nm = parse_vary("process.gain=normal(1,0.1)")
+    assert nm.at(0.5) == pytest.approx(1.0)
+    assert nm.at(0.8413447460685429) == pytest.approx(1.1)  # Φ(1)
+    ch = parse_vary("comp.kind=choice(a,b,c)")
+    assert [ch.at(u) for u in (0.0, 0.34, 0.99)] == ["a", "b", "c"]
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("pid.k", "expected NAME=SPEC"),
+    ("k=1,2", "expected NAME=SPEC"),
+    ("pid.k=1:2:x", "n = 'x' must be a whole number"),
+    ("pid.k=1:b:3", "'b' is not a number"),
+    ("pid.k=gauss(1,2)", "unknown distribution 'gauss'"),
+    ("pid.k=uniform(2,1)", "needs a < b"),
+    ("pid.k=loguniform(0,1)", "needs 0 < a"),
+    ("pid.k=normal(1,-1)", "needs s > 0"),
+    ("pid.k=uniform(1)", "takes two numbers, got 1"),
+    ("pid.k=1,,2", "an empty value"),
+])
+def test_a_bad_spec_is_a_located_error(text: str, message: str) -> None:
+    with pytest.raises(InputError, match=re.escape(message)) as err:
+        parse_vary(text)
+    assert f"--vary {text}" in str(err.value)
+
+
+def test_latin_hypercube_has_one_point_per_stratum() -> None:
+    u = latin_hypercube(50, 3, np.random.default_rng(1))
+    assert u.shape == (50, 3) and ((u >= 0.0) & (u < 1.0)).all()
+    for j in range(3):
+        assert sorted(np.floor(u[:, j] * 50).astype(int)) == list(range(50))
+
+
+def test_design_is_grid_times_samples() -> None:
+    axes = [parse_vary("a.x=1,2"), parse_vary("b.y=1:3:3"), parse_vary("c.z=uniform(0,1)")]
+    points = design(axes, 4, seed=3)
+    assert len(points) == 2 * 3 * 4
+    assert {(p["a.x"], p["b.y"]) for p in points} == {(a, b) for a in (1, 2)
+                                                     for b in (1.0, 2.0, 3.0)}
+    assert design(axes, 4, seed=3) == points  # seeded
+    assert design(axes, 4, seed=4) != points
+
+
+# -- against simulate --------------------------------------------------------------------------
+def _simulate_metrics(tmp: Path, text: str, values: dict[str, float], seed: int,
+                      variant: str) -> dict[str, float]:
+    """``loopworks simulate`` of the scenario with ``values`` written into it and
+    ``[simulation] seed``: the metrics of ``variant``."""
+    lines = text.replace("[simulation]\n", f"[simulation]\nseed = {seed}\n", 1)
+    for name, value in values.items():
+        block, param = name.split(".")
+        lines = re.sub(rf"(\[blocks\.{block}\]\n(?:.+\n)*?){param} = .+\n",
+                       rf"\g<1>{param} = {value!r}\n", lines, count=1)
+        assert f"{param} = {value!r}" in lines
+    path = tmp / f"run_{seed}.toml"
+    path.write_text(lines, encoding="utf-8")
+    out = tmp / f"report_{seed}"
+    result = CliRunner().invoke(app, ["simulate", str(path), "-o", str(out), "-q"])
+    assert result.exit_code == 0, result.output
+    return dict(json.loads((out / "metrics.json").read_text())[variant])
+
+
+def test_a_grid_equals_separate_simulate_runs(scenario: Path, tmp_path: Path) -> None:
+    """Done-when: a 3 × 3 grid gives the metrics of nine ``loopworks simulate`` runs with
+    those values (and each row's seed as [simulation] seed), to 1e-9."""
+    result = sweep(scenario, {"pid.k": "0.5:1.5:3", "process.gain": "0.8,1.0,1.2"},
+                   variant="base", workers=1)
+    assert len(result) == 9 and result.design == "grid" and result.grid_shape == (3, 3)
+    assert len(set(result.columns["seed"])) == 9  # each point its own noise
+    for i in range(9):
+        row = {k: col[i] for k, col in result.columns.items()}
+        expected = _simulate_metrics(tmp_path, SCENARIO, {"pid.k": row["pid.k"],
+                                                          "process.gain": row["process.gain"]},
+                                     row["seed"], "base")
+        for metric, value in expected.items():
+            if value is None or (isinstance(value, float) and math.isnan(value)):
+                assert math.isnan(row[metric]), metric
+            else:
+                assert row[metric] == pytest.approx(value, rel=1e-9, abs=1e-12), metric
+
+
+def test_monte_carlo_is_reproducible_and_processes_agree(scenario: Path) -> None:
+    vary = ["pid.k=uniform(0.5,1.5)", "tx.noise_std=loguniform(0.05,0.5)"]
+    one = sweep(scenario, vary, samples=6, seed=11, workers=1)
+    two = sweep(scenario, vary, samples=6, seed=11, workers=2)
+    same_table(one.columns, two.columns)  # same seed: the same table, in processes too
+    assert len(one) == 12 and one.design == "monte carlo"
+    other = sweep(scenario, vary, samples=6, seed=12, workers=1)
+    assert other.columns["pid.k"] != one.columns["pid.k"]
+    # the variants of a point share its values and its noise
+    base = [i for i, v in enumerate(one.columns["variant"]) if v == "base"]
+    fast = [i for i, v in enumerate(one.columns["variant"]) if v == "faster"]
+    assert [one.columns["seed"][i] for i in base] == [one.columns["seed"][i] for i in fast]
+    assert [one.columns["pid.k"][i] for i in base] == [one.columns["pid.k"][i] for i in fast]
+
+
+@pytest.mark.parametrize(("vary", "message"), [
+    (["valve.s=1,2"], "no block 'valve'"),
+    (["pid.gain=1,2"], "'gain' is not a parameter or input of pid (pid)"),
+    (["pid.k=-1,1"], "instance 0: pid.k = -1"),
+    (["pid.k=1,2", "PID.K=3"], "a name is varied twice"),
+    (["pid.sp=uniform(0,1)", "pid.mode=choice(AUTO,BOGUS)"], "pid.mode = 'BOGUS'"),
+])
+def test_unknown_names_and_bad_values_fail_before_running(scenario: Path, vary: list[str],
+                                                          message: str) -> None:
+    with pytest.raises(InputError, match=re.escape(message)):
+        sweep(scenario, vary, samples=20, workers=1,
+              progress=lambda done, total: pytest.fail("it ran"))
+
+
+def test_sweep_command_writes_results_and_summary(scenario: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    result = CliRunner().invoke(app, ["sweep", str(scenario), "--vary", "pid.k=0.5:1.5:3",
+                                      "--workers", "1", "-o", str(out), "-q", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["instances"] == 6 and data["design"] == "grid" and data["metric"] == "PV std"
+    assert set(data["variants"]) == {"base", "faster"}
+    table = pq.read_table(out / "results.parquet")
+    assert table.num_rows == 6
+    assert table.column_names[:4] == ["variant", "point", "seed", "pid.k"]
+    assert "PV std" in table.column_names and "IAE" in table.column_names
+    csv_rows = (out / "results.csv").read_text().splitlines()
+    assert len(csv_rows) == 7
+    page = (out / "summary.html").read_text()
+    assert "metrics_vs_parameter.png" in page and (out / "metrics_vs_parameter.png").exists()
+
+
+def test_monte_carlo_summary_has_histograms_and_pareto(scenario: Path, tmp_path: Path) -> None:
+    from loopworks.sim import sweep_report
+
+    result = sweep(scenario, ["pid.k=uniform(0.5,1.5)"], samples=5, workers=1)
+    sweep_report.write_summary(result, tmp_path, "t", "cmd")
+    assert (tmp_path / "histograms.png").exists()
+    # no valve in this loop: the Pareto plot uses the controller output travel
+    assert (tmp_path / "pareto.png").exists()
+
+
+def test_pareto_front() -> None:
+    from loopworks.sim.sweep_report import pareto
+
+    x = np.array([1.0, 2.0, 3.0, 1.5, 4.0, math.nan])
+    y = np.array([5.0, 3.0, 1.0, 6.0, 0.5, 0.1])
+    assert pareto(x, y).tolist() == [0, 1, 2, 4]
+
+
+def test_best_row(scenario: Path) -> None:
+    result = sweep(scenario, ["pid.k=0.5:1.5:3"], variant="base", workers=1)
+    best = result.best("IAE")
+    assert best["IAE"] == min(result.columns["IAE"])
+    with pytest.raises(KeyError, match="no metric 'nope'"):
+        result.best("nope")
+
+
+def test_a_dask_local_cluster_gives_the_local_numbers(scenario: Path) -> None:
+    import distributed  # the test extras install it (the cluster extra)
+
+    vary = ["pid.k=uniform(0.5,1.5)"]
+    local = sweep(scenario, vary, samples=4, seed=2, workers=1)
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, host="127.0.0.1",
+                                  processes=True, dashboard_address=None) as cluster:
+        remote = sweep(scenario, vary, samples=4, seed=2, scheduler=cluster.scheduler_address)
+    same_table(remote.columns, local.columns)
+
+
+def test_scheduler_without_dask_says_how_to_get_it(scenario: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    import builtins
+
+    real = builtins.__import__
+
+    def no_dask(name: str, *args: object, **kwargs: object) -> object:
+        if name == "distributed" or name.startswith("distributed."):
+            raise ImportError(name)
+        return real(name, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(builtins, "__import__", no_dask)
+    with pytest.raises(InputError, match=re.escape('pip install "loopworks[cluster]"')):
+        sweep(scenario, ["pid.k=1,2"], scheduler="tcp://127.0.0.1:1")
+
+
+def test_the_python_api_is_loopworks_sweep() -> None:
+    import loopworks
+
+    assert loopworks.sweep is sweep
