@@ -51,6 +51,15 @@ def _floats(values: list[Any]) -> np.ndarray:
     return np.array([float(v) if isinstance(v, int | float) else math.nan for v in values])
 
 
+def _wide(values: np.ndarray) -> bool:
+    """Non-negative values spanning more than two decades (travel: 0 to thousands)."""
+    finite = values[np.isfinite(values)]
+    if finite.size < 2 or finite.min() < 0.0:
+        return False
+    return bool(finite.max() > 100.0 * max(float(np.median(finite)), 1.0) or
+                finite.max() > 100.0 * max(float(np.percentile(finite, 25)), 1.0))
+
+
 def pareto(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Indices of the points no other point beats in both x and y (smaller is better),
     sorted by x."""
@@ -142,12 +151,18 @@ def figures(result: SweepResult, directory: Path, metric: str | None = None) -> 
         for ax, m in zip(axes[0], shown, strict=True):
             data = _floats(result.columns[m])
             finite = data[np.isfinite(data)]
-            bins = np.histogram_bin_edges(finite, bins=30) if finite.size else 10
+            wide = _wide(finite)
+            bins: Any = 10
+            if wide:  # travel spans decades: log-spaced bins on a symlog axis
+                bins = np.concatenate(([0.0], np.geomspace(1.0, max(finite.max(), 10.0), 30)))
+                ax.set_xscale("symlog", linthresh=1.0)
+            elif finite.size:
+                bins = np.histogram_bin_edges(finite, bins=30)
             for i, v in enumerate(variants):
                 d = data[(vcol == v) & np.isfinite(data)]
-                ax.hist(d, bins=bins, alpha=0.55, color=colours[i % len(colours)],
+                ax.hist(d, bins=bins, histtype="step", lw=1.6, color=colours[i % len(colours)],
                         label=f"{v} (median {np.median(d):.3g})" if d.size else v)
-            ax.set_xlabel(m)
+            ax.set_xlabel(m + (" (symlog axis)" if wide else ""))
             ax.set_ylabel("instances")
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize=8)
@@ -166,7 +181,10 @@ def figures(result: SweepResult, directory: Path, metric: str | None = None) -> 
                 front = pareto(x, y)
                 if front.size:
                     ax.plot(x[front], y[front], "-", color=colour, lw=1.6)
-            ax.set_xlabel(f"{travel} (lower is less wear)")
+            if _wide(_floats(result.columns[travel])):
+                ax.set_xscale("symlog", linthresh=1.0)
+            ax.set_xlabel(f"{travel} (lower is less wear"
+                          + ("; symlog axis)" if ax.get_xscale() == "symlog" else ")"))
             ax.set_ylabel(f"{pv} (lower is tighter control)")
             ax.set_title("PV variability against valve travel; lines: each variant's "
                          "non-dominated instances", fontsize=10)
