@@ -396,6 +396,8 @@ def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
     n = workers if workers is not None else (os.cpu_count() or 1)
     if n < 1:
         raise InputError(f"--workers {n}: expected a whole number >= 1")
+    if workers is None:  # a process costs a second to start: at least 4 instances each
+        n = min(n, max(1, total // 4))
     if n == 1 or total <= 1:
         out: list[dict[str, float]] = []
         for chunk in _chunks(jobs, max(1, total // 100)):

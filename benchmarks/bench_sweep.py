@@ -1,0 +1,148 @@
+"""Sweep throughput (issue 14 point 5): ``loopworks.sweep`` against a numba ``prange`` PI+FOPDT
+batch (the near-limit anchor, written here) and against a plain Python loop over
+``Module.run``, in one process; and the peak memory of the sweep's process.
+
+    python benchmarks/bench_sweep.py [--instances N] [--scans S] [--builtin-instances M]
+
+Loops: (1) pid + process.fopdt (K = 1, T = 20 s, dead time 2 s, PI Kc = 2, Ti = 10 s, a unit
+setpoint, dt = 0.1 s), ``--instances`` instances of ``--scans`` scans, the controller gain
+drawn uniform(1, 3) per instance; (2) the built-in scenario (7 blocks, two variants, its own
+one-hour run), ``--builtin-instances`` Monte Carlo instances of the valve's resolution (its
+slip jump). Each figure is instances per second; the ratios are the figures (absolute times
+on shared machines are noise).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import resource
+import tempfile
+import time
+from pathlib import Path
+
+import numba
+import numpy as np
+
+import loopworks
+from loopworks.sim.scenario import load_scenario
+
+K, T, THETA, KC, TI, DT = 1.0, 20.0, 2.0, 2.0, 10.0, 0.1
+
+LOOP = f"""\
+[simulation]
+dt = {DT}
+duration = {{duration}}
+
+[blocks.pid]
+kind = "pid"
+k = {KC}
+ti = {TI}
+out_lo = -1e9
+out_hi = 1e9
+sp = 1.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = {K}
+time_constant = {T}
+dead_time = {THETA}
+
+[wires]
+"process.u" = "pid.out"
+"pid.pv" = "process.y"
+"""
+
+
+@numba.njit(parallel=True, cache=True)
+def numba_batch(kc: np.ndarray, n: int, dt: float) -> np.ndarray:
+    """Each instance: PI (gain kc[i]) on the FOPDT with an exact ring buffer, n scans; returns
+    each instance's IAE so nothing is optimised away."""
+    out = np.empty(kc.size)
+    delay = round(THETA / dt)
+    a = np.exp(-dt / T)
+    for i in numba.prange(kc.size):
+        ring = np.zeros(delay)
+        y = 0.0
+        integral = 0.0
+        head = 0
+        iae = 0.0
+        for _ in range(n):
+            e = 1.0 - y
+            iae += abs(e) * dt
+            integral += kc[i] / TI * dt * e
+            u = kc[i] * e + integral
+            u_late = ring[head]
+            ring[head] = u
+            head = (head + 1) % delay
+            y = a * y + (1.0 - a) * K * u_late
+        out[i] = iae
+    return out
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--instances", type=int, default=10_000)
+    ap.add_argument("--scans", type=int, default=1_000)
+    ap.add_argument("--builtin-instances", type=int, default=20)
+    ap.add_argument("--python-instances", type=int, default=200,
+                    help="instances of the Python Module.run loop (it is the slow anchor)")
+    args = ap.parse_args()
+    n, scans = args.instances, args.scans
+    kc = np.random.default_rng(0).uniform(1.0, 3.0, n)
+    numba_batch(kc[:2], 10, DT)
+    start = time.perf_counter()
+    numba_batch(kc, scans, DT)
+    anchor = n / (time.perf_counter() - start)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "loop.toml"
+        path.write_text(LOOP.format(duration=scans * DT), encoding="utf-8")
+        loopworks.sweep(path, ["pid.k=uniform(1,3)"], samples=2, workers=1)  # warm the cache
+        start = time.perf_counter()
+        result = loopworks.sweep(path, ["pid.k=uniform(1,3)"], samples=n)
+        ours = len(result) / (time.perf_counter() - start)
+        sc = load_scenario(path)
+        m = args.python_instances
+        start = time.perf_counter()
+        for gain in kc[:m]:
+            module = sc.build("base", {"pid.k": float(gain)})
+            res = module.run(sc.duration, sc.dt)
+            res.metrics("pid")
+        python_loop = m / (time.perf_counter() - start)
+    rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+    print(f"pid + fopdt, {n} instances x {scans} scans")
+    print(f"  numba prange batch (anchor)      {anchor:12.0f} instances/s")
+    print(f"  loopworks.sweep                  {ours:12.0f} instances/s  ratio {ours / anchor:.4f}"
+          " (target >= 0.3, goal 0.5)")
+    print(f"  Python loop over Module.run      {python_loop:12.0f} instances/s  sweep / loop "
+          f"{ours / python_loop:.2f}")
+
+    b = args.builtin_instances
+    loopworks.sweep(None, ["valve.resolution=uniform(0.2,0.8)"], samples=1, workers=1)  # warm
+    start = time.perf_counter()
+    built = loopworks.sweep(None, ["valve.resolution=uniform(0.2,0.8)"], samples=b)
+    ours_b = len(built) / (time.perf_counter() - start)
+    sc = load_scenario(None)
+    from loopworks.sim.scenario import run_autotune
+
+    run_autotune(sc)
+    start = time.perf_counter()
+    for variant in sc.variants:
+        module = sc.build(variant, {"valve.resolution": 0.5})
+        module.run(sc.duration, sc.dt).metrics(window=sc.metrics_window)
+    loop_b = len(sc.variants) / (time.perf_counter() - start)
+    print(f"built-in scenario (7 blocks, {sc.duration:g} s at {sc.dt:g} s), {b} points x "
+          f"{len(sc.variants)} variants")
+    print(f"  loopworks.sweep                  {ours_b:12.2f} runs/s")
+    print(f"  Python loop over Module.run      {loop_b:12.2f} runs/s  sweep / loop "
+          f"{ours_b / loop_b:.2f} (target >= 100)")
+    print(f"peak memory: this process {rss:.0f} MB, largest worker {kids:.0f} MB "
+          f"(target < 200 MB for {n} instances with metrics only)")
+    if not math.isfinite(ours):
+        raise SystemExit(1)
+
+
+if __name__ == "__main__":
+    main()
