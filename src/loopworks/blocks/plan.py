@@ -271,6 +271,15 @@ def _reference(kernel: Any) -> tuple[str, str] | None:
 
 # -- plans -------------------------------------------------------------------------------------
 
+#: the first lines of ``scans`` and ``rows``: F and S as views of the buffers F0 and S0 that
+#: hold no reference count (``numba.carray`` at their addresses, :mod:`loopworks.blocks.address`;
+#: the caller's F0 and S0 keep the memory alive for the call). Every kernel call hands the
+#: kernel six slices of them; slices of a counted array would each take and drop a reference
+#: (two atomic operations) per call, which was a third of a module's scan.
+_UNCOUNTED = ("    F = numba.carray(float64_at(F0.ctypes.data), F0.shape[0])",
+              "    S = numba.carray(int64_at(S0.ctypes.data), S0.shape[0])")
+
+
 def _call(slot: Slot, g: str, dt: str) -> str:
     """The guarded kernel call of one slot on views of F and S."""
     return (f"{g}({dt}, F[{slot.p0}:{slot.x0}], F[{slot.x0}:{slot.u0}], "
@@ -317,7 +326,7 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
     deco = "@numba.njit(cache=CACHE, nogil=True)"
     if "scans" in entries:
         lines += ["", "", deco,
-                  "def scans(F, S, dt, t0, k0, n, T, RF, RS, IF, IS, at):",
+                  "def scans(F0, S0, dt, t0, k0, n, T, RF, RS, IF, IS, at):", *_UNCOUNTED,
                   "    for k in range(n):",
                   "        t = t0 if k == 0 else (k0 + k) * dt",
                   "        T[at + k] = t"]
@@ -354,7 +363,7 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
                   f"    return ({', '.join(outs)},)"]
     if "rows" in entries:
         (slot,) = slots
-        lines += ["", "", deco, "def rows(dts, F, S, U, US, Y, YS):",
+        lines += ["", "", deco, "def rows(dts, F0, S0, U, US, Y, YS):", *_UNCOUNTED,
                   "    for k in range(dts.shape[0]):",
                   f"        for i in range({slot.n_u}):",
                   f"            F[{slot.u0} + i] = U[k, i]",
