@@ -278,11 +278,10 @@ def test_the_first_compilation_is_announced_once(monkeypatch: pytest.MonkeyPatch
     monkeypatch.setattr(plan, "_announced", False)
     for n_u in (1, 2):  # two shapes: two compilations, one line
         slots = plan.layout([(doubling_kernel, 0, 1, n_u, 1, True)])
-        step = plan.entry(slots, "step", plan.STEP_SIGNATURE)
+        step = plan.entry(slots, "step", plan.step_signature(1))
         F, S = np.zeros(1 + n_u + 1), np.full(n_u + 1, 128, dtype=np.int64)
-        F[1] = 3.0
-        step(0.1, F, S)
-        assert (F[0], F[-1]) == (1.0, 6.0)
+        assert step(0.1, F.ctypes.data, S.ctypes.data, 0, 3.0, -1, 0.0, True) == (6.0, 128)
+        assert (F[0], F[1], F[-1]) == (1.0, 3.0, 6.0)
         assert plan.is_cached(slots, "step")
     assert len(heard) == 1 and "once for this machine" in heard[0], heard
     assert str(tmp_path) in heard[0]

@@ -17,9 +17,8 @@ reads (packed in the declared order). Everything else is here:
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Iterator, Mapping
 from typing import Any, ClassVar
-from weakref import ref as _weakref
 
 import numpy as np
 
@@ -39,52 +38,44 @@ from loopworks.blocks.status import Signal
 from loopworks.errors import InputError
 
 
-class Outputs(list, Mapping[str, Signal]):  # type: ignore[type-arg]
+class Outputs(tuple, Mapping[str, Signal]):  # type: ignore[type-arg]
     """The outputs of one scan, by port name: ``result["out"]`` is a :class:`Signal`.
 
-    It reads the block's output buffers directly while it is the newest result; if it is still
-    alive when the block scans again (or is reset or loaded), the block first makes it take a
-    copy (the block keeps a weak reference to it), so a result always shows the scan that
-    produced it. The :class:`Signal` pairs are built when read."""
+    A snapshot taken when the scan ended (the compiled scan returns its output values and
+    statuses as one tuple), so a result always shows the scan that produced it, however long
+    it is held. The :class:`Signal` pairs are built when read."""
 
-    __slots__ = ("__weakref__",)
+    __slots__ = ()
 
+    # tuple.__getitem__(self, 0): port name -> index; 1: (values..., statuses...)
     def __getitem__(self, name: str) -> Signal:  # type: ignore[override]
-        get = list.__getitem__
-        i = get(self, 0)[name]
-        return Signal(float(get(self, 1)[i]), int(get(self, 2)[i]))
-
-    def _freeze(self) -> None:
-        """Copy the values out of the block's buffers before they change."""
-        get, put = list.__getitem__, list.__setitem__
-        put(self, 1, get(self, 1).tolist())
-        put(self, 2, get(self, 2).tolist())
+        get = tuple.__getitem__
+        index = get(self, 0)
+        i = index[name]
+        values = get(self, 1)
+        return Signal(float(values[i]), int(values[i + len(index)]))
 
     def __iter__(self) -> Iterator[str]:
-        return iter(list.__getitem__(self, 0))
+        return iter(tuple.__getitem__(self, 0))
 
     def __len__(self) -> int:
-        return len(list.__getitem__(self, 0))
+        return len(tuple.__getitem__(self, 0))
 
     def __contains__(self, name: object) -> bool:
-        return name in list.__getitem__(self, 0)
+        return name in tuple.__getitem__(self, 0)
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Mapping) and dict(self.items()) == dict(other.items())
 
-    def __hash__(self) -> int:  # type: ignore[override]
+    def __hash__(self) -> int:
         return id(self)
 
     def __repr__(self) -> str:
         return "Outputs(" + ", ".join(f"{k}={self[k]}" for k in self) + ")"
 
 
+_new_outputs = tuple.__new__
 _INF = math.inf
-
-
-def _no_result() -> None:
-    """The dead weak reference a block starts with (no step() result yet)."""
-    return None
 
 
 class Block:
@@ -142,8 +133,6 @@ class Block:
         self._run: Kernel = self._run_first
         self._packed: Any = self._packed_first
         self._all_good = True  # every input status is Good NC (128): the fast path skips them
-        # a weak reference to the newest step() result, which reads the buffers while alive
-        self._last: Callable[[], Outputs | None] = _no_result
         self.reset()
 
     def _bind(self) -> None:
@@ -156,6 +145,9 @@ class Block:
         self.y: FloatArray = F[n_p + n_x + n_u:]
         self.us: IntArray = S[:n_u]
         self.ys: IntArray = S[n_u:]
+        # where they are, for the compiled step (blocks.address): the block holds F and S
+        self._fa: int = F.ctypes.data
+        self._sa: int = S.ctypes.data
 
     def adopt(self, F: FloatArray, S: IntArray) -> None:
         """Move the block's buffers into ``F`` and ``S``, views of a plan's flat buffers of
@@ -165,7 +157,6 @@ class Block:
         if F.shape != self._F.shape or S.shape != self._S.shape:
             raise ValueError(f"{self.kind}: adopt() needs buffers of {self._F.shape[0]} floats "
                              f"and {self._S.shape[0]} ints")
-        self._release_last()
         F[:] = self._F
         S[:] = self._S
         self._F, self._S = F, S
@@ -215,22 +206,35 @@ class Block:
         self._bind_entries()
         self._run(dt, p, x, u, us, y, ys)
 
-    def _packed_first(self, dt: float, F: FloatArray, S: IntArray) -> None:
+    def _packed_first(self, dt: float, fa: int, sa: int, ia: int, a: float, ib: int, b: float,
+                      good: bool) -> tuple[Any, ...]:
         self._bind_entries()
-        self._packed(dt, F, S)
+        return self._packed(dt, fa, sa, ia, a, ib, b, good)  # type: ignore[no-any-return]
 
-    def _packed_interpreted(self, dt: float, F: FloatArray, S: IntArray) -> None:
-        self._run(dt, self.p, self.x, self.u, self.us, self.y, self.ys)
+    def _packed_interpreted(self, dt: float, fa: int, sa: int, ia: int, a: float, ib: int,
+                            b: float, good: bool) -> tuple[Any, ...]:
+        """What the compiled one-block ``step`` does (:func:`loopworks.blocks.plan.source`):
+        write up to two inputs, scan, return (values..., statuses...) of the outputs."""
+        u, us = self.u, self.us
+        if ia >= 0:
+            u[ia] = a
+            if not good:
+                us[ia] = 128
+        if ib >= 0:
+            u[ib] = b
+            if not good:
+                us[ib] = 128
+        self._run(dt, self.p, self.x, u, us, self.y, self.ys)
+        return tuple(self.y.tolist() + self.ys.tolist())
 
     def _run_packed(self, dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
                     y: FloatArray, ys: IntArray) -> None:
         """The 7-array scan of a compiled fixed-layout block, through its packed entry (the
         arrays are views of its own buffers)."""
-        self._packed(dt, self._F, self._S)
+        self._packed(dt, self._fa, self._sa, -1, 0.0, -1, 0.0, True)
 
     def reset(self) -> None:
         """Return to the state right after construction (inputs to their defaults)."""
-        self._release_last()
         self.x[:] = self.initial_state()
         self.u[:] = [port.default for port in self.INPUTS]
         self.us[:] = st.GOOD_NC
@@ -244,24 +248,46 @@ class Block:
         if not 0.0 < dt < _INF:
             raise InputError(
                 f"{self.kind}: dt = {dt!r} s is not allowed: dt must be > 0 and finite")
-        last = self._last()
-        if last is not None:  # still held by the caller: it keeps this scan's values
-            last._freeze()
+        # The common call, up to two plain floats by their exact port names (sp=, pv=), hands
+        # them to the compiled scan, one call from Python that also returns the outputs;
+        # anything else is written here first, in the order given.
         if inputs:
-            index, u = self._fast_index, self.u
-            good = self._all_good
-            for name, value in inputs.items():
-                i = index.get(name)
-                if i is not None and type(value) is float:  # the fast path
-                    u[i] = value
-                    if not good:
-                        self.us[i] = 128
+            ia = ib = -1
+            a = b = 0.0
+            index = self._fast_index
+            for name in inputs:
+                i = index.get(name, -1)
+                value = inputs[name]
+                if i < 0 or type(value) is not float:
+                    break
+                if ia < 0:
+                    ia = i
+                    a = value
+                elif ib < 0:
+                    ib = i
+                    b = value
                 else:
-                    self.set_inputs({name: value})
-        self._packed(dt, self._F, self._S)
-        result = Outputs((self._out_index, self.y, self.ys))
-        self._last = _weakref(result)
-        return result
+                    break
+            else:
+                return _new_outputs(Outputs, (self._out_index, self._packed(
+                    dt, self._fa, self._sa, ia, a, ib, b, self._all_good)))
+            self._write_inputs(inputs)
+        return _new_outputs(Outputs, (self._out_index, self._packed(
+            dt, self._fa, self._sa, -1, 0.0, -1, 0.0, True)))
+
+    def _write_inputs(self, inputs: Mapping[str, Any]) -> None:
+        """step()'s inputs, in the order given: plain floats by their exact port names
+        straight into the buffer (status Good NC), anything else through set_inputs."""
+        index, u = self._fast_index, self.u
+        good = self._all_good
+        for name, value in inputs.items():
+            i = index.get(name)
+            if i is not None and type(value) is float:  # the fast path
+                u[i] = value
+                if not good:
+                    self.us[i] = 128
+            else:
+                self.set_inputs({name: value})
 
     def set_inputs(self, inputs: Mapping[str, Any]) -> None:
         """Latch input values (and statuses) without running a scan."""
@@ -322,16 +348,8 @@ class Block:
 
     def outputs(self) -> Outputs:
         """The outputs of the last scan (a copy)."""
-        result = Outputs((self._out_index, self.y, self.ys))
-        result._freeze()
-        return result
-
-    def _release_last(self) -> None:
-        """Before the output buffers change outside a step: let a held result copy them."""
-        last = self._last()
-        if last is not None:
-            last._freeze()
-        self._last = _no_result
+        return _new_outputs(Outputs, (self._out_index,
+                                      tuple(self.y.tolist() + self.ys.tolist())))
 
     def state(self) -> dict[str, Any]:
         """The named state variables, for inspection (an Array's as a list)."""
@@ -358,7 +376,6 @@ class Block:
                             self.params)
         except (ValueError, TypeError) as exc:
             raise InputError(str(exc)) from None
-        self._release_last()
         self.x[:] = x
         for arr, sarr, ports, key in ((self.u, self.us, self.INPUTS, "inputs"),
                                       (self.y, self.ys, self.OUTPUTS, "outputs")):

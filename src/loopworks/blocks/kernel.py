@@ -255,10 +255,14 @@ def guarded_entry(kernel: Any, full: bool = True) -> Any:
 
 
 def step_entry(kernel: Any, n_p: int, n_x: int, n_u: int, n_y: int, full: bool = True) -> Any:
-    """A compiled ``step(dt, F, S)`` over one float buffer F = [p | x | u | y] and one int
-    buffer S = [us | ys]: a one-block plan (:mod:`loopworks.blocks.plan`), cached on disk.
+    """A compiled ``step(dt, fa, sa, ia, a, ib, b, good)`` over one float buffer
+    F = [p | x | u | y] and one int buffer S = [us | ys], given by their addresses
+    (:mod:`loopworks.blocks.address`): a one-block plan (:mod:`loopworks.blocks.plan`), cached
+    on disk. It writes up to two inputs, scans, and returns the outputs' values and statuses
+    as one tuple.
 
-    Two arrays to unbox instead of six make a single step from Python markedly cheaper. The
+    No arrays to unbox, the inputs as arguments and the outputs as the result make a single
+    step from Python markedly cheaper (one call into machine code). The
     sizes are literals of the generated glue, which calls the kind's cached ``call`` entry
     (:func:`guarded_entry`): each (kernel, sizes) compiles its glue once per machine (well
     under a second), the kernel itself once per machine for every use."""
@@ -268,7 +272,7 @@ def step_entry(kernel: Any, n_p: int, n_x: int, n_u: int, n_y: int, full: bool =
         from loopworks.blocks import plan
 
         slots = plan.layout([(kernel, n_p, n_x, n_u, n_y, full)])
-        fn = _entries[key] = plan.entry_point(slots, "step", plan.STEP_SIGNATURE)
+        fn = _entries[key] = plan.entry_point(slots, "step", plan.step_signature(n_y))
     return fn
 
 

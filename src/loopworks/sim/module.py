@@ -300,7 +300,6 @@ class Module:
                     block.us[i] = src.ys[j]
                 publish = getattr(block, "publish_start", None)
                 if publish is not None:
-                    block._release_last()
                     publish()
         self.t = 0.0
         self.k = 0
@@ -360,7 +359,6 @@ class Module:
         if reset:
             self.reset()
         for block in self.blocks.values():
-            block._release_last()
             block.check_dt(dt)
         t = np.empty(n)
         # one row per signal: each signal's record is a contiguous array, handed out as is

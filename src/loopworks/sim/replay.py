@@ -174,7 +174,6 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
             raise FileFormatError(f"{source}: the file is empty: expected a header row naming "
                                   f"the inputs of {block.kind} ({', '.join(block._in_index)})")
         lay, clock = _layout(block, header, source, dt)
-        block._release_last()
         size = max(chunk, 2)  # the first scan's dt needs the second row
         if reader is not None:
             chunks = _first_two_rows(_slow_chunks(reader, lay, _Clock(), block, size))
