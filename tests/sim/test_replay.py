@@ -418,3 +418,20 @@ def test_an_accumulated_time_that_overflows_is_refused(tmp_path: Path) -> None:
                      [[1e308, 50, 40], [1e308, 50, 40], [1e308, 50, 40]])
     with pytest.raises(FileFormatError, match=r"in\.csv, line 4: the accumulated time overflows"):
         run(pid(), path)
+
+
+def test_an_unclosed_quote_in_the_header_is_one_located_line(tmp_path: Path) -> None:
+    """A header quote that is never closed swallows the rows into one column name: the error
+    is one line naming the file, line 1 and the column (found by the parser fuzz)."""
+    from loopworks import create_block
+    from loopworks.errors import FileFormatError
+    from loopworks.sim.replay import replay
+
+    path = tmp_path / "in.csv"
+    path.write_text('t,"sp,pv\n0,50,40\n1,50,41\n', encoding="utf-8")
+    block = create_block("pid", k=2.0, ti=10.0, jit=False)
+    with pytest.raises(FileFormatError) as err:
+        replay(block, path, io.StringIO())
+    message = str(err.value)
+    assert "\n" not in message
+    assert f"{path}, line 1: column 2 ('sp,pv...') opens a quote" in message

@@ -79,6 +79,11 @@ def _columns(block: Block, header: list[str], source: str) -> tuple[dict[int, tu
     seen: dict[str, int] = {}
     for pos, raw in enumerate(header):
         name = raw.strip()
+        if "\n" in name or "\r" in name:  # a quote opened in the header and never closed
+            start = name.splitlines()[0] if name.splitlines() else ""
+            raise FileFormatError(f"{source}, line 1: column {pos + 1} ('{start}...') opens a "
+                                  "quote (\") that the header line does not close: expected a "
+                                  "header of column names on one line")
         low = name.lower()
         if low in seen:
             raise FileFormatError(f"{source}, line 1: column '{name}' appears twice "
