@@ -499,6 +499,12 @@ def sweep(
     from loopworks.sim.sweep import sweep as run_sweep
 
     _check_report_directory(output)
+    if metric is not None:  # checked before the run ("loop: metric" with several loops)
+        from loopworks.sim.metrics import METRICS
+
+        known = [m.name for m in METRICS]
+        if metric.rpartition(": ")[2] not in known:
+            _fail(f"--metric '{metric}': no such metric; metrics: {', '.join(known)}")
     console = Console(stderr=as_json)
     started = time.perf_counter()
     with Progress("[progress.description]{task.description}", BarColumn(),

@@ -269,3 +269,11 @@ def test_the_python_api_is_loopworks_sweep() -> None:
     import loopworks
 
     assert loopworks.sweep is sweep
+
+
+def test_an_unknown_metric_is_refused_before_the_run(scenario: Path, tmp_path: Path) -> None:
+    result = CliRunner().invoke(app, ["sweep", str(scenario), "--vary", "pid.k=1,2",
+                                      "--metric", "PV sdt", "-o", str(tmp_path / "o"), "-q"])
+    assert result.exit_code == 2
+    assert "--metric 'PV sdt': no such metric" in result.output
+    assert not (tmp_path / "o" / "results.parquet").exists()
