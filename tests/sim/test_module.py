@@ -351,3 +351,23 @@ def test_available_memory_is_a_positive_byte_count() -> None:
 
     avail = available_memory()
     assert avail is None or avail > 0
+
+
+def test_a_run_records_only_what_is_asked_and_the_metrics_read_only_that() -> None:
+    """Module.run(record=...): the result holds the signals named; metric_signals() is what
+    the metrics of every loop read (the sweep records only those): the same metrics."""
+    from loopworks.sim.scenario import load_scenario
+
+    sc = load_scenario(None)  # deltav.pid (working_sp), a compensator, the Karnopp valve
+    module = sc.variants["compensation_on"]
+    full = module.run(120.0, sc.dt)
+    wanted = module.metric_signals()
+    assert "pid.working_sp" in wanted and "valve.position" in wanted and "valve.op" in wanted
+    part = module.run(120.0, sc.dt, record=wanted)
+    assert set(part.values) == set(wanted)
+    for name in wanted:
+        np.testing.assert_array_equal(part[name], full[name])
+    np.testing.assert_equal(part.metrics(window=(60.0, 120.0)),
+                            full.metrics(window=(60.0, 120.0)))
+    with pytest.raises(InputError, match=re.escape("record: no signal 'pid.nope'")):
+        module.run(1.0, sc.dt, record=["pid.nope"])

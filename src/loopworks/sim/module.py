@@ -264,6 +264,30 @@ class Module:
         last = (scan_count(duration, dt) - 1) * dt
         return [ev for ev in self.events if ev.t > last + 1e-9]
 
+    def signals(self) -> list[str]:
+        """Every input and output, ``"block.port"``, in the order a run records them."""
+        return [f"{name}.{port.name}" for name in self.order
+                for port in (*self.blocks[name].INPUTS, *self.blocks[name].OUTPUTS)]
+
+    def metric_signals(self) -> list[str]:
+        """What :meth:`SimResult.metrics` reads of every controller: its SP, PV and OUT roles
+        (and working or cascade setpoint, mode), and every valve's position and command."""
+        from loopworks.blocks.controller import Controller
+
+        wanted: list[str] = []
+        for name, block in self.blocks.items():
+            if isinstance(block, Controller):
+                r = block.ROLES
+                wanted += [f"{name}.{p}" for p in (r.sp, r.pv, r.out, r.working_sp, r.mode)
+                           if p is not None]
+                if "cas_sp" in block._in_index:
+                    wanted.append(f"{name}.cas_sp")
+            if "position" in block._out_index:
+                wanted.append(f"{name}.position")
+                if "op" in block._in_index:
+                    wanted.append(f"{name}.op")
+        return wanted
+
     def record_bytes(self, n: int) -> int:
         """Memory a run of ``n`` scans records: every input and output of every block, a
         float64 value and an int64 status each (16 bytes per signal per scan)."""
@@ -339,7 +363,7 @@ class Module:
 
     def run(self, duration: float, dt: float, *, reset: bool = True,
             progress: Callable[[int, int], None] | None = None,
-            plan: str = "auto") -> SimResult:
+            plan: str = "auto", record: Sequence[str] | None = None) -> SimResult:
         """Run ``duration`` seconds in scans of ``dt``; scan k executes at t = k·dt.
 
         ``plan``: ``"compiled"`` runs the module's generated plan (compiled once per machine,
@@ -350,20 +374,32 @@ class Module:
         block-scans. All three give the same numbers.
 
         With ``reset=False`` the run continues from the current state (and time), so a run can
-        be split, saved with :meth:`state_dict` and resumed. A run whose record (every input
-        and output, :meth:`record_bytes`) would not fit in memory is refused before its first
+        be split, saved with :meth:`state_dict` and resumed. ``record``: the signals
+        (``"block.port"``) the result holds; default every input and output. A run whose
+        record (:meth:`record_bytes`) would not fit in memory is refused before its first
         scan.
         """
         n = scan_count(duration, dt)
-        check_record_size(self.record_bytes(n), duration, dt, n)
+        names = self.signals()
+        if record is None:
+            chosen = list(range(len(names)))
+        else:
+            where = {name: i for i, name in enumerate(names)}
+            unknown = [r for r in record if r not in where]
+            if unknown:
+                raise InputError(f"record: no signal '{unknown[0]}'; signals: "
+                                 + ", ".join(names))
+            chosen = sorted({where[r] for r in record})
+        check_record_size(len(chosen) * n * RECORD_BYTES, duration, dt, n)
         if reset:
             self.reset()
         for block in self.blocks.values():
             block.check_dt(dt)
         t = np.empty(n)
+        rec_f, rec_s = self._rec_f[chosen], self._rec_s[chosen]
         # one row per signal: each signal's record is a contiguous array, handed out as is
-        RF = np.empty((self._rec_f.shape[0], n))
-        RS = np.empty((self._rec_s.shape[0], n), dtype=np.int64)
+        RF = np.empty((len(chosen), n))
+        RS = np.empty((len(chosen), n), dtype=np.int64)
         if plan not in ("auto", "compiled", "python"):
             raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or python")
         if plan == "compiled" and not self.compiled:
@@ -373,31 +409,25 @@ class Module:
         if plan == "compiled" or (plan == "auto" and self.compiled and (
                 n * len(self.blocks) >= PLAN_MIN_BLOCK_SCANS
                 or is_cached(self._slots, "scans"))):
-            self._run_compiled(n, dt, t, RF, RS, progress)
+            self._run_compiled(n, dt, t, RF, RS, rec_f, rec_s, progress)
         else:
-            self._run_python(n, dt, t, RF, RS, progress)
-        values: dict[str, np.ndarray] = {}
-        status: dict[str, np.ndarray] = {}
-        col = 0
-        for name in self.order:
-            b = self.blocks[name]
-            for port in (*b.INPUTS, *b.OUTPUTS):
-                values[f"{name}.{port.name}"] = RF[col]
-                status[f"{name}.{port.name}"] = RS[col]
-                col += 1
+            self._run_python(n, dt, t, RF, RS, rec_f, rec_s, progress)
+        values = {names[i]: RF[row] for row, i in enumerate(chosen)}
+        status = {names[i]: RS[row] for row, i in enumerate(chosen)}
         return SimResult(t=t, values=values, status=status,
                          kinds={n: self.blocks[n].kind for n in self.order},
                          wires=dict(self.wires))
 
     def _run_python(self, n: int, dt: float, t: np.ndarray, RF: np.ndarray, RS: np.ndarray,
+                    rec_f: np.ndarray, rec_s: np.ndarray,
                     progress: Callable[[int, int], None] | None) -> None:
         """The reference: one :meth:`scan` per scan from Python (interpreted blocks)."""
         every = max(1, n // 100)
         for k in range(n):
             t[k] = self.t
             self.scan(dt)
-            RF[:, k] = self._F[self._rec_f]
-            RS[:, k] = self._S[self._rec_s]
+            RF[:, k] = self._F[rec_f]
+            RS[:, k] = self._S[rec_s]
             if progress is not None and (k % every == 0 or k == n - 1):
                 progress(k + 1, n)
 
@@ -415,6 +445,7 @@ class Module:
         return k
 
     def _run_compiled(self, n: int, dt: float, t: np.ndarray, RF: np.ndarray, RS: np.ndarray,
+                      rec_f: np.ndarray, rec_s: np.ndarray,
                       progress: Callable[[int, int], None] | None) -> None:
         """The compiled plan, in chunks: events are applied between chunks (a parameter
         change recomputes the coefficients once), and progress is reported per chunk."""
@@ -429,8 +460,8 @@ class Module:
             if k_event is not None:
                 stop = min(stop, done + max(1, k_event - self.k))
             m = stop - done
-            self._scans(self._F, self._S, dt, self.t, self.k, m, t, RF, RS, self._rec_f,
-                        self._rec_s, done)
+            self._scans(self._F, self._S, dt, self.t, self.k, m, t, RF, RS, rec_f, rec_s,
+                        done)
             self.k += m
             self.t = self.k * dt
             done = stop

@@ -31,8 +31,9 @@ process gain goes into every instance. Metrics are those of ``simulate`` over th
 
 Execution: each worker process parses the scenario text once and runs its share of the
 instances through the module's compiled execution plan (loaded from the plan cache after the
-first instance); only the metrics come back, so memory stays bounded by the instances' metrics,
-not their trajectories.
+first instance), recording only the signals the metrics read (``Module.metric_signals``); only
+the metrics come back, so memory stays bounded by the instances' metrics, not their
+trajectories.
 """
 
 from __future__ import annotations
@@ -216,7 +217,7 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
     for job in jobs:
         try:
             module = sc.build(job.variant, job.changes, job.seed)
-            result = module.run(sc.duration, sc.dt)
+            result = module.run(sc.duration, sc.dt, record=module.metric_signals())
         except LoopworksError as exc:
             values = ", ".join(f"{k} = {v!r}" for k, v in job.changes.items())
             raise InputError(f"instance {job.point} ({job.variant}; {values}): {exc}") from None
