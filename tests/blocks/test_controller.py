@@ -79,3 +79,15 @@ def test_ge_action_follows_the_config_word(kind: str) -> None:
     assert cls.direct_acting(create_block(kind, config_word=1).params) is True
     assert cls.direct_acting(create_block(kind, config_word=4).params) is False
     assert cls.direct_acting(create_block(kind, config_word=5).params) is True
+
+
+def test_a_controller_without_its_law_cannot_be_made() -> None:
+    """The interface's output range and law are abstract: a controller class that does not
+    say them is refused at construction, naming what is missing."""
+    from loopworks.blocks.block import Block
+
+    class Incomplete(Controller, Block):
+        kind = "incomplete"
+
+    with pytest.raises(TypeError, match="from_law, law, output_range"):
+        Incomplete()

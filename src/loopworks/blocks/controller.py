@@ -11,6 +11,7 @@ declaration instead of keeping tables of vendor names.
 
 from __future__ import annotations
 
+from abc import ABCMeta, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
@@ -79,7 +80,7 @@ class Handover:
     params: Mapping[str, Any] = field(default_factory=dict)
 
 
-class Controller:
+class Controller(metaclass=ABCMeta):
     """Mixin of every controller block class (with :class:`loopworks.blocks.block.Block`).
 
     Class attributes: ``ROLES``, ``AUTOMATIC`` and ``MANUAL`` (input values, by input name,
@@ -109,9 +110,9 @@ class Controller:
         return None
 
     @classmethod
+    @abstractmethod
     def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
         """The output's limits (low, high) in the output's own units."""
-        raise NotImplementedError  # pragma: no cover - each controller says
 
     # -- the discrete law both ways (loopworks.blocks.law; compared in tuning/convert.py) ----
     #: context values the law takes besides the block parameters (spans, a sample time, raw
@@ -136,17 +137,17 @@ class Controller:
                 span(context, out, out_default, cls.kind))
 
     @classmethod
+    @abstractmethod
     def law(cls, params: Mapping[str, Any], dt: float | None,
             context: Mapping[str, Any]) -> DiscreteLaw:
         """The block's discrete law for the given block ``params`` (lower-case names, as given:
         validated here), at sample time ``dt`` (None: not known) with ``context``
         (``LAW_CONTEXT`` values). A ParameterError when the law has no ideal form."""
-        raise NotImplementedError  # pragma: no cover - each controller says
 
     @classmethod
+    @abstractmethod
     def from_law(cls, law: DiscreteLaw, dt: float | None,
                  context: Mapping[str, Any]) -> Realisation:
         """Parameters realising ``law`` (its ideal settings and setpoint weights) at sample time
         ``dt``, with the vendor's rounding and word limits; ``context``: the target's spans and
         choices (lower-case names)."""
-        raise NotImplementedError  # pragma: no cover - each controller says
