@@ -473,7 +473,7 @@ def sweep(
     variant: Annotated[str | None, typer.Option(
         "--variant", help="sweep only this [compare] variant")] = None,
     workers: Annotated[int | None, typer.Option(
-        "--workers", help="processes (default: the cores)")] = None,
+        "--workers", help="processes (default: 1, whose batch runs on every core)")] = None,
     scheduler: Annotated[str | None, typer.Option(
         "--scheduler", help="a Dask distributed scheduler address (tcp://HOST:PORT)")] = None,
     metric: Annotated[str | None, typer.Option(

@@ -141,7 +141,7 @@ def test_index_and_pack() -> None:
                                                "tail[0]", "tail[1]")
     values = {"a": 1, "ring": [2, 3, 4], "b": 5, "tail": [6, 7]}
     flat = layout.pack(entries, values, "k", {"n": 2})
-    assert flat == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+    assert flat.tolist() == [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
     assert layout.unpack(entries, flat, {"n": 2}) == values
     with pytest.raises(ValueError, match="k: z not declared, b missing"):
         layout.pack(entries, {"a": 1, "ring": [2, 3, 4], "z": 5, "tail": [6, 7]}, "k")

@@ -17,7 +17,7 @@ reads (packed in the declared order). Everything else is here:
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -176,7 +176,7 @@ class Block:
         Array's as a sequence); cross-parameter checks go here."""
         raise NotImplementedError  # pragma: no cover - abstract
 
-    def initial_state(self) -> list[float]:
+    def initial_state(self) -> Sequence[float] | FloatArray:
         """State right after construction or ``reset()`` (flat, in ``STATES`` order); zeros
         unless overridden."""
         return [0.0] * self.n_x

@@ -29,6 +29,8 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class Array:
@@ -107,28 +109,30 @@ def names(entries: Sequence[Entry], params: Mapping[str, Any] | None = None) -> 
 
 
 def pack(entries: Sequence[Entry], values: Mapping[str, Any], what: str,
-         params: Mapping[str, Any] | None = None) -> list[float]:
-    """``values`` (name to a float, or to a sequence for an Array) in the layout's order.
-    A missing, unknown or wrongly sized entry is a ValueError naming it, ``what`` naming the
-    values ("pid: coefficients()", "pid: saved state")."""
+         params: Mapping[str, Any] | None = None) -> np.ndarray:
+    """``values`` (name to a float, or to a sequence for an Array) in the layout's order, as
+    one float64 array. A missing, unknown or wrongly sized entry is a ValueError naming it,
+    ``what`` naming the values ("pid: coefficients()", "pid: saved state")."""
     declared = [_name(e) for e in entries]
     missing = [n for n in declared if n not in values]
     extra = [n for n in values if n not in declared]
     if missing or extra:
         raise ValueError(f"{what}: {', '.join(sorted(extra)) or 'nothing'} not declared, "
                          f"{', '.join(sorted(missing)) or 'nothing'} missing")
-    out: list[float] = []
+    parts: list[np.ndarray] = []
     for entry in entries:
         value = values[_name(entry)]
         if isinstance(entry, Array):
-            items = [float(v) for v in value]
+            items = np.asarray(value, dtype=np.float64)
+            if items.ndim != 1:
+                raise ValueError(f"{what}: '{entry.name}' must be a list of numbers")
             if params is not None and len(items) != entry.length(params):
                 raise ValueError(f"{what}: '{entry.name}' has {len(items)} values, its "
                                  f"declaration {entry.length(params)}")
-            out += items
+            parts.append(items)
         else:
-            out.append(float(value))
-    return out
+            parts.append(np.array([float(value)]))
+    return np.concatenate(parts) if parts else np.zeros(0)
 
 
 def unpack(entries: Sequence[Entry], flat: Any,

@@ -23,7 +23,12 @@ Three entry points are generated from the same layout:
   tuple (what the caller reads, with no second call into the arrays);
 * ``rows(dts, F, S, U, US, Y, YS)``: one block over rows of inputs (``replay``);
 * ``call(dt, p, x, u, us, y, ys)``: one scan of one block on its own seven arrays, for kinds
-  whose sizes vary per instance (one compiled function for all sizes).
+  whose sizes vary per instance (one compiled function for all sizes);
+* ``batch(F, S, dt, k0, m, R, IR, at)``: m scans of N instances of a module at once
+  (``loopworks.sim.batch``): instance i's buffers are row i of ``F`` (N × the module's floats)
+  and ``S``; the instances run in parallel (``numba.prange``, one thread per core, each
+  instance's scans in one thread), scan k at t = (k0 + k)·dt, recording
+  R[i, j, at + k] = F[i, IR[j]] (values only).
 
 Where the cache lives: ``LOOPWORKS_CACHE_DIR`` if set, else the platform's user cache
 directory (``$XDG_CACHE_HOME/loopworks`` or ``~/.cache/loopworks`` on Linux,
@@ -71,6 +76,8 @@ def step_signature(n_y: int) -> str:
 
 ROWS_SIGNATURE = ("none(float64[::1], float64[::1], int64[::1], float64[:, ::1], int64[:, ::1], "
                   "float64[:, ::1], int64[:, ::1])")
+BATCH_SIGNATURE = ("none(float64[:, ::1], int64[:, ::1], float64, int64, int64, "
+                   "float64[:, :, ::1], int64[::1], int64)")
 
 
 @dataclass(frozen=True)
@@ -345,6 +352,28 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
                   "            RF[j, at + k] = F[IF[j]]",
                   "        for j in range(IS.shape[0]):",
                   "            RS[j, at + k] = S[IS[j]]"]
+    if "batch" in entries:
+        lines += ["", "", "@numba.njit(cache=CACHE, nogil=True, parallel=True)",
+                  "def batch(F0, S0, dt, k0, m, R, IR, at):",
+                  "    nf = F0.shape[1]",
+                  "    ns = S0.shape[1]",
+                  "    fa = F0.ctypes.data",
+                  "    sa = S0.ctypes.data",
+                  "    for i in numba.prange(F0.shape[0]):",
+                  "        F = numba.carray(float64_at(fa + i * nf * 8), nf)",
+                  "        S = numba.carray(int64_at(sa + i * ns * 8), ns)",
+                  "        for k in range(m):",
+                  "            t = (k0 + k) * dt"]
+        for slot in slots:
+            for i, src, j in slot.links:
+                s = slots[src]
+                lines.append(f"            F[{slot.u0 + i}] = F[{s.y0 + j}]")
+                lines.append(f"            S[{slot.s0 + i}] = S[{s.ys0 + j}]")
+            if slot.clock is not None:
+                lines.append(f"            F[{slot.u0 + slot.clock}] = t")
+            lines.append("            " + _call(slot, kernels[(slot.kernel, slot.full)], "dt"))
+        lines += ["            for j in range(IR.shape[0]):",
+                  "                R[i, j, at + k] = F[IR[j]]"]
     if "call" in entries:
         (slot,) = slots
         lines += ["", "", deco, "def call(dt, p, x, u, us, y, ys):",
@@ -455,7 +484,7 @@ def is_cached(slots: Sequence[Slot], what: str) -> bool:
 
 
 def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
-    """The compiled entry point ``what`` ("scans", "step" or "rows") of a plan laid out as
+    """The compiled entry point ``what`` ("scans", "step", "rows" or "batch") of a plan laid out as
     ``slots``, loaded from the cache or compiled (once per process, once per machine)."""
     name, text, injected = _name(slots, what)
     mod = _loaded.get(name)

@@ -212,6 +212,8 @@ import re
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
+import numpy as np
+
 from loopworks.blocks import layout
 from loopworks.blocks.block import Block, Outputs
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
@@ -364,10 +366,12 @@ def line_push(x: FloatArray, base: int, cap: int, value: float, dt: float) -> No
         x[base + LINE_RUN_LEN] = 1.0
 
 
-def line_initial(cap: int, u0: float) -> list[float]:
+def line_initial(cap: int, u0: float) -> FloatArray:
     """An empty line (the history before it is u0): head at the last slot, no entries."""
+    data = np.zeros(2 * cap)
+    data[:cap] = u0
     return layout.pack(LINE_ENTRIES, {"head": cap - 1.0, "count": 0.0, "run_dt": 0.0,
-                                      "run_len": 0.0, "data": [u0] * cap + [0.0] * cap},
+                                      "run_len": 0.0, "data": data},
                        "delay line", {"delay_capacity": cap})
 
 
@@ -627,10 +631,10 @@ class _DeadTimeProcess(_LineProcess):
                 "bad_mode": FREEZE if self.params["bad_input"] == "freeze" else HOLD_INPUT,
                 "y_init": y0}
 
-    def initial_state(self) -> list[float]:
+    def initial_state(self) -> FloatArray:
         y0 = self.initial_output()
         u0 = float(self.params["u0"])
-        x = [0.0] * self.n_x
+        x = np.zeros(self.n_x)
         x[XD.y] = y0
         x[XD.lag1] = 0.0 if self.MODEL_CODE == INTEGRATING else y0
         x[XD.u_held] = u0
@@ -963,9 +967,9 @@ class TransferFunction(_LineProcess):
                 phi_m[i * nmax + j] = float(phi_d[i, j])
         return e1, e0
 
-    def initial_state(self) -> list[float]:
+    def initial_state(self) -> FloatArray:
         u0 = float(self.params["u0"])
-        x = [0.0] * self.n_x  # ξ = 0: the steady state at u0
+        x = np.zeros(self.n_x)  # ξ = 0: the steady state at u0
         x[XT.y] = self.initial_output()
         x[XT.u_held] = u0
         x[XT.xi_line + 2 * _nmax(self.params):] = line_initial(

@@ -25,6 +25,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cache
+from typing import Any
 
 import numpy as np
 
@@ -193,22 +195,39 @@ def step_metrics(t: np.ndarray, y: np.ndarray, r: float, band: float = 0.02) -> 
     return StepMetrics(dr, overshoot, rise, settle)
 
 
+def _count_reversals(y: np.ndarray, threshold: float) -> int:
+    """:func:`reversals`' loop (runs interpreted and compiled)."""
+    count = 0
+    last = y[0] if len(y) else 0.0
+    direction = 0
+    for k in range(1, len(y)):
+        move = y[k] - last
+        if abs(move) > threshold:
+            d = 1 if move > 0 else -1
+            if direction != 0 and d != direction:
+                count += 1
+            direction = d
+            last = y[k]
+    return count
+
+
+@cache
+def _reversals_loop() -> Any:
+    """:func:`_count_reversals`, compiled (cached on disk) unless ``LOOPWORKS_JIT=0``."""
+    from loopworks.blocks.kernel import jit_enabled
+
+    if not jit_enabled():
+        return _count_reversals
+    import numba
+
+    return numba.njit(cache=True, nogil=True)(_count_reversals)
+
+
 def reversals(y: np.ndarray, threshold: float = 0.05) -> int:
     """Sign changes of the moves of ``y``, ignoring moves of at most ``threshold`` (spec 4.1:
     so noise below the resolution is not counted). Moves are taken between the points where y
     has moved more than the threshold since the last counted point."""
-    count = 0
-    last = float(y[0]) if len(y) else 0.0
-    direction = 0
-    for v in y[1:]:
-        move = float(v) - last
-        if abs(move) > threshold:
-            d = 1 if move > 0 else -1
-            if direction and d != direction:
-                count += 1
-            direction = d
-            last = float(v)
-    return count
+    return int(_reversals_loop()(np.ascontiguousarray(y, dtype=np.float64), float(threshold)))
 
 
 @dataclass(frozen=True)

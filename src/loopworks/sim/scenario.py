@@ -125,12 +125,22 @@ class Scenario:
         = value) applied and, with ``seed``, every seeded block's seed mixed with it (as a
         ``[simulation] seed`` would: :func:`loopworks.plant.sensor.mix_seed`). A wrong name or
         value is a FileFormatError naming it."""
+        return self._make(variant, changes, self.seed if seed is None else seed)
+
+    def template(self, variant: str, changes: Mapping[str, Any] | None = None) -> Module:
+        """A fresh module of ``variant`` with ``changes`` applied and every block's own seed
+        (no run seed mixed in): the template of a batch (:mod:`loopworks.sim.batch`), which
+        mixes each instance's seed itself."""
+        return self._make(variant, changes, None)
+
+    def _make(self, variant: str, changes: Mapping[str, Any] | None,
+              seed: int | None) -> Module:
         tables = {name: dict(table) for name, table in self.tables[variant].items()}
         for key, value in (changes or {}).items():
             block, _, fname = key.lower().rpartition(".")
             tables[block][fname] = value
         where = self.source if variant == "base" else f"{self.source} (compare.{variant})"
-        return _build(self._model, tables, where, self.seed if seed is None else seed)
+        return _build(self._model, tables, where, seed)
 
 
 @dataclass

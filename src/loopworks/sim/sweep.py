@@ -54,6 +54,8 @@ from typing import Any
 import numpy as np
 
 from loopworks.errors import InputError, LoopworksError
+from loopworks.sim.module import scan_count
+from loopworks.sim.result import SimResult
 
 Value = float | int | str
 
@@ -210,23 +212,92 @@ def _scenario(text: str, source: str) -> Any:
     return _CACHE[key]
 
 
+#: the most a batch's record may hold at once (bytes): instances run in chunks this bounds
+CHUNK_BYTES = 64 * 1024**2
+
+
+def _metrics(result: SimResult, window: tuple[float, float] | None) -> dict[str, float]:
+    """Every metric of every loop of one instance's result (``"loop: metric"`` when there are
+    several loops)."""
+    loops = result.controllers()
+    metrics: dict[str, float] = {}
+    for loop in loops:
+        for name, value in result.metrics(loop, window=window).items():
+            metrics[name if len(loops) == 1 else f"{loop}: {name}"] = float(value)
+    return metrics
+
+
+_TEMPLATES: dict[tuple[str, str, str, tuple[tuple[str, Value], ...]], Any] = {}
+
+
+def _template(sc: Any, variant: str, key: tuple[tuple[str, Value], ...]) -> Any:
+    """The batch (:class:`loopworks.sim.batch.Batch`) of ``variant`` with the state-sizing
+    values ``key``, recording what the metrics read; made once per process and scenario."""
+    from loopworks.sim.batch import Batch
+
+    at = (sc.text, sc.source, variant, key)
+    if at not in _TEMPLATES:
+        if len(_TEMPLATES) > 64:
+            _TEMPLATES.clear()
+        module = sc.template(variant, dict(key))
+        _TEMPLATES[at] = Batch(module, module.metric_signals(), check=False)
+    return _TEMPLATES[at]
+
+
+def _refused(job: Job, exc: LoopworksError) -> InputError:
+    values = ", ".join(f"{k} = {v!r}" for k, v in job.changes.items())
+    return InputError(f"instance {job.point} ({job.variant}; {values}): {exc}")
+
+
 def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, float]]:
-    """The metrics of each job's instance (``{"loop: metric" or "metric": value}``)."""
+    """The metrics of each job's instance (``{"loop: metric" or "metric": value}``), in job
+    order: the instances of one variant (and one value of each parameter that sizes a block's
+    state) run as one batch (:mod:`loopworks.sim.batch`), in chunks whose record fits in
+    ``CHUNK_BYTES``; interpreted (``LOOPWORKS_JIT=0``), one module per instance."""
+    from loopworks.sim.batch import InstanceError, fixed_names
+
     sc = _scenario(text, source)
-    rows = []
-    for job in jobs:
+    rows: list[dict[str, float]] = [{} for _ in jobs]
+    groups: dict[tuple[str, tuple[tuple[str, Value], ...]], list[int]] = {}
+    names = list(dict.fromkeys(name for job in jobs for name in job.changes))
+    fixed: dict[str, list[str]] = {}
+    for k, job in enumerate(jobs):
+        if job.variant not in fixed:
+            fixed[job.variant] = fixed_names(_template(sc, job.variant, ()).module, names)
+        key = tuple((n, job.changes[n]) for n in fixed[job.variant] if n in job.changes)
+        groups.setdefault((job.variant, key), []).append(k)
+    n = scan_count(sc.duration, sc.dt)
+    t = np.arange(n) * sc.dt
+    for (variant, key), members in groups.items():
         try:
-            module = sc.build(job.variant, job.changes, job.seed)
-            result = module.run(sc.duration, sc.dt, record=module.metric_signals())
+            batch = _template(sc, variant, key)
         except LoopworksError as exc:
-            values = ", ".join(f"{k} = {v!r}" for k, v in job.changes.items())
-            raise InputError(f"instance {job.point} ({job.variant}; {values}): {exc}") from None
-        loops = result.controllers()
-        metrics: dict[str, float] = {}
-        for loop in loops:
-            for name, value in result.metrics(loop, window=sc.metrics_window).items():
-                metrics[name if len(loops) == 1 else f"{loop}: {name}"] = float(value)
-        rows.append(metrics)
+            raise _refused(jobs[members[0]], exc) from None
+        template = batch.module
+        record = template.metric_signals()
+        info = {"kinds": {b: template.blocks[b].kind for b in template.order},
+                "wires": dict(template.wires)}
+        if not template.compiled:  # interpreted: one module per instance
+            for k in members:
+                job = jobs[k]
+                try:
+                    module = sc.build(job.variant, job.changes, job.seed)
+                    result = module.run(sc.duration, sc.dt, record=record)
+                except LoopworksError as exc:
+                    raise _refused(job, exc) from None
+                rows[k] = _metrics(result, sc.metrics_window)
+            continue
+        size = max(1, CHUNK_BYTES // max(1, len(record) * n * 8))
+        for at in range(0, len(members), size):
+            chunk = members[at:at + size]
+            try:
+                batch.load([jobs[k].changes for k in chunk], [jobs[k].seed for k in chunk])
+            except InstanceError as exc:
+                raise _refused(jobs[chunk[exc.index]], exc) from None
+            R = batch.run(sc.duration, sc.dt)
+            for i, k in enumerate(chunk):
+                values = {name: R[i, j] for j, name in enumerate(record)}
+                rows[k] = _metrics(SimResult(t, values, {}, **info), sc.metrics_window)
     return rows
 
 
@@ -287,9 +358,10 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, str] | Iterable[str], 
     """Sweep ``scenario`` (a TOML path; None: the built-in one) over ``vary`` (``{name: spec}``
     or ``["name=spec", ...]``, module docstring): ``samples`` Latin-hypercube samples of the
     distributions, ``seed`` (default: the scenario's ``[simulation] seed``, else 0), every
-    ``[compare]`` variant or only ``variant``, in ``workers`` processes (default: the cores)
-    or on the Dask scheduler at ``scheduler``. ``progress(done, total)`` is called as
-    instances finish. Every name and value is checked before anything runs."""
+    ``[compare]`` variant or only ``variant``, in ``workers`` processes (default: one, whose
+    compiled batch runs on every core) or on the Dask scheduler at ``scheduler``.
+    ``progress(done, total)`` is called as instances finish. Every name and value is checked
+    before anything runs."""
     from loopworks.sim.scenario import load_scenario, run_autotune
 
     texts = [f"{k}={v}" for k, v in vary.items()] if isinstance(vary, Mapping) else list(vary)
@@ -384,6 +456,13 @@ def _chunks(jobs: Sequence[Job], size: int) -> list[list[Job]]:
     return [list(jobs[i:i + size]) for i in range(0, len(jobs), size)]
 
 
+def _share_cores(threads: int) -> None:
+    """A worker process's numba threads: its share of the cores."""
+    import numba
+
+    numba.set_num_threads(threads)
+
+
 def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
              scheduler: str | None, progress: Callable[[int, int], None] | None
              ) -> list[dict[str, float]]:
@@ -394,14 +473,13 @@ def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
         from loopworks.sim.cluster import run_on_cluster
 
         return run_on_cluster(scheduler, text, source, jobs, progress)
-    n = workers if workers is not None else (os.cpu_count() or 1)
+    n = 1 if workers is None else workers  # one process: the batch runs on every core
     if n < 1:
         raise InputError(f"--workers {n}: expected a whole number >= 1")
-    if workers is None:  # a process costs a second to start: at least 4 instances each
-        n = min(n, max(1, total // 4))
+    cores = os.cpu_count() or 1
     if n == 1 or total <= 1:
         out: list[dict[str, float]] = []
-        for chunk in _chunks(jobs, max(1, total // 100)):
+        for chunk in _chunks(jobs, max(8 * cores, total // 100)):
             out.extend(run_jobs(text, source, chunk))
             if progress is not None:
                 progress(len(out), total)
@@ -410,7 +488,8 @@ def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
     chunks = _chunks(jobs, size)
     results: list[list[dict[str, float]] | None] = [None] * len(chunks)
     done = 0
-    with ProcessPoolExecutor(n, mp_context=get_context("spawn")) as pool:
+    with ProcessPoolExecutor(n, mp_context=get_context("spawn"), initializer=_share_cores,
+                             initargs=(max(1, cores // n),)) as pool:
         futures = {pool.submit(run_jobs, text, source, chunk): k
                    for k, chunk in enumerate(chunks)}
         try:

@@ -1,0 +1,188 @@
+"""Batches (issue 14 point 1): N instances of a module in one compiled call give, instance by
+instance, the numbers of building that instance's module and running it."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from loopworks.errors import InputError, LoopworksError
+from loopworks.sim.batch import Batch, InstanceError, fixed_names
+from loopworks.sim.scenario import load_scenario, parse_scenario
+from loopworks.sim.sweep import Job, run_jobs
+
+EXAMPLES = sorted(Path(__file__).resolve().parents[2].joinpath("examples").glob("*.toml"))
+
+
+def _scaled_changes(sc, variant: str, rng: np.random.Generator) -> dict[str, float]:
+    """Up to three float parameters of the variant's blocks scaled by 0.8..1.2, each change
+    kept only when the scenario builds with it (a cross-parameter check may refuse one)."""
+    module = sc.template(variant)
+    options = []
+    for name, block in module.blocks.items():
+        for p in block.PARAMS:
+            value = block.params[p.name]
+            if (p.type == "float" and p.name not in block.FIXED_PARAMS and p.name != "seed"
+                    and isinstance(value, float) and math.isfinite(value) and value > 0):
+                options.append((f"{name}.{p.name}", value))
+    changes: dict[str, float] = {}
+    for k in rng.permutation(len(options))[:3]:
+        name, value = options[int(k)]
+        trial = {**changes, name: float(value * rng.uniform(0.8, 1.2))}
+        try:
+            sc.build(variant, trial, 1)
+        except LoopworksError:
+            continue
+        changes = trial
+    return changes
+
+
+def _compare(sc, variant: str, instances, seeds, duration: float | None = None) -> None:
+    template = sc.template(variant)
+    record = template.signals()
+    batch = Batch(template, record)
+    batch.load(instances, seeds)
+    R = batch.run(duration or sc.duration, sc.dt)
+    for i, (changes, seed) in enumerate(zip(instances, seeds, strict=True)):
+        module = sc.build(variant, changes, seed)
+        result = module.run(duration or sc.duration, sc.dt)
+        for j, name in enumerate(record):
+            np.testing.assert_allclose(R[i, j], result.values[name], rtol=1e-12, atol=1e-12,
+                                       err_msg=f"{variant} instance {i} {changes}: {name}")
+
+
+@pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
+def test_batch_equals_one_module_per_instance(path: Path) -> None:
+    sc = load_scenario(path)
+    rng = np.random.default_rng(7)
+    for variant in sc.variants:
+        instances = [_scaled_changes(sc, variant, rng) for _ in range(3)]
+        _compare(sc, variant, instances, [11, 12, None], duration=min(sc.duration, 600.0))
+
+
+PARAM_EVENTS = """
+[simulation]
+dt = 0.5
+duration = 200.0
+
+[blocks.pid]
+kind = "deltav.pid"
+gain = 0.8
+reset = 20.0
+sp = 50.0
+mode = "AUTO"
+retune = "bumpless"
+
+[blocks.pi]
+kind = "pid"
+k = 1.5
+ti = 15.0
+sp = 40.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 20.0
+dead_time = 2.0
+u0 = 50.0
+
+[blocks.second]
+kind = "process.fopdt"
+gain = 2.0
+time_constant = 10.0
+dead_time = 1.0
+
+[blocks.sensor]
+kind = "sensor.transmitter"
+noise_std = 0.05
+seed = 3
+
+[wires]
+"process.u" = "pid.out"
+"sensor.y" = "process.y"
+"pid.pv" = "sensor.pv"
+"second.u" = "pi.out"
+"pi.pv" = "second.y"
+
+[[events]]
+t = 40.0
+set = "pid.gain"
+value = 1.6
+
+[[events]]
+t = 40.0
+set = "pi.k"
+value = 0.7
+
+[[events]]
+t = 80.0
+set = "pid.sp"
+value = 55.0
+
+[[events]]
+t = 120.0
+set = "process.dead_time"
+value = 4.0
+"""
+
+
+def test_parameter_events_apply_to_each_instance() -> None:
+    # a retune in Auto corrects each instance's integral from its own state (deltav.pid's
+    # retune = "bumpless", pid's set_params); a dead-time change keeps each instance's own
+    # varied gain: both only if the event is applied row by row with the row's parameters
+    sc = parse_scenario(PARAM_EVENTS)
+    instances = [{"pid.reset": r, "pi.ti": ti, "process.gain": g}
+                 for r, ti, g in ((10.0, 5.0, 0.5), (20.0, 15.0, 1.0), (40.0, 30.0, 2.0))]
+    _compare(sc, "base", instances, [1, 2, 3])
+
+
+def test_state_sizing_parameters_make_groups() -> None:
+    sc = parse_scenario(PARAM_EVENTS)
+    template = sc.template("base")
+    assert fixed_names(template, ["process.delay_capacity", "pid.gain"]) == [
+        "process.delay_capacity"]
+    jobs = [Job(i, "base", {"process.delay_capacity": cap, "pid.gain": g}, 100 + i)
+            for i, (cap, g) in enumerate(((10, 0.5), (500, 0.5), (10, 1.2), (500, 2.0)))]
+    rows = run_jobs(sc.text, sc.source, jobs)
+    for job, row in zip(jobs, rows, strict=True):
+        result = sc.build("base", job.changes, job.seed).run(sc.duration, sc.dt)
+        expected = result.metrics("pid")
+        got = {k.split(": ", 1)[1]: v for k, v in row.items() if k.startswith("pid: ")}
+        assert got.keys() == expected.keys()
+        for name, value in expected.items():
+            assert got[name] == pytest.approx(value, rel=1e-12, abs=1e-12, nan_ok=True), name
+
+
+def test_a_refused_instance_is_named() -> None:
+    sc = parse_scenario(PARAM_EVENTS)
+    batch = Batch(sc.template("base"), ["pid.out"])
+    with pytest.raises(InstanceError) as info:
+        batch.load([{"pid.gain": 1.0}, {"pid.reset": -5.0}], [1, 2])
+    assert info.value.index == 1
+    assert "reset" in str(info.value)
+    jobs = [Job(0, "base", {"pi.k": 1.0}, 1), Job(4, "base", {"pi.k": -3.0}, 2)]
+    with pytest.raises(InputError, match=r"instance 4 \(base; pi\.k = -3\.0\)"):
+        run_jobs(sc.text, sc.source, jobs)
+
+
+def test_an_unknown_signal_is_refused() -> None:
+    sc = parse_scenario(PARAM_EVENTS)
+    with pytest.raises(InputError, match=r"no signal 'pid\.nothing'"):
+        Batch(sc.template("base"), ["pid.nothing"])
+
+
+def test_rows_are_independent_of_the_batch_they_run_in() -> None:
+    # instance order and batch size do not change an instance's numbers (no shared state
+    # between the parallel rows)
+    sc = parse_scenario(PARAM_EVENTS)
+    template = sc.template("base")
+    batch = Batch(template, ["pid.out", "pi.out", "sensor.pv"])
+    instances = [{"pid.gain": 0.5 + 0.1 * i} for i in range(9)]
+    batch.load(instances, list(range(9)))
+    whole = batch.run(sc.duration, sc.dt)
+    batch.load(instances[::-1][:4], list(range(9))[::-1][:4])
+    part = batch.run(sc.duration, sc.dt)
+    np.testing.assert_array_equal(part, whole[::-1][:4])
