@@ -203,3 +203,40 @@ def test_docs_page_is_current() -> None:
     assert page.read_text(encoding="utf-8") == metrics.markdown(), \
         "stale page: python -c 'from loopworks.sim.metrics import markdown; " \
         "print(markdown(), end=\"\")' > docs/metrics.md"
+
+
+def test_rows_give_each_row_its_own_figures() -> None:
+    """N instances at once (a sweep's batch) give, row by row, exactly the figures of each row
+    alone: the step start, the tail and the n/a rules are per row, and no sum depends on how
+    many rows it is taken with (a sweep's instance is the same in any chunk or worker)."""
+    rng = np.random.default_rng(5)
+    t = np.arange(400) * 0.5
+    sp = np.full((5, 400), 10.0)
+    sp[0, 50:] = 12.0  # a step at scan 50
+    sp[1, 120:] = 8.0  # a later step down
+    sp[2, 10:] = 11.0
+    sp[2, 300:] = 11.5  # two steps: the last one counts
+    pv = np.empty_like(sp)
+    for i in range(5):  # a first-order response to each row's setpoint, plus noise
+        y = 10.0
+        for k in range(400):
+            y += 0.05 * (sp[i, k] - y)
+            pv[i, k] = y
+    pv += 0.001 * rng.standard_normal(pv.shape)
+    pv[4, 200] = np.nan  # a Bad sample: every figure of row 4 that reads it is n/a
+    out = pv + rng.standard_normal(pv.shape)
+    pos = np.round(out, 1)
+    for window in (None, (20.0, 199.5)):
+        together = metrics.loop_metrics(t, sp, pv, out, position=pos, window=window)
+        for i in range(5):
+            alone = metrics.loop_metrics(t, sp[i], pv[i], out[i], position=pos[i],
+                                         window=window)
+            assert set(alone) == set(together)
+            for name, value in alone.items():
+                assert isinstance(value, float)
+                got = float(together[name][i])
+                assert got == value or (math.isnan(got) and math.isnan(value)), \
+                    (window, i, name)
+    assert math.isnan(metrics.loop_metrics(t, sp, pv, out)["IAE"][4])
+    assert metrics.loop_metrics(t, sp, pv, out)["step size"][1] == pytest.approx(
+        8.0 - pv[1, 120])

@@ -171,28 +171,71 @@ class StepMetrics:
 def step_metrics(t: np.ndarray, y: np.ndarray, r: float, band: float = 0.02) -> StepMetrics:
     """Overshoot, 10-90 % rise time and settling time of ``y`` toward setpoint ``r`` (the
     module docstring gives the definitions and when the response counts as settled)."""
+    y = np.asarray(y, dtype=np.float64)
+    size, over, rise, settle = _step_rows(np.asarray(t, dtype=np.float64), y[None, :],
+                                          np.array([float(r)]), np.zeros(1, dtype=np.int64),
+                                          band)
+    return StepMetrics(float(size[0]), float(over[0]), float(rise[0]), float(settle[0]))
+
+
+def _per_row(f: Any, x: np.ndarray) -> np.ndarray:
+    """``f`` (a reduction: np.sum, np.mean, np.std) of each row of ``x`` on its own: a row's
+    figure must not depend on how many rows are reduced with it (numpy sums a 2-D array's
+    rows in another order than a 1-D array), so that an instance's metrics are the same in
+    any batch, in any chunk, on any worker."""
+    return np.fromiter((f(row) for row in x), dtype=np.float64, count=len(x))
+
+
+def _first(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per row: (whether any element is True, the index of the first True one)."""
+    return np.asarray(mask.any(axis=1)), np.asarray(mask.argmax(axis=1))
+
+
+def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
+               band: float = 0.02) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`step_metrics` of each row i of ``y`` from sample ``start[i]`` on (the samples
+    before it are not part of the response), toward ``r[i]``: (step size, overshoot %, rise
+    time s, settling time s), NaN where the data cannot support a figure."""
     nan = math.nan
-    if len(y) < 2 or not (math.isfinite(r) and np.all(np.isfinite(y))):
-        return StepMetrics(nan, nan, nan, nan)
-    y0 = float(y[0])
-    dr = r - y0
-    if dr == 0.0:
-        return StepMetrics(dr, nan, nan, nan)
-    sgn = 1.0 if dr > 0 else -1.0
-    tol = band * abs(dr)
-    frac = (y - y0) * sgn / abs(dr)  # 0 at start, 1 at the setpoint
-    i10 = np.flatnonzero(frac >= 0.1)
-    i90 = np.flatnonzero(frac >= 0.9)
-    rise = float(t[i90[0]] - t[i10[0]]) if len(i90) else nan
-    tail = y[-max(2, len(y) // 20):]
-    yinf = float(np.mean(tail))
-    settled = bool(np.all(np.abs(tail - yinf) <= tol)) and abs(r - yinf) <= tol
-    if not settled:
-        return StepMetrics(dr, nan, rise, nan)
-    overshoot = max(0.0, float(np.max((y - yinf) * sgn)) / abs(dr) * 100.0)
-    outside = np.flatnonzero(np.abs(y - yinf) > tol)
-    settle = float(t[outside[-1] + 1] - t[0]) if len(outside) else 0.0
-    return StepMetrics(dr, overshoot, rise, settle)
+    rows, n = y.shape
+    k = np.arange(n)
+    ok = ((n - start) >= 2) & np.isfinite(r)
+    ok &= ~((~np.isfinite(y)) & (k >= start[:, None])).any(axis=1)
+    idx = np.arange(rows)
+    y0 = y[idx, np.minimum(start, n - 1)] if n else np.zeros(rows)
+    dr = np.where(ok, r - y0, nan)
+    moves = ok & (dr != 0.0)
+    size = dr
+    over = np.full(rows, nan)
+    rise = np.full(rows, nan)
+    settle = np.full(rows, nan)
+    if not moves.any():
+        return size, over, rise, settle
+    sel = np.flatnonzero(moves)
+    y, r, start, y0, d = y[sel], r[sel], start[sel], y0[sel], dr[sel]
+    sgn = np.where(d > 0, 1.0, -1.0)[:, None]
+    mag = np.abs(d)
+    tol = band * mag
+    after = k >= start[:, None]
+    with np.errstate(invalid="ignore"):
+        frac = (y - y0[:, None]) * sgn / mag[:, None]  # 0 at the start, 1 at the setpoint
+    has10, i10 = _first(after & (frac >= 0.1))
+    has90, i90 = _first(after & (frac >= 0.9))
+    rise[sel] = np.where(has90 & has10, t[i90] - t[i10], nan)
+    m = np.maximum(2, (n - start) // 20)  # the tail: the last 5 % of the response, >= 2
+    tail = k >= (n - m)[:, None]
+    yinf = np.fromiter((np.mean(row[n - mi:]) for row, mi in zip(y, m, strict=True)),
+                       dtype=np.float64, count=len(y))
+    dev = np.abs(y - yinf[:, None])
+    settled = ~(tail & (dev > tol[:, None])).any(axis=1) & (np.abs(r - yinf) <= tol)
+    peak = np.where(after, (y - yinf[:, None]) * sgn, -math.inf).max(axis=1)
+    over[sel] = np.where(settled, np.maximum(0.0, peak) / mag * 100.0, nan)
+    outside = after & (dev > tol[:, None])
+    any_out = outside.any(axis=1)
+    last = n - 1 - outside[:, ::-1].argmax(axis=1)
+    t_end = t[np.minimum(last + 1, n - 1)]
+    settle[sel] = np.where(settled, np.where(any_out, t_end - t[start], 0.0), nan)
+    return size, over, rise, settle
 
 
 def _count_reversals(y: np.ndarray, threshold: float) -> int:
@@ -277,56 +320,78 @@ def oscillation_detector(t: np.ndarray, e: np.ndarray, a: float = 1.0,
     return OscillationReport(iae_lim, large, x, x > n_lim)
 
 
-def _signal_metrics(u: np.ndarray, threshold: float) -> tuple[float, float]:
-    """(travel, reversals) of one signal over the window; NaN for fewer than 2 samples or a
-    non-finite sample."""
-    if len(u) < 2 or not np.all(np.isfinite(u)):
-        return math.nan, math.nan
-    with np.errstate(over="ignore"):  # a travel beyond the float range is n/a, not inf
-        return travel(u), float(reversals(u, threshold))
+def _signal_metrics(u: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+    """(travel, reversals) of each row of ``u`` over the window; NaN for fewer than 2 samples
+    or a non-finite sample."""
+    rows, n = u.shape
+    if n < 2:
+        return np.full(rows, math.nan), np.full(rows, math.nan)
+    finite = np.isfinite(u).all(axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):  # beyond the float range: n/a
+        moves = _per_row(np.sum, np.abs(np.diff(u, axis=1)))
+    count = _reversals_loop()
+    turns = np.array([float(count(np.ascontiguousarray(u[i]), threshold)) if finite[i]
+                      else math.nan for i in range(rows)])
+    return np.where(finite, moves, math.nan), turns
 
 
 def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
                  position: np.ndarray | None = None,
                  window: tuple[float, float] | None = None,
                  reversal_threshold: float = 0.05,
-                 command: np.ndarray | None = None) -> dict[str, float]:
+                 command: np.ndarray | None = None) -> dict[str, Any]:
     """The metrics table of one loop (``METRICS``, spec 4.1), over ``window`` = (t0, t1) s
     (default: the whole run): error integrals, step figures from the last setpoint change in
     the window (none for a window without one), PV spread, controller output travel and
     reversals, the valve stem's when ``position`` is given and the valve command's (the
     signal wired to the valve's op input) when ``command`` is given. NaN marks a figure the
-    data cannot support."""
+    data cannot support.
+
+    The signals are arrays over ``t``, each figure a float; or N × len(t) arrays, N
+    instances of one loop (a sweep's batch), each figure an array of N."""
+    one = np.ndim(pv) == 1
+
+    def rows(x: np.ndarray) -> np.ndarray:
+        return np.atleast_2d(np.asarray(x, dtype=np.float64))
+
+    sp, pv, out = rows(sp), rows(pv), rows(out)
+    position = rows(position) if position is not None else None
+    command = rows(command) if command is not None else None
     ts = float(t[1] - t[0]) if len(t) > 1 else math.nan  # the scan period, before windowing
     if window is not None:
         keep = (t >= window[0]) & (t <= window[1])
         if not keep.any():
             raise ValueError(f"window {window} s holds no sample of the run "
                              f"({t[0]:g}..{t[-1]:g} s)")
-        t, sp, pv, out = t[keep], sp[keep], pv[keep], out[keep]
-        position = position[keep] if position is not None else None
-        command = command[keep] if command is not None else None
+        t, sp, pv, out = t[keep], sp[:, keep], pv[:, keep], out[:, keep]
+        position = position[:, keep] if position is not None else None
+        command = command[:, keep] if command is not None else None
+    n = len(t)
     e = sp - pv
-    changes = np.flatnonzero(np.diff(sp) != 0.0)
-    if len(changes) or window is None:
-        start = int(changes[-1]) + 1 if len(changes) else 0
-        sm = step_metrics(t[start:], pv[start:], float(sp[-1]))
-    else:  # a regulatory window (no setpoint change in it): no step figures
-        sm = StepMetrics(math.nan, math.nan, math.nan, math.nan)
-    spread = len(pv) >= 2
-    result = {
-        "IAE": iae(e, ts),
-        "ISE": ise(e, ts),
-        "ITAE": itae(e, t, ts),
-        "mean |e|": float(np.mean(np.abs(e))),
-        "step size": sm.step_size,
-        "overshoot %": sm.overshoot_pct,
-        "rise time s": sm.rise_time_s,
-        "settling time s (2 %)": sm.settling_time_s,
-        "final error": float(e[-1]),
-        "PV std": float(np.std(pv)) if spread else math.nan,
-        "PV peak to peak": float(np.ptp(pv)) if spread else math.nan,
-    }
+    ae = np.abs(e)
+    changed = np.diff(sp, axis=1) != 0.0
+    has_change = changed.any(axis=1)
+    last = changed[:, ::-1].argmax(axis=1) if n >= 2 else np.zeros(len(sp), dtype=np.int64)
+    start = np.where(has_change, n - 1 - last, 0)
+    size, over, rise, settle = _step_rows(t, pv, sp[:, -1], start)
+    if window is not None:  # a regulatory window (no setpoint change in it): no step figures
+        for fig in (size, over, rise, settle):
+            fig[~has_change] = math.nan
+    spread = n >= 2
+    with np.errstate(over="ignore", invalid="ignore"):
+        result: dict[str, np.ndarray] = {
+            "IAE": _per_row(np.sum, ae) * ts,
+            "ISE": _per_row(np.sum, e * e) * ts,
+            "ITAE": _per_row(np.sum, (t - t[0]) * ae) * ts,
+            "mean |e|": _per_row(np.mean, ae),
+            "step size": size,
+            "overshoot %": over,
+            "rise time s": rise,
+            "settling time s (2 %)": settle,
+            "final error": e[:, -1],
+            "PV std": _per_row(np.std, pv) if spread else np.full(len(pv), math.nan),
+            "PV peak to peak": np.ptp(pv, axis=1) if spread else np.full(len(pv), math.nan),
+        }
     result["output travel"], result["output reversals"] = _signal_metrics(
         out, reversal_threshold)
     if position is not None:
@@ -335,4 +400,5 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     if command is not None:
         result["valve-command travel"], result["valve-command reversals"] = _signal_metrics(
             command, reversal_threshold)
-    return {k: (v if math.isfinite(v) else math.nan) for k, v in result.items()}
+    clean = {k: np.where(np.isfinite(v), v, math.nan) for k, v in result.items()}
+    return {k: float(v[0]) for k, v in clean.items()} if one else clean

@@ -216,15 +216,16 @@ def _scenario(text: str, source: str) -> Any:
 CHUNK_BYTES = 64 * 1024**2
 
 
-def _metrics(result: SimResult, window: tuple[float, float] | None) -> dict[str, float]:
-    """Every metric of every loop of one instance's result (``"loop: metric"`` when there are
-    several loops)."""
+def _metrics(result: SimResult, window: tuple[float, float] | None) -> list[dict[str, float]]:
+    """Every metric of every loop (``"loop: metric"`` when there are several loops) of each
+    instance of ``result``: one instance (1-D records) or N (N × scans records)."""
     loops = result.controllers()
-    metrics: dict[str, float] = {}
+    columns: dict[str, np.ndarray] = {}
     for loop in loops:
         for name, value in result.metrics(loop, window=window).items():
-            metrics[name if len(loops) == 1 else f"{loop}: {name}"] = float(value)
-    return metrics
+            columns[name if len(loops) == 1 else f"{loop}: {name}"] = np.atleast_1d(value)
+    count = len(next(iter(columns.values()))) if columns else 0
+    return [{name: float(col[i]) for name, col in columns.items()} for i in range(count)]
 
 
 _TEMPLATES: dict[tuple[str, str, str, tuple[tuple[str, Value], ...]], Any] = {}
@@ -285,7 +286,7 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
                     result = module.run(sc.duration, sc.dt, record=record)
                 except LoopworksError as exc:
                     raise _refused(job, exc) from None
-                rows[k] = _metrics(result, sc.metrics_window)
+                rows[k] = _metrics(result, sc.metrics_window)[0]
             continue
         size = max(1, CHUNK_BYTES // max(1, len(record) * n * 8))
         for at in range(0, len(members), size):
@@ -295,9 +296,10 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
             except InstanceError as exc:
                 raise _refused(jobs[chunk[exc.index]], exc) from None
             R = batch.run(sc.duration, sc.dt)
-            for i, k in enumerate(chunk):
-                values = {name: R[i, j] for j, name in enumerate(record)}
-                rows[k] = _metrics(SimResult(t, values, {}, **info), sc.metrics_window)
+            values = {name: R[:, j] for j, name in enumerate(record)}
+            for k, row in zip(chunk, _metrics(SimResult(t, values, {}, **info),
+                                              sc.metrics_window), strict=True):
+                rows[k] = row
     return rows
 
 
