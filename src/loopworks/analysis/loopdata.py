@@ -1,0 +1,435 @@
+"""One loop's recorded time series (SP, PV, OP, optionally valve position and mode) and the
+reader of historian CSV exports that makes it.
+
+:class:`LoopData` holds uniformly sampled float64 arrays; it needs no blocks. :func:`read_csv`
+reads a historian export with the csv module and numpy (no pandas):
+
+* a header row; the columns are found by name in any letter case: time ``t``, ``time``,
+  ``timestamp`` or ``datetime``; setpoint ``sp``, ``setpoint`` or ``sv``; process variable
+  ``pv``; controller output ``op``, ``mv``, ``out`` or ``output``; valve stem position
+  ``position`` or ``valve`` (optional); ``mode`` (optional: 1 = automatic, 0 = manual, or the
+  words auto/automatic/cas/cascade and man/manual). Tag names are mapped explicitly with
+  ``columns={"sp": "FIC101.SV", ...}`` (:func:`parse_columns` reads the same from the text
+  ``sp=FIC101.SV,pv=FIC101.PV``); roles not mapped are still looked for by name;
+* the time column holds seconds (numbers) or ISO 8601 time stamps (``2024-03-01 12:00:10``,
+  ``2024-03-01T12:00:10``, with fractions of a second or a UTC offset), converted to seconds
+  from the first sample; a file without a time column is refused;
+* time must increase from row to row. A repeated time stamp is an error, unless read with
+  ``duplicates="last"``: then the later row at that time is kept, as a historian's zero-order
+  hold would (the earlier one is overwritten), and :attr:`LoopData.resampled` says how many
+  rows were dropped;
+* irregular sampling is resampled onto a uniform grid: the period is the median interval
+  between samples, the grid runs from the first sample to the last, and the value at each grid
+  time is the last sample at or before it (zero-order hold: a historian stores a value when it
+  changes and holds it until the next). :attr:`LoopData.resampled` says so with the numbers.
+  Intervals within a relative :data:`REGULAR_TOLERANCE` of the median (floating-point noise in
+  the text) count as regular: the samples are kept as they are;
+* an empty or ``nan`` cell in sp, pv, op, position or mode is kept as NaN (a Bad value); the
+  quality gate (:mod:`loopworks.analysis.quality`) counts them. Any other cell that is not a
+  finite number is an error naming the file, the line (1-based, the header is line 1) and the
+  column.
+
+Every error is a :class:`~loopworks.errors.FileFormatError` (a problem in the file) or an
+:class:`~loopworks.errors.InputError` (a malformed column mapping).
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+from collections.abc import Iterator, Mapping, Sequence
+from dataclasses import dataclass
+from datetime import datetime
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from loopworks.errors import FileFormatError, InputError
+
+FloatArray = npt.NDArray[np.float64]
+
+#: the roles a column can play, in the order they are reported
+ROLES = ("t", "sp", "pv", "op", "position", "mode")
+#: the roles a file must have
+REQUIRED = ("t", "sp", "pv", "op")
+#: the column names (lower case) each role is found by when not mapped explicitly
+ALIASES: dict[str, tuple[str, ...]] = {
+    "t": ("t", "time", "timestamp", "datetime"),
+    "sp": ("sp", "setpoint", "sv"),
+    "pv": ("pv",),
+    "op": ("op", "mv", "out", "output"),
+    "position": ("position", "valve"),
+    "mode": ("mode",),
+}
+MEANING = {
+    "t": "time", "sp": "setpoint", "pv": "process variable", "op": "controller output",
+    "position": "valve stem position", "mode": "controller mode",
+}
+#: mode words (lower case) and the mode they mean: 1 automatic (cascade is automatic), 0 manual
+MODE_WORDS = {"auto": 1.0, "automatic": 1.0, "cas": 1.0, "cascade": 1.0,
+              "man": 0.0, "manual": 0.0}
+#: intervals within this fraction of the median interval are regular (text rounding, not
+#: irregular sampling): no resampling
+REGULAR_TOLERANCE = 1e-6
+#: blank or this (lower case) is a missing value: NaN
+_MISSING = ("", "nan")
+
+
+@dataclass(frozen=True, eq=False)
+class LoopData:
+    """One loop's uniformly sampled record.
+
+    ``t`` is in seconds, strictly increasing with a constant step (within
+    :data:`REGULAR_TOLERANCE`); ``sp``, ``pv``, ``op`` and the optional ``position`` (valve
+    stem) and ``mode`` (1 automatic, 0 manual; None when the record has none) have one value
+    per time, NaN for a Bad value. ``source`` names the file in messages; ``resampled`` is empty,
+    or a sentence saying what resampling rule the reader applied. The arrays are read-only
+    float64 copies.
+    """
+
+    t: FloatArray
+    sp: FloatArray
+    pv: FloatArray
+    op: FloatArray
+    position: FloatArray | None = None
+    mode: FloatArray | None = None
+    source: str = ""
+    resampled: str = ""
+
+    def __post_init__(self) -> None:
+        n = -1
+        for name in ("t", "sp", "pv", "op", "position", "mode"):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            a = np.array(value, dtype=np.float64)
+            if a.ndim != 1:
+                raise InputError(f"LoopData.{name}: a 1-D array is expected, got {a.ndim}-D")
+            if n < 0:
+                n = len(a)
+            elif len(a) != n:
+                raise InputError(f"LoopData.{name}: {len(a)} values, t has {n}")
+            a.setflags(write=False)
+            object.__setattr__(self, name, a)
+        if n < 2:
+            raise InputError(f"LoopData: {n} samples: at least 2 are needed")
+        _check_uniform(self.t)
+
+    @property
+    def dt(self) -> float:
+        """The sample period, s."""
+        return float(self.t[-1] - self.t[0]) / (len(self.t) - 1)
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def window(self, t0: float, t1: float) -> LoopData:
+        """The samples with ``t0 <= t < t1`` (half open, so windows tile a record), times
+        kept as they are; at least 2 samples must fall inside."""
+        keep = (self.t >= t0) & (self.t < t1)
+        if int(keep.sum()) < 2:
+            raise InputError(f"{self.source or 'LoopData'}: the window {t0:g} s to {t1:g} s "
+                             f"holds {int(keep.sum())} samples of a record from "
+                             f"{self.t[0]:g} s to {self.t[-1]:g} s: at least 2 are needed")
+
+        def cut(a: FloatArray | None) -> FloatArray | None:
+            return None if a is None else a[keep]
+
+        return LoopData(t=self.t[keep], sp=self.sp[keep], pv=self.pv[keep], op=self.op[keep],
+                        position=cut(self.position), mode=cut(self.mode), source=self.source,
+                        resampled=self.resampled)
+
+
+def _check_uniform(t: FloatArray) -> None:
+    """Refuse times that are not finite, strictly increasing and uniform."""
+    if not np.isfinite(t).all():
+        raise InputError("LoopData.t: the times must be finite")
+    d = np.diff(t)
+    if (d <= 0).any():
+        k = int(np.flatnonzero(d <= 0)[0])
+        raise InputError(f"LoopData.t: t[{k + 1}] = {t[k + 1]:g} s does not follow "
+                         f"t[{k}] = {t[k]:g} s: the times must increase")
+    step = float(t[-1] - t[0]) / (len(t) - 1)
+    if np.abs(d - step).max() > REGULAR_TOLERANCE * step:
+        raise InputError(f"LoopData.t: intervals from {d.min():g} to {d.max():g} s: the times "
+                         f"must be uniform (read_csv resamples irregular files)")
+
+
+# ----------------------------------------------------------------------------- column mapping
+
+def parse_columns(text: str) -> dict[str, str]:
+    """The column mapping ``ROLE=COLUMN,ROLE=COLUMN`` (the CLI's ``--columns``) as a dict.
+
+    Roles are those of :data:`ROLES`, in any letter case; a column name is the header's text
+    (it may hold dots, spaces are stripped at both ends, it may not hold a comma). A malformed
+    item, an unknown or repeated role is an :class:`InputError` naming the item.
+    """
+    mapping: dict[str, str] = {}
+    items = text.split(",")
+    for k, raw in enumerate(items, start=1):
+        item = raw.strip()
+        where = f"--columns {text!r}: item {k}"
+        if not item:
+            raise InputError(f"{where} is empty: expected ROLE=COLUMN items separated by commas")
+        role, eq, column = item.partition("=")
+        role, column = role.strip().lower(), column.strip()
+        if not eq or not role or not column:
+            raise InputError(f"{where} ({item!r}) is not ROLE=COLUMN, e.g. pv=FIC101.PV")
+        if role not in ROLES:
+            raise InputError(f"{where}: unknown role {role!r}: the roles are "
+                             f"{', '.join(ROLES)}")
+        if role in mapping:
+            raise InputError(f"{where}: the role {role!r} is given twice")
+        mapping[role] = column
+    return mapping
+
+
+def _check_mapping(columns: Mapping[str, str]) -> dict[str, str]:
+    """The explicit mapping with lower-case roles; an unknown role or a column given for two
+    roles is an InputError."""
+    mapping: dict[str, str] = {}
+    for role, column in columns.items():
+        key = role.strip().lower()
+        if key not in ROLES:
+            raise InputError(f"columns: unknown role {role!r}: the roles are {', '.join(ROLES)}")
+        if key in mapping:
+            raise InputError(f"columns: the role {key!r} is given twice")
+        mapping[key] = column.strip()
+    used: dict[str, str] = {}
+    for role, column in mapping.items():
+        if column.lower() in used:
+            raise InputError(f"columns: {column!r} is given for both {used[column.lower()]} "
+                             f"and {role}")
+        used[column.lower()] = role
+    return mapping
+
+
+def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
+            line: int) -> dict[str, int]:
+    """Each role's position in the header: mapped names first (exactly, else in any letter
+    case), then the aliases of the roles not mapped. A missing required role, or a role two
+    columns could be, is a FileFormatError naming the columns present."""
+    names = [h.strip() for h in header]
+    lower = [h.lower() for h in names]
+    present = ", ".join(repr(h) for h in names)
+    found: dict[str, int] = {}
+    for role, column in mapping.items():
+        hits = [i for i, h in enumerate(names) if h == column]
+        if not hits:
+            hits = [i for i, h in enumerate(lower) if h == column.lower()]
+        if not hits:
+            raise FileFormatError(f"{source}, line {line}: no column {column!r} (given for "
+                                  f"{role}, the {MEANING[role]}); the columns are {present}")
+        if len(hits) > 1:
+            raise FileFormatError(f"{source}, line {line}: {len(hits)} columns are named "
+                                  f"{column!r} (given for {role})")
+        found[role] = hits[0]
+    taken = set(found.values())
+    for role in ROLES:
+        if role in found:
+            continue
+        hits = [i for i, h in enumerate(lower) if h in ALIASES[role] and i not in taken]
+        if len(hits) > 1:
+            both = " and ".join(repr(names[i]) for i in hits)
+            raise FileFormatError(f"{source}, line {line}: columns {both} could each be the "
+                                  f"{role} ({MEANING[role]}): map one with "
+                                  f"columns={{'{role}': NAME}}")
+        if hits:
+            found[role] = hits[0]
+            taken.add(hits[0])
+        elif role in REQUIRED:
+            looked = ", ".join(ALIASES[role])
+            raise FileFormatError(f"{source}, line {line}: no {MEANING[role]} column: looked "
+                                  f"for {looked} (any letter case); the columns are {present}; "
+                                  f"map one with columns={{'{role}': NAME}}")
+    return found
+
+
+# ----------------------------------------------------------------------------- reading
+
+def read_csv(path: str | os.PathLike[str], columns: Mapping[str, str] | None = None, *,
+             duplicates: Literal["error", "last"] = "error") -> LoopData:
+    """Read one loop from a historian CSV export (the rules are in the module docstring).
+
+    ``columns`` maps roles (t, sp, pv, op, position, mode) to header names; ``duplicates``
+    says what a repeated time stamp does: ``"error"`` refuses the file naming the line,
+    ``"last"`` keeps the later row at that time and says so in ``resampled``.
+    """
+    source = os.fspath(path)
+    mapping = _check_mapping(columns or {})
+    rows = list(_rows(source))
+    if not rows:
+        raise FileFormatError(f"{source}: the file is empty: expected a header row naming "
+                              f"the columns (t, sp, pv, op) and rows of samples")
+    header_line, header = rows[0]
+    where = _locate(header, mapping, source, header_line)
+    body = rows[1:]
+    if len(body) < 2:
+        raise FileFormatError(f"{source}: {len(body)} data row{'s' * (len(body) != 1)} after "
+                              f"the header: at least 2 are needed")
+    for line, row in body:
+        if len(row) != len(header):
+            raise FileFormatError(f"{source}, line {line}: {len(row)} cells, the header "
+                                  f"(line {header_line}) has {len(header)}")
+    lines = np.array([line for line, _ in body], dtype=np.int64)
+    names = {role: header[i].strip() for role, i in where.items()}
+    cells = {role: [row[i] for _, row in body] for role, i in where.items()}
+    t = _times(cells["t"], lines, source, names["t"])
+    values = {role: _values(cells[role], lines, source, names[role], role)
+              for role in where if role != "t"}
+    t, values, dropped = _ordered(t, values, lines, source, names["t"], cells["t"], duplicates)
+    t, values, note = _uniform(t, values)
+    if dropped:
+        kept = (f"{dropped} row{'s' * (dropped != 1)} with a repeated time stamp dropped "
+                f"(the later row at each time kept, as a historian's hold would)")
+        note = f"{kept}; {note}" if note else f"{kept}."
+    return LoopData(t=t, sp=values["sp"], pv=values["pv"], op=values["op"],
+                    position=values.get("position"), mode=values.get("mode"), source=source,
+                    resampled=note)
+
+
+def _rows(source: str) -> Iterator[tuple[int, list[str]]]:
+    """The file's non-blank rows with the line each ends on (1-based); a file that cannot be
+    read or parsed is a FileFormatError."""
+    try:
+        with open(source, newline="", encoding="utf-8-sig") as f:
+            reader = csv.reader(f)
+            while True:
+                try:
+                    row = next(reader)
+                except StopIteration:
+                    return
+                except csv.Error as exc:
+                    raise FileFormatError(f"{source}, line {reader.line_num}: {exc}") from None
+                if any(c.strip() for c in row):
+                    yield reader.line_num, row
+    except UnicodeDecodeError as exc:
+        raise FileFormatError(f"{source}: not UTF-8 text (byte {exc.start})") from None
+    except OSError as exc:
+        raise FileFormatError(f"{source}: cannot read the file: {exc.strerror}") from None
+
+
+def _number(cell: str) -> float | None:
+    """The cell as a finite float, NaN if missing, None if it is not a number."""
+    text = cell.strip()
+    if text.lower() in _MISSING:
+        return math.nan
+    try:
+        value = float(text)
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None
+
+
+def _values(cells: list[str], lines: npt.NDArray[np.int64], source: str, name: str,
+            role: str) -> FloatArray:
+    """A value column as float64, NaN for a missing value; a cell that is not a finite number
+    (or, for mode, a mode word) is a located FileFormatError."""
+    out = np.empty(len(cells))
+    for k, cell in enumerate(cells):
+        value = _number(cell)
+        if value is None and role == "mode":
+            value = MODE_WORDS.get(cell.strip().lower())
+        if value is None:
+            what = "a number or a mode word (auto, man, cas)" if role == "mode" else "a number"
+            if cell.strip().lower() in ("inf", "+inf", "-inf", "infinity", "-infinity"):
+                what = "a finite number"
+            raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': {cell!r} is "
+                                  f"not {what}")
+        out[k] = value
+    return out
+
+
+def _times(cells: list[str], lines: npt.NDArray[np.int64], source: str,
+           name: str) -> FloatArray:
+    """The time column in seconds: numbers as they are, ISO 8601 time stamps as seconds from
+    the first. The first cell decides which; a cell of the other kind is a located error."""
+    first = cells[0].strip()
+    if _number(first) is not None and first.lower() not in _MISSING:
+        out = np.empty(len(cells))
+        for k, cell in enumerate(cells):
+            value = _number(cell)
+            if value is None or math.isnan(value):
+                raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': {cell!r} "
+                                      f"is not a time in seconds (the first row gives seconds)")
+            out[k] = value
+        return out
+    start = _stamp(first)
+    if start is None:
+        raise FileFormatError(f"{source}, line {lines[0]}, column '{name}': {cells[0]!r} is "
+                              f"neither seconds nor an ISO 8601 time stamp "
+                              f"(e.g. 2024-03-01 12:00:10)")
+    out = np.empty(len(cells))
+    for k, cell in enumerate(cells):
+        stamp = _stamp(cell.strip())
+        if stamp is None:
+            raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': {cell!r} is "
+                                  f"not an ISO 8601 time stamp (e.g. 2024-03-01 12:00:10)")
+        if (stamp.tzinfo is None) != (start.tzinfo is None):
+            has = "has" if stamp.tzinfo is not None else "has no"
+            first_has = "has" if start.tzinfo is not None else "has none"
+            raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': {cell!r} "
+                                  f"{has} UTC offset; the first time stamp {first_has}")
+        out[k] = (stamp - start).total_seconds()
+    return out
+
+
+def _stamp(text: str) -> datetime | None:
+    """An ISO 8601 date and time (``T`` or a space between them), or None."""
+    if not text or text[0] not in "0123456789":
+        return None
+    try:
+        return datetime.fromisoformat(text)
+    except ValueError:
+        return None
+
+
+def _ordered(t: FloatArray, values: dict[str, FloatArray], lines: npt.NDArray[np.int64],
+             source: str, name: str, cells: list[str],
+             duplicates: Literal["error", "last"]) -> tuple[FloatArray, dict[str, FloatArray],
+                                                            int]:
+    """Refuse time going back (and a repeated time, unless ``duplicates == "last"``: then keep
+    the later row at each time); the rows kept and how many were dropped."""
+    d = np.diff(t)
+    back = np.flatnonzero(d < 0)
+    if len(back):
+        k = int(back[0]) + 1
+        raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': "
+                              f"{cells[k].strip()!r} is before line {lines[k - 1]}'s "
+                              f"{cells[k - 1].strip()!r}: time must increase")
+    same = np.flatnonzero(d == 0)
+    if not len(same):
+        return t, values, 0
+    if duplicates != "last":
+        k = int(same[0]) + 1
+        raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': "
+                              f"{cells[k].strip()!r} repeats line {lines[k - 1]}'s time stamp "
+                              f"({len(same)} repeated in the file): time must increase "
+                              f"(read with duplicates='last' to keep the later row at a time)")
+    keep = np.append(d != 0, True)
+    if int(keep.sum()) < 2:
+        raise FileFormatError(f"{source}: every row has the same time stamp: at least 2 "
+                              f"times are needed")
+    return t[keep], {role: v[keep] for role, v in values.items()}, len(same)
+
+
+def _uniform(t: FloatArray, values: dict[str, FloatArray]) -> tuple[FloatArray,
+                                                                   dict[str, FloatArray], str]:
+    """Regular times made exactly uniform (t0 + k * median interval); irregular ones resampled
+    onto that grid by zero-order hold, with the sentence that says so."""
+    d = np.diff(t)
+    period = float(np.median(d))
+    off = np.abs(d - period) > REGULAR_TOLERANCE * period
+    if not off.any():
+        return t[0] + period * np.arange(len(t)), values, ""
+    m = math.floor((t[-1] - t[0]) / period + REGULAR_TOLERANCE) + 1
+    grid = t[0] + period * np.arange(m)
+    idx = np.searchsorted(t, grid + REGULAR_TOLERANCE * period, side="right") - 1
+    note = (f"irregular sampling ({int(off.sum())} of {len(d)} intervals differ from the "
+            f"median {period:g} s; they range from {d.min():g} to {d.max():g} s): resampled "
+            f"onto a uniform {period:g}-s grid (the median interval) from {t[0]:g} to "
+            f"{grid[-1]:g} s, {len(t)} samples to {m}, each grid time taking the last sample "
+            f"at or before it (zero-order hold, as historians store values).")
+    return grid, {role: v[idx] for role, v in values.items()}, note

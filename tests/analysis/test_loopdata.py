@@ -1,0 +1,281 @@
+"""LoopData and the historian CSV reader: the plant files, column mapping, time stamps,
+resampling by zero-order hold, and located errors."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from loopworks.analysis.loopdata import LoopData, parse_columns, read_csv
+from loopworks.errors import FileFormatError, InputError
+
+PLANT = Path(__file__).resolve().parent.parent / "data" / "plant-loops"
+REGULAR = [f"plant0{i}.csv" for i in range(1, 7)]
+
+
+def write(tmp_path: Path, text: str, name: str = "plant.csv") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def raw_column(path: Path, name: str) -> list[float]:
+    """A column as the csv module reads it, for comparison."""
+    with open(path, newline="") as f:
+        return [float(row[name]) for row in csv.DictReader(f)]
+
+
+# ----------------------------------------------------------------------------- plant files
+
+@pytest.mark.parametrize("name", REGULAR)
+def test_plant_file_reads_as_stored(name: str) -> None:
+    path = PLANT / name
+    data = read_csv(path)
+    assert len(data) == 751
+    assert data.dt == pytest.approx(10.0, rel=1e-12)
+    assert data.t[0] == 0.0 and data.t[-1] == 7500.0
+    assert data.resampled == ""
+    assert data.position is None
+    assert data.mode is not None and (data.mode == 1).all()
+    assert name in data.source
+    for role in ("sp", "pv", "op"):
+        np.testing.assert_array_equal(getattr(data, role), raw_column(path, role))
+
+
+def test_plant07_repeated_time_stamps_are_refused_by_default() -> None:
+    # plant07.csv: line 32 repeats line 31's t = 300.0 (checked by eye), 25 such repeats
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(PLANT / "plant07.csv")
+    text = str(exc.value)
+    assert "plant07.csv" in text and "line 32" in text and "'t'" in text
+    assert "25 repeated" in text and "duplicates='last'" in text
+
+
+def test_plant07_with_duplicates_last_is_resampled_as_stated() -> None:
+    data = read_csv(PLANT / "plant07.csv", duplicates="last")
+    assert len(data) == 751 and data.dt == pytest.approx(10.0)
+    assert "25 rows with a repeated time stamp dropped" in data.resampled
+    assert "zero-order hold" in data.resampled
+    # the file goes t = 0 (sp 0), 20 (sp 0.001481703), ...: t = 10 holds the t = 0 row
+    assert data.sp[:3].tolist() == [0.0, 0.0, 0.001481703]
+    # lines 31 and 32 are both t = 300 (sp 0 and 0), line 33 is t = 320 (sp 0): the grid's
+    # t = 310 holds the later row at 300
+    assert data.t[31] == 310.0 and data.sp[31] == 0.0
+
+
+# ----------------------------------------------------------------------------- columns
+
+def test_columns_found_in_any_letter_case_and_by_alias(tmp_path: Path) -> None:
+    path = write(tmp_path, "TIME,SetPoint,Pv,MV,Valve,MODE\n0,1,2,3,4,1\n1,1.5,2.5,3.5,4.5,0\n")
+    data = read_csv(path)
+    assert data.sp.tolist() == [1.0, 1.5] and data.pv.tolist() == [2.0, 2.5]
+    assert data.op.tolist() == [3.0, 3.5]
+    assert data.position is not None and data.position.tolist() == [4.0, 4.5]
+    assert data.mode is not None and data.mode.tolist() == [1.0, 0.0]
+
+
+def test_output_and_timestamp_aliases(tmp_path: Path) -> None:
+    path = write(tmp_path, "Timestamp,SV,PV,Output\n0,1,2,3\n2,1,2,4\n")
+    data = read_csv(path)
+    assert data.op.tolist() == [3.0, 4.0] and data.dt == 2.0 and data.mode is None
+
+
+def test_explicit_mapping(tmp_path: Path) -> None:
+    path = write(tmp_path, "Time,FIC101.SV,FIC101.PV,FIC101.MV,FIC101.MODE\n"
+                           "0,5,6,7,AUTO\n1,5,6.5,7.5,MAN\n")
+    data = read_csv(path, columns={"sp": "FIC101.SV", "PV": "fic101.pv", "op": "FIC101.MV",
+                                   "mode": "FIC101.MODE"})
+    assert data.sp.tolist() == [5.0, 5.0] and data.pv.tolist() == [6.0, 6.5]
+    assert data.op.tolist() == [7.0, 7.5]
+    assert data.mode is not None and data.mode.tolist() == [1.0, 0.0]
+
+
+def test_parse_columns() -> None:
+    assert parse_columns("sp=FIC101.SV, PV = FIC101.PV,op=FIC101.MV") == {
+        "sp": "FIC101.SV", "pv": "FIC101.PV", "op": "FIC101.MV"}
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("sp=A,pv B", ["item 2", "'pv B'", "ROLE=COLUMN"]),
+    ("sp=A,,op=C", ["item 2 is empty"]),
+    ("sp=A,flow=B", ["item 2", "unknown role 'flow'", "t, sp, pv, op, position, mode"]),
+    ("sp=A,SP=B", ["item 2", "'sp' is given twice"]),
+    ("sp=", ["item 1", "ROLE=COLUMN"]),
+])
+def test_parse_columns_errors_are_located(text: str, words: list[str]) -> None:
+    with pytest.raises(InputError) as exc:
+        parse_columns(text)
+    for word in words:
+        assert word in str(exc.value)
+
+
+def test_unknown_role_in_mapping(tmp_path: Path) -> None:
+    path = write(tmp_path, "t,sp,pv,op\n0,1,2,3\n1,1,2,3\n")
+    with pytest.raises(InputError, match="unknown role 'flow'"):
+        read_csv(path, columns={"flow": "pv"})
+
+
+# ----------------------------------------------------------------------------- time stamps
+
+@pytest.mark.parametrize("sep", [" ", "T"])
+def test_iso_timestamps_become_seconds_from_the_first(tmp_path: Path, sep: str) -> None:
+    rows = "".join(f"2024-03-01{sep}12:00:{s:02d},1,2,3\n" for s in (0, 10, 20, 30))
+    data = read_csv(write(tmp_path, "timestamp,sp,pv,op\n" + rows))
+    assert data.t.tolist() == [0.0, 10.0, 20.0, 30.0] and data.resampled == ""
+
+
+def test_timestamps_across_midnight_with_offset(tmp_path: Path) -> None:
+    text = ("time,sp,pv,op\n2024-03-01T23:59:55+01:00,1,2,3\n"
+            "2024-03-02T00:00:00+01:00,1,2,3\n2024-03-02T00:00:05+01:00,1,2,3\n")
+    assert read_csv(write(tmp_path, text)).t.tolist() == [0.0, 5.0, 10.0]
+
+
+# ----------------------------------------------------------------------------- resampling
+
+def test_irregular_sampling_zero_order_hold_hand_computed(tmp_path: Path) -> None:
+    # intervals 1, 1, 2, 1: median 1 s; grid 0..5; t = 3 holds the sample at t = 2
+    text = "t,sp,pv,op\n0,1,10,20\n1,1,11,21\n2,1,12,22\n4,1,14,24\n5,1,15,25\n"
+    data = read_csv(write(tmp_path, text))
+    assert data.t.tolist() == [0.0, 1.0, 2.0, 3.0, 4.0, 5.0]
+    assert data.pv.tolist() == [10.0, 11.0, 12.0, 12.0, 14.0, 15.0]
+    assert data.op.tolist() == [20.0, 21.0, 22.0, 22.0, 24.0, 25.0]
+    for words in ("1 of 4 intervals", "median 1 s", "from 1 to 2 s", "5 samples to 6",
+                  "last sample at or before", "zero-order hold"):
+        assert words in data.resampled
+
+
+def test_jittered_sampling_hand_computed(tmp_path: Path) -> None:
+    # intervals 2.1, 1.8, 2.1, 2.2: median 2.1; grid 0, 2.1, 4.2, 6.3 (8.4 is past 8.2);
+    # 4.2 holds t = 3.9 (value 3), 6.3 holds t = 6.0 (value 4)
+    text = "t,sp,pv,op\n0,0,1,0\n2.1,0,2,0\n3.9,0,3,0\n6.0,0,4,0\n8.2,0,5,0\n"
+    data = read_csv(write(tmp_path, text))
+    np.testing.assert_allclose(data.t, [0.0, 2.1, 4.2, 6.3])
+    assert data.pv.tolist() == [1.0, 2.0, 3.0, 4.0]
+    assert data.dt == pytest.approx(2.1)
+
+
+# ----------------------------------------------------------------------------- missing values
+
+def test_empty_and_nan_cells_are_kept_as_nan(tmp_path: Path) -> None:
+    data = read_csv(write(tmp_path, "t,sp,pv,op\n0,1,,3\n1,1,NaN,3\n2,,2,nan\n"))
+    assert np.isnan(data.pv).tolist() == [True, True, False]
+    assert np.isnan(data.sp).tolist() == [False, False, True]
+    assert np.isnan(data.op).tolist() == [False, False, True]
+
+
+# ----------------------------------------------------------------------------- errors
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("t,sp,pv,op\n0,1,2,3\n1,1,abc,3\n", ["line 3", "column 'pv'", "'abc' is not a number"]),
+    ("t,sp,PV,op\n0,1,2,3\n1,1,inf,3\n", ["line 3", "column 'PV'", "not a finite number"]),
+    ("t,sp,pv,op\n0,1,2,3\n\n1,1,2,x\n", ["line 4", "column 'op'", "'x'"]),
+    ("t,sp,pv,op\n0,1,2,3\n1,1,2\n", ["line 3", "3 cells", "has 4"]),
+    ("t,sp,pv,op\n0,1,2,3\n1,1,2,3\n0.5,1,2,3\n", ["line 4", "column 't'", "'0.5' is before "
+                                                   "line 3's '1'"]),
+    ("t,sp,pv,op\n0,1,2,3\n1,1,2,3\n1,1,2,3\n", ["line 4", "column 't'", "repeats line 3"]),
+    ("t,sp,pv,op\n0,1,2,3\n,1,2,3\n", ["line 3", "column 't'", "not a time in seconds"]),
+    ("time,sp,pv,op\n03/01/2024 12:00,1,2,3\n03/01/2024 12:01,1,2,3\n",
+     ["line 2", "column 'time'", "neither seconds nor an ISO 8601"]),
+    ("time,sp,pv,op\n2024-03-01 12:00:00,1,2,3\n2024-03-01 12:00:1O,1,2,3\n",
+     ["line 3", "column 'time'", "not an ISO 8601 time stamp"]),
+    ("time,sp,pv,op\n2024-03-01 12:00:00,1,2,3\n2024-03-01 12:00:10Z,1,2,3\n",
+     ["line 3", "UTC offset"]),
+    ("t,sp,pv,op,mode\n0,1,2,3,1\n1,1,2,3,maybe\n", ["line 3", "column 'mode'", "'maybe'"]),
+])
+def test_bad_cells_are_located(tmp_path: Path, text: str, words: list[str]) -> None:
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(write(tmp_path, text))
+    assert "plant.csv, line" in str(exc.value)
+    for word in words:
+        assert word in str(exc.value)
+
+
+def test_missing_role_names_it_and_the_columns_present(tmp_path: Path) -> None:
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(write(tmp_path, "t,sp,pv,flow\n0,1,2,3\n1,1,2,3\n"))
+    text = str(exc.value)
+    assert "plant.csv" in text and "line 1" in text and "controller output" in text
+    assert "op, mv, out, output" in text and "'flow'" in text and "'t'" in text
+
+
+def test_no_time_column_says_which_names_were_looked_for(tmp_path: Path) -> None:
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(write(tmp_path, "sp,pv,op\n1,2,3\n1,2,3\n"))
+    assert "no time column" in str(exc.value) and "t, time, timestamp, datetime" in str(exc.value)
+
+
+def test_mapped_column_absent(tmp_path: Path) -> None:
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(write(tmp_path, "t,sp,pv,op\n0,1,2,3\n1,1,2,3\n"), columns={"pv": "FIC.PV"})
+    assert "no column 'FIC.PV'" in str(exc.value) and "given for pv" in str(exc.value)
+
+
+def test_two_columns_for_one_role(tmp_path: Path) -> None:
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(write(tmp_path, "t,sp,pv,op,out\n0,1,2,3,4\n1,1,2,3,4\n"))
+    assert "'op' and 'out'" in str(exc.value) and "line 1" in str(exc.value)
+
+
+@pytest.mark.parametrize(("text", "words"), [
+    ("", ["the file is empty"]),
+    ("\n\n", ["the file is empty"]),
+    ("t,sp,pv,op\n", ["0 data rows", "at least 2"]),
+    ("t,sp,pv,op\n0,1,2,3\n", ["1 data row ", "at least 2"]),
+])
+def test_empty_and_short_files(tmp_path: Path, text: str, words: list[str]) -> None:
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(write(tmp_path, text))
+    assert "plant.csv" in str(exc.value)
+    for word in words:
+        assert word in str(exc.value)
+
+
+def test_unreadable_file(tmp_path: Path) -> None:
+    with pytest.raises(FileFormatError, match=r"absent\.csv: cannot read the file"):
+        read_csv(tmp_path / "absent.csv")
+
+
+# ----------------------------------------------------------------------------- LoopData
+
+def make(n: int = 10, dt: float = 0.5) -> LoopData:
+    t = dt * np.arange(n)
+    return LoopData(t=t, sp=np.zeros(n), pv=t.copy(), op=-t, source="x")
+
+
+def test_dt_len_and_window_half_open() -> None:
+    data = make()
+    assert len(data) == 10 and data.dt == 0.5
+    part = data.window(1.0, 2.5)
+    assert part.t.tolist() == [1.0, 1.5, 2.0] and part.op.tolist() == [-1.0, -1.5, -2.0]
+    assert part.source == "x"
+
+
+def test_window_too_small_is_refused() -> None:
+    with pytest.raises(InputError, match="holds 1 samples"):
+        make().window(1.0, 1.5)
+
+
+def test_arrays_are_read_only_copies() -> None:
+    pv = np.arange(5.0)
+    data = LoopData(t=np.arange(5.0), sp=pv, pv=pv, op=pv)
+    pv[0] = 99.0
+    assert data.pv[0] == 0.0
+    with pytest.raises(ValueError):
+        data.pv[0] = 1.0
+
+
+@pytest.mark.parametrize(("t", "words"), [
+    ([0.0, 1.0, 3.0], "must be uniform"),
+    ([0.0, 1.0, 1.0], "must increase"),
+])
+def test_loopdata_refuses_bad_times(t: list[float], words: str) -> None:
+    with pytest.raises(InputError, match=words):
+        LoopData(t=np.array(t), sp=np.zeros(3), pv=np.zeros(3), op=np.zeros(3))
+
+
+def test_loopdata_refuses_unequal_lengths() -> None:
+    with pytest.raises(InputError, match=r"LoopData\.pv: 2 values, t has 3"):
+        LoopData(t=np.arange(3.0), sp=np.zeros(3), pv=np.zeros(2), op=np.zeros(3))

@@ -1,0 +1,194 @@
+"""The data-quality gate: a clean synthetic loop passes, each defect fails with its reason, and
+the seven plant files give the verdicts checked by looking at their data."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from loopworks.analysis.loopdata import LoopData, read_csv
+from loopworks.analysis.quality import (
+    MIN_SAMPLES,
+    check_quality,
+    longest_run,
+    pv_quantum,
+    unique_fraction,
+)
+
+PLANT = Path(__file__).resolve().parent.parent / "data" / "plant-loops"
+
+
+def loop(n: int = 1000, seed: int = 1, **replace: np.ndarray) -> LoopData:
+    """A clean regulatory loop: noisy sinusoidal PV and OP, constant SP, automatic."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n, dtype=float)
+    arrays = {
+        "sp": np.full(n, 50.0),
+        "pv": 50.0 + 2.0 * np.sin(2 * np.pi * t / 50) + rng.normal(0, 0.1, n),
+        "op": 40.0 + 5.0 * np.sin(2 * np.pi * t / 50 - 1.0) + rng.normal(0, 0.2, n),
+        "mode": np.ones(n),
+    }
+    arrays.update(replace)
+    return LoopData(t=t, sp=arrays["sp"], pv=arrays["pv"], op=arrays["op"],
+                    mode=arrays["mode"], source="synthetic")
+
+
+def test_clean_loop_passes() -> None:
+    q = check_quality(loop())
+    assert q.passed and q.reasons == [] and q.notes == []
+    assert q.n == 1000 and q.unique_pv_fraction == 1.0 and q.pv_quantum == 0.0
+    assert q.sp_changes == 0 and q.nan_fraction == 0.0 and q.manual_fraction == 0.0
+    assert q.saturated_fraction < 0.02
+
+
+def test_too_short() -> None:
+    q = check_quality(loop(n=150))
+    assert not q.passed and MIN_SAMPLES == 200
+    assert q.reasons == ["the record has 150 samples: at least 200 are needed"]
+
+
+def test_constant_pv_is_frozen() -> None:
+    q = check_quality(loop(pv=np.full(1000, 3.0)))
+    assert not q.passed and len(q.reasons) == 1
+    assert "the PV is constant at 3 over all 1000" in q.reasons[0]
+
+
+def test_long_held_op_is_frozen() -> None:
+    base = loop()
+    op = base.op.copy()
+    op[200:800] = op[200]  # held for 600 of 1000 samples, as a compressed tag replays
+    q = check_quality(loop(op=op))
+    assert not q.passed and q.frozen_fraction == 0.6
+    assert any("the OP holds" in r and "600 consecutive samples" in r and "60 %" in r
+               for r in q.reasons)
+
+
+def test_quantised_pv_fails_with_its_quantum() -> None:
+    pv = np.round(loop().pv / 0.5) * 0.5  # 47.5 .. 52.5 in steps of 0.5: 11 levels at most
+    q = check_quality(loop(pv=pv))
+    assert not q.passed
+    count = len(np.unique(pv))
+    assert count <= 11
+    assert any(f"the PV takes {count} distinct values over 1000 samples" in r
+               and "at least 200 (20 %)" in r and "valve-stiction-ml" in r for r in q.reasons)
+    assert q.pv_quantum == pytest.approx(0.5)
+    assert any("steps of 0.5" in m for m in q.notes)
+
+
+def test_quantum_of_a_continuous_signal_is_zero() -> None:
+    assert pv_quantum(loop().pv) == 0.0
+    assert pv_quantum(np.array([0.1, 0.3, 0.2, 0.7])) == pytest.approx(0.1)
+
+
+def test_unique_fraction_rounds_to_six_decimals() -> None:
+    assert unique_fraction(np.array([1.0, 1.0000001, 2.0, 2.0])) == (2, 0.5)
+
+
+def test_longest_run() -> None:
+    assert longest_run(np.array([1.0, 2.0, 2.0, 2.0, 1.0, 1.0])) == (3, 2.0)
+
+
+def test_saturated_op_fails() -> None:
+    op = np.minimum(loop().op, 42.0)  # clipped: the upper half of the sine sits at 42
+    q = check_quality(loop(op=op))
+    assert not q.passed and q.saturated_fraction > 0.3
+    assert any("the OP is at a limit" in r and "at 42" in r and "at most 10 %" in r
+               for r in q.reasons)
+
+
+def test_saturation_against_given_limits() -> None:
+    op = loop().op.copy()
+    op[:150] = 100.0
+    assert check_quality(loop(op=op), op_limits=(0.0, 100.0)).saturated_fraction == 0.15
+    assert not check_quality(loop(op=op), op_limits=(0.0, 100.0)).passed
+    assert check_quality(loop(), op_limits=(0.0, 100.0)).saturated_fraction == 0.0
+
+
+def test_manual_mode() -> None:
+    mode = np.ones(1000)
+    mode[:200] = 0.0
+    q = check_quality(loop(mode=mode))
+    assert not q.passed and q.manual_fraction == 0.2
+    assert any("not in automatic for 200 of 1000 samples (20 %)" in r for r in q.reasons)
+    mode[50:200] = 1.0
+    q = check_quality(loop(mode=mode))
+    assert q.passed and any("50 of 1000" in m for m in q.notes)
+
+
+def test_no_mode_is_a_note() -> None:
+    base = loop()
+    q = check_quality(LoopData(t=base.t, sp=base.sp, pv=base.pv, op=base.op))
+    assert q.passed and any("no mode column" in m for m in q.notes)
+
+
+def test_nan_values() -> None:
+    pv = loop().pv.copy()
+    pv[::10] = np.nan  # 100 of 1000
+    q = check_quality(loop(pv=pv))
+    assert not q.passed and q.nan_fraction == 0.1
+    assert any("100 of 1000 samples (10 %)" in r and "PV 100" in r for r in q.reasons)
+    pv = loop().pv.copy()
+    pv[:10] = np.nan
+    q = check_quality(loop(pv=pv))
+    assert q.passed and q.nan_fraction == 0.01 and any("10 of 1000" in m for m in q.notes)
+
+
+def test_sp_moves_are_a_note() -> None:
+    sp = np.full(1000, 50.0)
+    sp[300:] = 51.0
+    sp[600:] = 49.0
+    q = check_quality(loop(sp=sp))
+    assert q.passed and q.sp_changes == 2
+    assert any("the SP moves 2 times" in m for m in q.notes)
+
+
+def test_every_reason_is_listed() -> None:
+    q = check_quality(loop(n=150, pv=np.full(150, 1.0), mode=np.zeros(150)))
+    assert not q.passed and len(q.reasons) == 3
+    assert "150 samples" in q.reasons[0] and "PV is constant" in q.reasons[1]
+    assert "automatic" in q.reasons[2]
+
+
+# ----------------------------------------------------------------------------- plant files
+
+# Checked by reading the CSV files independently: plant01-04 and plant06 have 742-750
+# distinct PV values of 751, no NaN, mode 1 throughout; plant03, 04 and 05 hold one SP;
+# plant06's SP steps three times (lines 348-350: 70.98 -> 70.54 -> 70.04 -> 69.98), each step
+# more than 1 % of its PV span (1.43); plant01 and 02's SP takes 748 and 742 distinct values
+# (a cascade slave's SP). plant05's PV is 1.18094286E-16 on 441 consecutive rows and takes
+# 106 distinct values at 6 decimals; plant07's PV is 3.503246E-44 on every row.
+
+@pytest.mark.parametrize("name", ["plant01.csv", "plant02.csv", "plant03.csv", "plant04.csv",
+                                  "plant06.csv"])
+def test_usable_plant_loops_pass(name: str) -> None:
+    q = check_quality(read_csv(PLANT / name))
+    assert q.passed and q.reasons == []
+    assert q.n == 751 and q.unique_pv_fraction > 0.98 and q.nan_fraction == 0.0
+    assert q.manual_fraction == 0.0
+
+
+@pytest.mark.parametrize(("name", "moves"), [("plant03.csv", 0), ("plant04.csv", 0),
+                                             ("plant06.csv", 3)])
+def test_plant_sp_moves(name: str, moves: int) -> None:
+    assert check_quality(read_csv(PLANT / name)).sp_changes == moves
+
+
+@pytest.mark.parametrize("name", ["plant01.csv", "plant02.csv"])
+def test_cascade_slave_sp_is_noted(name: str) -> None:
+    q = check_quality(read_csv(PLANT / name))
+    assert q.sp_changes > 600 and any("cascade slave" in m for m in q.notes)
+
+
+def test_plant05_dead_pv_fails() -> None:
+    q = check_quality(read_csv(PLANT / "plant05.csv"))
+    assert not q.passed
+    assert any("PV holds 1.18094e-16 for 441 consecutive samples" in r for r in q.reasons)
+    assert any("PV takes 106 distinct values over 751 samples" in r for r in q.reasons)
+
+
+def test_plant07_constant_pv_fails() -> None:
+    q = check_quality(read_csv(PLANT / "plant07.csv", duplicates="last"))
+    assert not q.passed
+    assert any("PV is constant at 3.50325e-44 over all 751" in r for r in q.reasons)
