@@ -493,13 +493,14 @@ def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
     disp = getattr(mod, what)
     if not disp.overloads:
         global _announced
-        # only a kernel's own entry takes long to compile; the glue of the plans that call
-        # it (step, rows, scans) takes well under a second and is not announced
-        if (announce is not None and not _announced and what == "call"
+        # a kernel's own entry and a batch (parallel) plan take long to compile; the glue of
+        # the other plans (step, rows, scans) takes well under a second and is not announced
+        if (announce is not None and not _announced and what in ("call", "batch")
                 and not is_cached(slots, what)):
             _announced = True  # one line per process, before the first compilation
             kinds = ", ".join(sorted({_kind(slot.kernel) for slot in slots}))
-            announce(f"compiling {kinds} once for this machine (cached in {cache_dir()}; "
+            thing = kinds if what == "call" else f"the batch plan of this module ({kinds})"
+            announce(f"compiling {thing} once for this machine (cached in {cache_dir()}; "
                      "later runs load it): this can take a minute")
         disp.compile(signature)
     return disp

@@ -29,11 +29,13 @@ test runs once, before the sweep, on the scenario as written (as ``simulate`` ru
 process gain goes into every instance. Metrics are those of ``simulate`` over the scenario's
 ``metrics_window``, for every controller of the module.
 
-Execution: each worker process parses the scenario text once and runs its share of the
-instances through the module's compiled execution plan (loaded from the plan cache after the
-first instance), recording only the signals the metrics read (``Module.metric_signals``); only
-the metrics come back, so memory stays bounded by the instances' metrics, not their
-trajectories.
+Execution: a process parses the scenario text once; the instances of one variant (and one
+value of each parameter that sizes a block's state) run as one batch
+(:mod:`loopworks.sim.batch`): one compiled call scans all of a chunk's instances, in parallel
+over the cores, recording only the signals the metrics read (``Module.metric_signals``), and
+the chunk's metrics are computed at once (:func:`loopworks.sim.metrics.loop_metrics` on N
+rows). A chunk's record is bounded by ``CHUNK_BYTES``; only the metrics are kept, so memory
+grows with the instances' metrics, not their trajectories.
 """
 
 from __future__ import annotations
