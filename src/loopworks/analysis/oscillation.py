@@ -174,10 +174,10 @@ def regularity(x: np.ndarray, dt: float, max_lag: int | None = None,
 
     The noise band is this module's addition (an assumption, not in the paper, which band-pass
     filters the signal instead): the raw ACF of white noise crosses zero every few lags at
-    irregular intervals, and with ten intervals r exceeds 1 for about a quarter of white-noise
-    records (seen in 40 seeded records of 5000 samples); with the ±3/√N band most such records
-    have fewer than 4 crossings and about 1.5 % are flagged. ``noise_sigmas=0`` gives the plain
-    rule.
+    irregular intervals, and with ten intervals r exceeds 1 for a quarter of white-noise
+    records (50 of 200 seeded records of 5000 samples); with the ±3/√N band most such records
+    have fewer than 4 crossings and 3 of the 200 are flagged. ``noise_sigmas=0`` gives the
+    plain rule.
     """
     if dt <= 0 or not math.isfinite(dt):
         raise ValueError(f"dt must be a positive sample period in s, got {dt}")
