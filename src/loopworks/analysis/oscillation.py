@@ -231,8 +231,8 @@ def decay_ratio(x: np.ndarray, max_lag: int | None = None,
     within the lobes between crossings, rather than the first local extrema, keeps small
     ripples (noise) from being read as the peak or trough. NaN when the ACF has no complete
     negative lobe followed by a positive one (fewer than 2 crossings, or no sample inside a
-    lobe), or for a constant signal. The paper draws a and b from lines through the extrema;
-    for a decaying ACF that is close to this ratio, but the two are not identical.
+    lobe), or for a constant signal. The paper was not available to check whether it measures
+    the extrema from zero or from lines joining neighbouring extrema; this is the spec's form.
     """
     y = detrend(x)
     n = len(y)
