@@ -1,0 +1,119 @@
+"""Singhal & Salsbury's area ratio (spec 4.3). Golden values: a sampled half sine is symmetric
+about its peak (R = 1); a triangle rising over Tr and falling over Tf has A1/A2 = Tr/Tf."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from loopworks.analysis.area_ratio import (
+    MIN_HALF_CYCLES,
+    STICTION_THRESHOLD,
+    area_ratio,
+    half_cycle_ratios,
+)
+
+DT = 0.1
+
+
+def sine(period: float, t_end: float, phase: float = 0.0) -> np.ndarray:
+    t = np.arange(0.0, t_end, DT)
+    return np.asarray(np.sin(2.0 * np.pi * t / period + phase))
+
+
+def triangle_half_cycles(rise_s: float, fall_s: float, count: int, height: float = 1.0
+                         ) -> np.ndarray:
+    """Half cycles of alternating sign: |e| rises linearly 0 -> height over rise_s, then
+    falls to 0 over fall_s (both whole numbers of samples); exact zeros at the crossings.
+    The record starts and ends at 0 without crossing there, so the first and last half
+    cycles are not complete: count − 2 complete half cycles."""
+    nr, nf = round(rise_s / DT), round(fall_s / DT)
+    shape = np.concatenate((np.linspace(0.0, height, nr + 1)[:-1],
+                            np.linspace(height, 0.0, nf + 1)[:-1]))
+    parts = [shape * (1 if i % 2 == 0 else -1) for i in range(count)]
+    return np.concatenate([*parts, [0.0]])
+
+
+def test_aligned_sampled_sine_gives_exactly_one() -> None:
+    # 500 samples per period, phase 0: crossings and peaks fall on samples, each half cycle
+    # is mirror-symmetric about its peak
+    res = area_ratio(sine(50.0, 500.0), DT)
+    assert res.ratio == pytest.approx(1.0, abs=1e-9)
+    assert res.half_cycles == 18  # 20 half cycles, the first and last incomplete
+    assert res.verdict == "no_stiction"
+
+
+@pytest.mark.parametrize("period", [47.3, 61.7])
+def test_unaligned_sine_is_close_to_one(period: float) -> None:
+    # crossings interpolated, peak within half a sample of the centre: |R − 1| small
+    r = half_cycle_ratios(sine(period, 1000.0, phase=0.7), DT)
+    assert np.all(np.abs(r - 1.0) < 0.02)
+    assert area_ratio(sine(period, 1000.0, phase=0.7), DT).verdict == "no_stiction"
+
+
+def test_slow_rise_fast_fall_is_stiction_with_ratio_tr_over_tf() -> None:
+    # the error rises while the process responds, peaks late, then a slip drives it back
+    e = triangle_half_cycles(rise_s=20.0, fall_s=5.0, count=10)
+    res = area_ratio(e, DT)
+    assert res.ratio == pytest.approx(4.0, rel=1e-9)
+    assert res.half_cycles == 8
+    assert res.verdict == "stiction"
+    assert res.ratio > STICTION_THRESHOLD
+
+
+def test_fast_rise_slow_decay_is_not_stiction() -> None:
+    e = triangle_half_cycles(rise_s=5.0, fall_s=20.0, count=10)
+    res = area_ratio(e, DT)
+    assert res.ratio == pytest.approx(0.25, rel=1e-9)
+    assert res.verdict == "no_stiction"
+
+
+def test_threshold_is_an_option() -> None:
+    e = triangle_half_cycles(rise_s=20.0, fall_s=5.0, count=10)
+    assert area_ratio(e, DT, threshold=5.0).verdict == "no_stiction"
+    assert area_ratio(e, DT, threshold=3.9).verdict == "stiction"
+
+
+def test_median_is_not_moved_by_one_distorted_half_cycle() -> None:
+    e = sine(50.0, 500.0)
+    # one half cycle (samples 250 … 500) replaced by a late-peaked triangle: |e| rises over
+    # 240 samples and falls over 10, so its R = 24
+    k = np.arange(251)
+    e[250:501] = -np.where(k <= 240, k / 240.0, (250 - k) / 10.0)
+    r = half_cycle_ratios(e, DT)
+    assert r.max() == pytest.approx(24.0, rel=1e-9)
+    assert r.mean() > 2.0  # a mean would be moved well past 1
+    assert area_ratio(e, DT).ratio == pytest.approx(1.0, abs=1e-9)
+    assert area_ratio(e, DT).verdict == "no_stiction"
+
+
+def test_too_few_half_cycles_is_undetermined() -> None:
+    e = triangle_half_cycles(rise_s=20.0, fall_s=5.0, count=MIN_HALF_CYCLES + 1)
+    res = area_ratio(e, DT)
+    assert res.half_cycles == MIN_HALF_CYCLES - 1
+    assert res.verdict == "undetermined"
+    assert res.ratio == pytest.approx(4.0, rel=1e-9)
+    none = area_ratio(np.ones(100), DT)
+    assert none.half_cycles == 0
+    assert math.isnan(none.ratio)
+    assert none.verdict == "undetermined"
+
+
+def test_band_keeps_noise_from_splitting_half_cycles() -> None:
+    rng = np.random.default_rng(5)
+    e = triangle_half_cycles(rise_s=20.0, fall_s=5.0, count=12)
+    noisy = e + 0.01 * rng.standard_normal(len(e))
+    assert len(half_cycle_ratios(noisy, DT)) > 11  # chatter at each crossing
+    res = area_ratio(noisy, DT, band=0.1)
+    assert res.half_cycles == 10
+    assert res.ratio == pytest.approx(4.0, rel=0.1)
+    assert res.verdict == "stiction"
+
+
+def test_bad_input_is_refused() -> None:
+    with pytest.raises(ValueError, match="dt"):
+        area_ratio(np.ones(10), -1.0)
+    with pytest.raises(ValueError, match="finite"):
+        area_ratio(np.array([1.0, math.nan, -1.0]), DT)
