@@ -49,7 +49,7 @@ def test_triangle_wave_is_stiction_with_si_near_one() -> None:
 
 def test_sine_is_no_stiction_with_si_near_zero() -> None:
     fit = curve_fit_index(2.0 * np.sin(2.0 * math.pi * T / PERIOD), DT, "self-regulating")
-    assert fit.verdict == "no stiction"
+    assert fit.verdict == "no_stiction"
     assert fit.si <= SI_NO_STICTION
     assert fit.si < 1e-9
     assert fit.mse_sine < 1e-12
@@ -109,7 +109,7 @@ def test_loop_type_selects_the_signal() -> None:
     sine = np.sin(2.0 * math.pi * T / PERIOD)
     tri = triangle(T)
     assert curve_fit_loop(tri, sine, DT, "self-regulating").verdict == "stiction"
-    assert curve_fit_loop(tri, sine, DT, "integrating").verdict == "no stiction"
+    assert curve_fit_loop(tri, sine, DT, "integrating").verdict == "no_stiction"
     assert "PV of an integrating loop" in curve_fit_loop(tri, sine, DT, "integrating").reason
     assert curve_fit_loop(tri, sine, DT, "integrating").reason.startswith("PV")
 

@@ -1,2 +1,15 @@
 """Analysis of loop data that needs no blocks: plant or simulated time series of one loop
-(SP, PV, OP), their quality, oscillation and valve-stiction indices (issue 15)."""
+(SP, PV, OP), their quality, oscillation and valve-stiction indices (issue 15).
+
+The words every method answers in: a :data:`Verdict` ("stiction", "no_stiction" or
+"undetermined": the data cannot say) for a loop of a :data:`LoopType` ("self-regulating": a
+flow, pressure or temperature loop whose PV settles for a constant OP; "integrating": a level
+loop, whose PV ramps for any OP off balance)."""
+
+from __future__ import annotations
+
+from typing import Literal
+
+Verdict = Literal["stiction", "no_stiction", "undetermined"]
+LoopType = Literal["self-regulating", "integrating"]
+LOOP_TYPES: tuple[LoopType, ...] = ("self-regulating", "integrating")

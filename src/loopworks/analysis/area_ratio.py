@@ -14,10 +14,10 @@ from __future__ import annotations
 import itertools
 import math
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 
+from loopworks.analysis import Verdict
 from loopworks.analysis.oscillation import band_crossings
 
 #: R above this -> stiction. The paper's criterion is R > 1 (asymmetric half cycles); a margin
@@ -27,7 +27,6 @@ STICTION_THRESHOLD = 1.2
 #: complete half cycles needed for a verdict
 MIN_HALF_CYCLES = 4
 
-Verdict = Literal["stiction", "no_stiction", "undetermined"]
 
 
 @dataclass(frozen=True)

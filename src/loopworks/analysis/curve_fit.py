@@ -60,11 +60,12 @@ from __future__ import annotations
 
 import itertools
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import minimize_scalar
+
+from loopworks.analysis import LOOP_TYPES, LoopType, Verdict
 
 __all__ = [
     "MIN_HALF_CYCLES",
@@ -79,8 +80,6 @@ __all__ = [
     "half_cycles",
 ]
 
-LoopType = Literal["self-regulating", "integrating"]
-Verdict = Literal["stiction", "no stiction", "undetermined"]
 
 #: SI at or above which the loop is declared sticky (He et al. 2007).
 SI_STICTION = 0.6
@@ -92,7 +91,7 @@ MIN_HALF_CYCLES = 4
 MIN_HALF_CYCLE_SAMPLES = 4
 
 FloatArray = npt.NDArray[np.float64]
-_LOOP_TYPES: tuple[str, ...] = ("self-regulating", "integrating")
+
 _SIGNAL = {"self-regulating": "OP", "integrating": "PV"}
 _ARTICLE = {"self-regulating": "a", "integrating": "an"}
 
@@ -180,8 +179,8 @@ def curve_fit_index(x: npt.ArrayLike, dt: float, loop_type: LoopType,
     output OP when ``loop_type`` is ``"self-regulating"``, the process variable PV when it is
     ``"integrating"`` (:func:`curve_fit_loop` picks it from both). The index itself does not
     depend on ``dt``; ``dt`` only sizes the half cycles quoted in ``reason``."""
-    if loop_type not in _LOOP_TYPES:
-        raise ValueError(f"loop_type must be one of {_LOOP_TYPES}, not {loop_type!r}")
+    if loop_type not in LOOP_TYPES:
+        raise ValueError(f"loop_type must be one of {LOOP_TYPES}, not {loop_type!r}")
     if not dt > 0.0:
         raise ValueError(f"dt must be > 0, not {dt}")
     y = np.asarray(x, dtype=np.float64)
@@ -225,7 +224,7 @@ def curve_fit_index(x: npt.ArrayLike, dt: float, loop_type: LoopType,
         return CurveFit(si, mse_sin, mse_tri, fitted, "stiction",
                         f"{detail}; triangular, SI >= {SI_STICTION}")
     if si <= SI_NO_STICTION:
-        return CurveFit(si, mse_sin, mse_tri, fitted, "no stiction",
+        return CurveFit(si, mse_sin, mse_tri, fitted, "no_stiction",
                         f"{detail}; sinusoidal, SI <= {SI_NO_STICTION}")
     return CurveFit(si, mse_sin, mse_tri, fitted, "undetermined",
                     f"{detail}; between {SI_NO_STICTION} and {SI_STICTION}")
@@ -235,7 +234,7 @@ def curve_fit_loop(op: npt.ArrayLike, pv: npt.ArrayLike, dt: float, loop_type: L
                    hysteresis: float = 0.1) -> CurveFit:
     """:func:`curve_fit_index` on the signal He et al. prescribe for ``loop_type``: ``op`` for a
     self-regulating loop, ``pv`` for an integrating one."""
-    if loop_type not in _LOOP_TYPES:
-        raise ValueError(f"loop_type must be one of {_LOOP_TYPES}, not {loop_type!r}")
+    if loop_type not in LOOP_TYPES:
+        raise ValueError(f"loop_type must be one of {LOOP_TYPES}, not {loop_type!r}")
     return curve_fit_index(op if loop_type == "self-regulating" else pv, dt, loop_type,
                            hysteresis)

@@ -21,11 +21,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from scipy import signal
 
+from loopworks.analysis import LoopType, Verdict
 from loopworks.analysis.oscillation import detrend, is_flat, zero_crossings
 
 #: the CCF's phase at which an odd CCF begins: at or above it the verdict is stiction.
@@ -36,8 +36,6 @@ PHASE_STICTION_DEG = 60.0
 #: at or below this phase the CCF is even: no stiction (assumption, as above)
 PHASE_NO_STICTION_DEG = 30.0
 
-Verdict = Literal["stiction", "no_stiction", "undetermined"]
-LoopType = Literal["self-regulating", "integrating"]
 
 
 def cross_correlation(op: np.ndarray, pv: np.ndarray, max_lag: int) -> np.ndarray:
