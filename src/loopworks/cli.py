@@ -547,6 +547,79 @@ def sweep(
                   markup=False)
 
 
+@app.command()
+@_user_errors
+def diagnose(
+    data: Annotated[Path, typer.Argument(help="historian CSV of one loop (t, sp, pv, op)")],
+    columns: Annotated[str | None, typer.Option(
+        "--columns", metavar="ROLE=COLUMN,...", help="map the file's columns: "
+        "sp=FIC101.SV,pv=FIC101.PV,op=FIC101.MV (roles t, sp, pv, op, position, mode)")] = None,
+    loop_type: Annotated[str, typer.Option(
+        "--loop-type", help="self-regulating (flow, pressure, temperature) or integrating "
+        "(level)")] = "self-regulating",
+    as_json: Annotated[bool, typer.Option("--json", help="print the diagnosis as JSON")] = False,
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", help="directory for a report: report.html and its plots")] = None,
+) -> None:
+    """Say whether a loop's valve sticks, from its data: the evidence, the verdict, how sticky
+    and what to do."""
+    import json
+
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    from loopworks.analysis import LOOP_TYPES
+    from loopworks.analysis.diagnosis import diagnose as run_diagnosis
+    from loopworks.analysis.loopdata import parse_columns, read_csv
+
+    if loop_type not in LOOP_TYPES:
+        _fail(f"--loop-type {loop_type}: expected " + " or ".join(LOOP_TYPES))
+    if output is not None:
+        _check_report_directory(output)
+    mapping = parse_columns(columns) if columns else None
+    loop = read_csv(data, mapping, duplicates="last")
+    result = run_diagnosis(loop, loop_type)
+    if output is not None:
+        from loopworks.analysis.diagnosis_report import write_report
+
+        write_report(result, loop, output)
+    if as_json:
+        typer.echo(json.dumps(result.to_json(), indent=2, ensure_ascii=False))
+        return
+    console = Console()
+    console.print(f"{data}: {len(loop)} samples every {loop.dt:g} s, {loop_type} loop",
+                  markup=False)
+    if loop.resampled:
+        console.print(loop.resampled, markup=False)
+    for line in (*result.quality.reasons, *result.quality.notes):
+        console.print(f"  quality: {line}", markup=False)
+    osc = result.oscillation
+    if osc is not None:
+        console.print("oscillation: " + (f"yes, period {osc.period_s:.4g} s, regularity "
+                                         f"{osc.regularity:.3g}" if osc.detected
+                                         else f"no ({osc.reason})"), markup=False)
+    if result.evidence:
+        table = Table(title="evidence")
+        for col in ("method", "vote", "index", "why"):
+            table.add_column(col, overflow="fold")
+        for e in result.evidence:
+            value = "n/a" if not math.isfinite(e.value) else f"{e.value:.4g}"
+            table.add_row(escape(e.method), e.vote, value, escape(e.reason))
+        console.print(table)
+    console.print(f"verdict: {result.verdict} (confidence {result.confidence:.2f}): "
+                  f"{result.reason}", markup=False)
+    if result.stiction is not None:
+        st = result.stiction
+        console.print(f"stiction: S = {st['s']:.3g} %, J = {st['j']:.3g} % (resolution "
+                      f"{st['resolution']:.3g} %, deadband {st['deadband']:.3g} %), fit "
+                      f"R² = {st['r2']:.3f}", markup=False)
+    if result.recommendation is not None:
+        console.print(f"recommendation: {result.recommendation['summary']}", markup=False)
+    if output is not None:
+        console.print(f"wrote {output / 'report.html'}", markup=False)
+
+
 @app.command("compile")
 @_user_errors
 def compile_kinds(

@@ -1,0 +1,228 @@
+"""Diagnosis of one loop from its data: is the valve sticky, how sure, and on what evidence
+(issue 15; spec plant-and-tuning 4.2-4.3).
+
+The rules, in order:
+
+1. **Data quality first** (:func:`loopworks.analysis.quality.check_quality`): a record that
+   fails the gate (too short, frozen or compressed, saturated, in manual, too many Bad values)
+   gets ``undetermined`` with the gate's reasons, confidence 0, and no index is computed.
+2. **Oscillation** of the control error e = SP − PV by the regularity of its autocorrelation
+   (Thornhill, Huang & Zhang 2003): detected or not, with its period. Reported; not required:
+   a sticky valve whose slip jump is small against the load noise often does not cycle
+   regularly, so no rule below needs a clean limit cycle.
+3. **The battery**, each method with its published rule and a vote (``stiction``,
+   ``no_stiction`` or ``undetermined``), weighted by how much the method is worth on this
+   kind of loop (:data:`WEIGHTS`):
+
+   =============================  ========================  ==========================
+   method                         self-regulating loop      integrating loop
+   =============================  ========================  ==========================
+   Horch (1999) CCF of OP and PV  yes                       no (not valid: Horch 1999)
+   area ratio (Singhal 2005)      yes, on e                 no (self-regulating only)
+   curve fit (He et al. 2007)     on OP                     on PV
+   bicoherence (Choudhury 2004)   on e: linear → against    the same
+   =============================  ========================  ==========================
+
+   The bicoherence votes only against stiction (a loop whose error is linear, NGI ≤ 0.001 with
+   enough segments, has no valve nonlinearity to find: Choudhury, Shah & Thornhill 2004 run
+   the stiction test only on nonlinear loops) or abstains: a nonlinearity alone does not say
+   which (a saturation, a nonlinear process), and on short records its noise level exceeds the
+   threshold (:mod:`loopworks.analysis.bicoherence`), so it abstains when the record gives
+   fewer than :data:`MIN_BICOHERENCE_SEGMENTS` segments.
+4. **Verdict**: the score is Σ wᵢ·vᵢ (v = +1 stiction, −1 no stiction, 0 undetermined) over
+   the applicable methods and W = Σ wᵢ. ``stiction`` when the score ≥ :data:`DECIDE` and at
+   least two methods vote stiction; ``no_stiction`` when the score ≤ −:data:`DECIDE`;
+   otherwise ``undetermined``. Confidence = |score| / W, in [0, 1]: the weighted share of the
+   applicable evidence that agrees with the verdict, net of the evidence against it (0 for
+   ``undetermined``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from loopworks.analysis import LOOP_TYPES, LoopType, Verdict
+from loopworks.analysis.area_ratio import area_ratio
+from loopworks.analysis.bicoherence import bicoherence_test
+from loopworks.analysis.curve_fit import curve_fit_loop
+from loopworks.analysis.horch import horch_test
+from loopworks.analysis.loopdata import LoopData, read_csv
+from loopworks.analysis.oscillation import Oscillation, regularity
+from loopworks.analysis.quality import Quality, check_quality
+from loopworks.errors import InputError
+
+#: each method's weight in the verdict (rule 4)
+WEIGHTS: dict[str, float] = {"horch": 1.0, "area_ratio": 1.0, "curve_fit": 1.0,
+                             "bicoherence": 1.0}
+#: the score a verdict needs (rule 4): one full vote's worth of net evidence
+DECIDE = 1.0
+#: the bicoherence abstains below this many segments: its noise level on Gaussian data is
+#: about 1/K (K segments), so NGI = 0.001 can only separate noise from K ≈ 1000 on; at 100
+#: segments a linear loop's NGI is ≈ 0.01 and is still read as "linear" by the relative rule
+#: NGI ≤ 3/K used here (an assumption: the published threshold is 0.001, meant for long records)
+MIN_BICOHERENCE_SEGMENTS = 30
+
+_SIGN = {"stiction": 1.0, "no_stiction": -1.0, "undetermined": 0.0}
+
+
+@dataclass(frozen=True)
+class Evidence:
+    """One method's vote: ``key`` (``horch``, ``area_ratio``, ``curve_fit``, ``bicoherence``),
+    its name and source, the vote, its weight, the index value and the method's reason."""
+
+    key: str
+    method: str
+    vote: Verdict
+    weight: float
+    value: float
+    reason: str
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """What :func:`diagnose` found (module docstring): the verdict, its confidence, the data's
+    quality, the oscillation, the evidence of each method, and (when the data supports one)
+    the valve's estimated stiction and a recommendation."""
+
+    verdict: Verdict
+    confidence: float
+    loop_type: LoopType
+    source: str
+    quality: Quality
+    oscillation: Oscillation | None
+    evidence: list[Evidence] = field(default_factory=list)
+    score: float = 0.0
+    reason: str = ""
+    stiction: dict[str, Any] | None = None
+    recommendation: dict[str, Any] | None = None
+
+    @property
+    def indices(self) -> dict[str, float]:
+        """Each method's index value by its key (NaN where it could not be computed)."""
+        return {e.key: e.value for e in self.evidence}
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of ``loopworks diagnose --json`` (docs/diagnose-json.md)."""
+        osc = self.oscillation
+        return dict(_clean({
+            "source": self.source,
+            "loop_type": self.loop_type,
+            "verdict": self.verdict,
+            "confidence": round(self.confidence, 3),
+            "score": self.score,
+            "reason": self.reason,
+            "quality": {"passed": self.quality.passed, "reasons": list(self.quality.reasons),
+                        "notes": list(self.quality.notes), "samples": self.quality.n},
+            "oscillation": None if osc is None else {
+                "detected": osc.detected, "period_s": osc.period_s,
+                "regularity": osc.regularity, "reason": osc.reason},
+            "indices": self.indices,
+            "evidence": [{"key": e.key, "method": e.method, "vote": e.vote,
+                          "weight": e.weight, "value": e.value, "reason": e.reason}
+                         for e in self.evidence],
+            "stiction": self.stiction,
+            "recommendation": self.recommendation,
+        }))
+
+
+def _clean(value: Any) -> Any:
+    """NaN and infinities as None (JSON null), recursively."""
+    if isinstance(value, float | np.floating):
+        return float(value) if math.isfinite(value) else None
+    if isinstance(value, Mapping):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_clean(v) for v in value]
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def _battery(data: LoopData, loop_type: LoopType) -> list[Evidence]:
+    """Every applicable method's vote (module docstring, rule 3)."""
+    e = data.sp - data.pv
+    out: list[Evidence] = []
+    if loop_type == "self-regulating":
+        h = horch_test(data.op, data.pv, data.dt, loop_type)
+        out.append(Evidence("horch", "Horch (1999) cross-correlation of OP and PV", h.verdict,
+                            WEIGHTS["horch"], h.asymmetry * 90.0, h.reason))
+        a = area_ratio(e, data.dt)
+        out.append(Evidence("area_ratio", "area ratio of the error's half cycles (Singhal & "
+                            "Salsbury 2005)", a.verdict, WEIGHTS["area_ratio"], a.ratio,
+                            a.reason))
+    c = curve_fit_loop(data.op, data.pv, data.dt, loop_type)
+    signal = "OP" if loop_type == "self-regulating" else "PV"
+    out.append(Evidence("curve_fit", f"curve fitting of the {signal}'s half cycles (He et al. "
+                        "2007)", c.verdict, WEIGHTS["curve_fit"], c.si, c.reason))
+    out.append(_bicoherence_vote(e, data.dt))
+    return out
+
+
+def _bicoherence_vote(e: np.ndarray, dt: float) -> Evidence:
+    """The bicoherence's vote (module docstring, rule 3): against stiction when the error is
+    linear, else abstain."""
+    name = "bicoherence of the error (Choudhury, Shah & Thornhill 2004)"
+    weight = WEIGHTS["bicoherence"]
+    try:
+        b = bicoherence_test(e, dt)
+    except (ValueError, InputError) as exc:
+        return Evidence("bicoherence", name, "undetermined", weight, math.nan, str(exc))
+    if b.segments < MIN_BICOHERENCE_SEGMENTS:
+        return Evidence("bicoherence", name, "undetermined", weight, b.ngi,
+                        f"{b.segments} segments: fewer than {MIN_BICOHERENCE_SEGMENTS}, so its "
+                        "noise level is above the test's threshold (abstains)")
+    linear = b.ngi <= 3.0 / b.segments
+    if linear:
+        return Evidence("bicoherence", name, "no_stiction", weight, b.ngi,
+                        f"NGI = {b.ngi:.4f} ≤ 3/K = {3.0 / b.segments:.4f}: the error is linear "
+                        "(Gaussian), no valve nonlinearity to find")
+    return Evidence("bicoherence", name, "undetermined", weight, b.ngi,
+                    f"NGI = {b.ngi:.4f}, NLI = {b.nli:.4f}: the error is "
+                    + ("nonlinear" if b.nonlinear else "non-Gaussian")
+                    + "; that alone does not say it is the valve (abstains)")
+
+
+def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
+    """(verdict, confidence, score, reason) from the evidence (module docstring, rule 4)."""
+    score = sum(_SIGN[e.vote] * e.weight for e in evidence)
+    total = sum(e.weight for e in evidence)
+    for_ = [e.key for e in evidence if e.vote == "stiction"]
+    against = [e.key for e in evidence if e.vote == "no_stiction"]
+    tally = (f"score {score:+.2g} of {total:g} (for: {', '.join(for_) or 'none'}; against: "
+             f"{', '.join(against) or 'none'})")
+    if score >= DECIDE and len(for_) >= 2:
+        return "stiction", abs(score) / total, score, tally
+    if score <= -DECIDE:
+        return "no_stiction", abs(score) / total, score, tally
+    return "undetermined", 0.0, score, tally + ": not enough net evidence either way"
+
+
+def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
+             columns: Mapping[str, str] | None = None) -> Diagnosis:
+    """Diagnose one loop (module docstring) from ``data``: a :class:`LoopData`, or the path
+    of a historian CSV (read by :func:`~loopworks.analysis.loopdata.read_csv` with
+    ``columns``; a repeated time stamp keeps the later row, as a historian's hold does, and
+    the data's ``resampled`` note says so). ``loop_type``: ``"self-regulating"`` (flow,
+    pressure, temperature) or ``"integrating"`` (level)."""
+    if loop_type not in LOOP_TYPES:
+        raise InputError(f"loop type '{loop_type}' is not allowed: expected "
+                         + " or ".join(LOOP_TYPES))
+    lt: LoopType = "integrating" if loop_type == "integrating" else "self-regulating"
+    if not isinstance(data, LoopData):
+        data = read_csv(data, columns, duplicates="last")
+    quality = check_quality(data)
+    if not quality.passed:
+        return Diagnosis("undetermined", 0.0, lt, data.source, quality, None,
+                         reason="the data fails the quality gate: "
+                         + "; ".join(quality.reasons))
+    osc = regularity(data.sp - data.pv, data.dt)
+    evidence = _battery(data, lt)
+    verdict, confidence, score, reason = verdict_of(evidence)
+    return Diagnosis(verdict, confidence, lt, data.source, quality, osc, evidence, score,
+                     reason)

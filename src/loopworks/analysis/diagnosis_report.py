@@ -1,0 +1,146 @@
+"""The report of ``loopworks diagnose -o DIR``: ``report.html`` with the verdict, the data's
+quality, the evidence table, the stiction estimate and the recommendation, and its plots:
+``trends.png`` (SP and PV, OP over time), ``pv_op.png`` (PV against OP, with the fitted valve
+and process model's PV over it when the data supports a stiction estimate) and, with a
+recommendation, ``recommendation.png`` (the predicted PV variability against valve travel of
+each option)."""
+
+from __future__ import annotations
+
+import html
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+from loopworks.analysis.diagnosis import Diagnosis
+from loopworks.analysis.loopdata import LoopData
+
+
+def _plt() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def trends(data: LoopData, path: Path) -> Path:
+    """SP and PV (top), OP (bottom) over time."""
+    plt = _plt()
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(12, 6), sharex=True, layout="constrained")
+    top.plot(data.t, data.pv, lw=0.8, label="PV")
+    top.plot(data.t, data.sp, lw=1.0, color="k", ls="--", label="SP")
+    top.set_ylabel("PV, SP")
+    top.legend(loc="upper right")
+    bottom.plot(data.t, data.op, lw=0.8, color="tab:orange", label="OP")
+    if data.position is not None:
+        bottom.plot(data.t, data.position, lw=0.8, color="tab:green", label="valve position")
+        bottom.legend(loc="upper right")
+    bottom.set_ylabel("OP (%)")
+    bottom.set_xlabel("t (s)")
+    top.set_title(f"{data.source}: {len(data)} samples every {data.dt:g} s")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def pv_op(result: Diagnosis, data: LoopData, path: Path) -> Path:
+    """PV against OP: the loop's phase plot. A sticky valve draws parallelograms (flat
+    stretches of PV while OP moves through the stick band, then a jump); with a stiction
+    estimate, the fitted model's PV for the same OP is drawn over the data."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
+    ax.plot(data.op, data.pv, lw=0.6, color="0.6", label="data")
+    ax.plot(data.op, data.pv, ".", ms=2, color="tab:blue")
+    fit = result.stiction
+    if fit is not None and fit.get("model_pv") is not None:
+        ax.plot(data.op, fit["model_pv"], lw=1.2, color="tab:red",
+                label=f"fitted model (S = {fit['s']:.3g} %, J = {fit['j']:.3g} %)")
+    ax.set_xlabel("OP (%)")
+    ax.set_ylabel("PV")
+    ax.set_title(f"PV against OP: {result.verdict} (confidence {result.confidence:.2f})")
+    ax.legend(loc="best")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def recommendation(result: Diagnosis, path: Path) -> Path | None:
+    """Each option's predicted PV standard deviation against its valve travel."""
+    rec = result.recommendation
+    if rec is None or not rec.get("options"):
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 5), layout="constrained")
+    for opt in rec["options"]:
+        ax.plot(opt["valve_travel"], opt["pv_std"], "o", ms=8)
+        ax.annotate(opt["name"], (opt["valve_travel"], opt["pv_std"]),
+                    textcoords="offset points", xytext=(6, 4))
+    ax.set_xlabel("predicted valve travel (% of stroke)")
+    ax.set_ylabel("predicted PV standard deviation")
+    ax.set_title("what each option would do (simulated on the fitted loop)")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def _fmt(value: float) -> str:
+    return "n/a" if not math.isfinite(value) else f"{value:.4g}"
+
+
+def write_report(result: Diagnosis, data: LoopData, directory: Path) -> Path:
+    """report.html and its plots in ``directory`` (created)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    images = [trends(data, directory / "trends.png"), pv_op(result, data, directory / "pv_op.png")]
+    rec_png = recommendation(result, directory / "recommendation.png")
+    if rec_png is not None:
+        images.append(rec_png)
+    (directory / "diagnosis.json").write_text(
+        json.dumps(result.to_json(), indent=2, ensure_ascii=False), encoding="utf-8")
+    rows = "".join(f"<tr><td>{html.escape(e.method)}</td><td>{e.vote}</td>"
+                   f"<td>{_fmt(e.value)}</td><td>{e.weight:g}</td>"
+                   f"<td style='text-align:left'>{html.escape(e.reason)}</td></tr>"
+                   for e in result.evidence)
+    quality = "".join(f"<li>{html.escape(x)}</li>"
+                      for x in (*result.quality.reasons, *result.quality.notes))
+    osc = result.oscillation
+    osc_html = ("" if osc is None else
+                f"<p>Oscillation of SP − PV: {'yes' if osc.detected else 'no'}"
+                + (f", period {osc.period_s:.4g} s, regularity {osc.regularity:.3g}"
+                   if osc.detected else f" ({html.escape(osc.reason)})") + ".</p>")
+    st = result.stiction
+    st_html = "" if st is None else (
+        f"<h2>How sticky</h2><p>S = {st['s']:.3g} %, J = {st['j']:.3g} % (resolution "
+        f"{st['resolution']:.3g} %, deadband {st['deadband']:.3g} %), fit R² = "
+        f"{st['r2']:.3f}. {html.escape(str(st.get('reason', '')))}</p>")
+    rec = result.recommendation
+    rec_html = "" if rec is None else (
+        f"<h2>What to do</h2><p>{html.escape(rec['summary'])}</p>")
+    imgs = "\n".join(f'<img src="{html.escape(p.name)}" alt="{html.escape(p.stem)}">'
+                     for p in images)
+    page = f"""<!doctype html>
+<html><head><meta charset="utf-8"><title>diagnosis of {html.escape(data.source)}</title>
+<style>body{{font-family:sans-serif;max-width:1300px;margin:1em auto;padding:0 1em}}
+table{{border-collapse:collapse}}td,th{{border:1px solid #ccc;padding:2px 8px;text-align:right}}
+img{{max-width:100%;display:block;margin:1em 0}}</style></head><body>
+<h1>{html.escape(data.source)}: {result.verdict}</h1>
+<p>{html.escape(result.loop_type)} loop, {len(data)} samples every {data.dt:g} s.
+Verdict <b>{result.verdict}</b>, confidence {result.confidence:.2f}:
+{html.escape(result.reason)}.</p>
+<h2>Data quality</h2><p>{'passed' if result.quality.passed else 'failed'}</p>
+<ul>{quality}</ul>
+{osc_html}
+<h2>Evidence</h2>
+<table><tr><th>method</th><th>vote</th><th>index</th><th>weight</th><th>why</th></tr>
+{rows}</table>
+{st_html}
+{rec_html}
+{imgs}
+<p>The same in <code>diagnosis.json</code>.</p>
+</body></html>
+"""
+    path = directory / "report.html"
+    path.write_text(page, encoding="utf-8")
+    return path

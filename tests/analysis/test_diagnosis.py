@@ -1,0 +1,100 @@
+"""The diagnosis (issue 15 point 3 and 6): the gate first, the battery's votes, the verdict's
+stated rule, the CLI and its JSON."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from loopworks.analysis.diagnosis import DECIDE, Evidence, diagnose, verdict_of
+from loopworks.analysis.loopdata import LoopData
+from loopworks.cli import app
+
+PLANT = Path(__file__).resolve().parents[1] / "data" / "plant-loops"
+LABELS = json.loads((PLANT / "labels.json").read_text())
+
+
+def _vote(key: str, vote: str, weight: float = 1.0) -> Evidence:
+    return Evidence(key, key, vote, weight, 0.0, "")  # type: ignore[arg-type]
+
+
+def test_the_verdict_rule() -> None:
+    # score = Σ w·v; stiction needs score >= DECIDE and two votes for; no_stiction <= -DECIDE
+    verdict, conf, score, _ = verdict_of([_vote("a", "stiction"), _vote("b", "stiction"),
+                                          _vote("c", "no_stiction"), _vote("d", "undetermined")])
+    assert (verdict, score) == ("stiction", 1.0) and conf == pytest.approx(1.0 / 4.0)
+    # one strong vote alone is not a stiction verdict
+    assert verdict_of([_vote("a", "stiction", 2.0), _vote("b", "undetermined")])[0] == \
+        "undetermined"
+    verdict, conf, score, _ = verdict_of([_vote("a", "no_stiction"), _vote("b", "undetermined")])
+    assert (verdict, score, conf) == ("no_stiction", -1.0, 0.5)
+    assert DECIDE == 1.0
+    assert verdict_of([_vote("a", "stiction"), _vote("b", "no_stiction")])[:3] == (
+        "undetermined", 0.0, 0.0)
+
+
+def _loop(op: np.ndarray, pv: np.ndarray, dt: float = 1.0) -> LoopData:
+    t = np.arange(len(pv)) * dt
+    return LoopData(t, np.full(len(pv), 50.0), pv, op, source="synthetic")
+
+
+def test_a_loop_that_fails_the_gate_is_undetermined_with_the_reason() -> None:
+    pv = np.full(1000, 50.0)  # a frozen PV
+    d = diagnose(_loop(np.linspace(40, 60, 1000), pv))
+    assert d.verdict == "undetermined" and d.confidence == 0.0
+    assert "quality gate" in d.reason and "constant" in d.reason
+    assert d.evidence == []
+
+
+def test_a_sticky_looking_cycle_and_a_linear_one() -> None:
+    # a stick-slip limit cycle as Choudhury describes it (spec 5.1): OP a triangle, PV a
+    # square wave following OP's slope; against a linear loop: OP and PV sines 180° apart
+    rng = np.random.default_rng(3)
+    t = np.arange(4000) * 1.0
+    tri = 2.0 * np.abs(((t / 100.0) % 1.0) * 2.0 - 1.0) - 1.0
+    square = np.sign(np.gradient(tri))
+    sticky = diagnose(_loop(50.0 + 2.0 * tri, 50.0 + square + 0.02 * rng.standard_normal(4000)))
+    assert sticky.verdict == "stiction", sticky.reason
+    sine = np.sin(2 * np.pi * t / 100.0)
+    linear = diagnose(_loop(50.0 - 2.0 * sine + 0.02 * rng.standard_normal(4000),
+                            50.0 + sine + 0.02 * rng.standard_normal(4000)))
+    assert linear.verdict == "no_stiction", linear.reason
+    assert sticky.oscillation is not None and sticky.oscillation.detected
+    assert sticky.oscillation.period_s == pytest.approx(100.0, rel=0.05)
+
+
+@pytest.mark.parametrize("entry", LABELS, ids=[e["file"] for e in LABELS])
+def test_every_plant_file_gets_a_diagnosis(entry: dict[str, str], tmp_path: Path) -> None:
+    loop_type = "integrating" if entry["loop_type"] == "level" else "self-regulating"
+    out = tmp_path / "report"
+    run = CliRunner().invoke(app, ["diagnose", str(PLANT / entry["file"]), "--loop-type",
+                                   loop_type, "--json", "-o", str(out)])
+    assert run.exit_code == 0, run.output
+    doc = json.loads(run.stdout)
+    for key in ("verdict", "confidence", "oscillation", "indices", "stiction",
+                "recommendation", "quality", "evidence"):
+        assert key in doc
+    assert doc["verdict"] in ("stiction", "no_stiction", "undetermined")
+    assert 0.0 <= doc["confidence"] <= 1.0
+    assert (out / "report.html").exists() and (out / "pv_op.png").stat().st_size > 10_000
+    if not doc["quality"]["passed"]:
+        assert doc["verdict"] == "undetermined"  # a gate failure is never a guess
+    # a clean loop must never be called sticky (the false alarm the issue names)
+    if entry["label"] == "no_stiction":
+        assert doc["verdict"] != "stiction", doc["reason"]
+
+
+def test_the_command_line_refuses_bad_input(tmp_path: Path) -> None:
+    bad = tmp_path / "bad.csv"
+    bad.write_text("t,sp,pv,op\n0,1,2,3\n1,1,abc,3\n", encoding="utf-8")
+    run = CliRunner().invoke(app, ["diagnose", str(bad)])
+    assert run.exit_code == 2
+    assert "bad.csv" in run.output and "line 3" in run.output and "pv" in run.output
+    run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--loop-type", "x"])
+    assert run.exit_code == 2 and "--loop-type x" in run.output
+    run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--columns", "zz"])
+    assert run.exit_code == 2 and "zz" in run.output
