@@ -478,6 +478,9 @@ def sweep(
         "--scheduler", help="a Dask distributed scheduler address (tcp://HOST:PORT)")] = None,
     metric: Annotated[str | None, typer.Option(
         "--metric", help="the metric the summary plots and ranks (default: PV std)")] = None,
+    trajectory: Annotated[list[int] | None, typer.Option(
+        "--trajectory", metavar="POINT", help="also write this point's full run, every "
+        "signal, as trajectory_VARIANT_POINT.csv (repeatable)")] = None,
     output: Annotated[Path, typer.Option(
         "--output", "-o", help="directory: results.parquet, results.csv, summary.html")] = Path(
         "loopworks-sweep"),
@@ -518,10 +521,13 @@ def sweep(
             bar.update(task, completed=done, total=total, rate=f"{rate:.1f} instances/s")
 
         result = run_sweep(scenario, vary or [], samples=samples, seed=seed, variant=variant,
-                           workers=workers, scheduler=scheduler, progress=tick)
+                           workers=workers, scheduler=scheduler, progress=tick,
+                           trajectories=trajectory or ())
     if metric is not None and metric not in result.metrics:
         _fail(f"--metric '{metric}': no such metric; metrics: {', '.join(result.metrics)}")
     sweep_report.write_results(result, output)
+    for (v, point), run in result.trajectories.items():
+        run.to_csv(output / f"trajectory_{v}_{point}.csv")
     command = "loopworks sweep " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else \
         "loopworks sweep"
     title = f"sweep of {scenario if scenario is not None else 'the built-in scenario'}"

@@ -277,3 +277,18 @@ def test_an_unknown_metric_is_refused_before_the_run(scenario: Path, tmp_path: P
     assert result.exit_code == 2
     assert "--metric 'PV sdt': no such metric" in result.output
     assert not (tmp_path / "o" / "results.parquet").exists()
+
+
+def test_trajectories_only_for_the_points_asked(scenario: Path) -> None:
+    result = sweep(scenario, {"pid.k": "1,2,3"}, trajectories=[2])
+    assert set(result.trajectories) == {("base", 2), ("faster", 2)}
+    run = result.trajectories[("faster", 2)]
+    assert "process.y" in run.values and len(run.t) == 240  # every signal, every scan
+    row = next(i for i in range(len(result)) if result.columns["variant"][i] == "faster"
+               and result.columns["point"][i] == 2)
+    metrics = run.metrics("pid", window=(20.0, 120.0))  # the scenario's metrics_window
+    assert result.columns["pid.k"][row] == 3
+    for name in ("IAE", "PV std", "output travel"):
+        assert result.columns[name][row] == pytest.approx(metrics[name], rel=1e-12), name
+    with pytest.raises(InputError, match="--trajectory 3: no such point"):
+        sweep(scenario, {"pid.k": "1,2,3"}, trajectories=[3])

@@ -317,6 +317,9 @@ class SweepResult:
     grid_shape: tuple[int, ...] = ()
     seconds: float = 0.0
     metrics: list[str] = field(default_factory=list)
+    #: the full trajectories asked for (``sweep(trajectories=[point, ...])``), by
+    #: (variant, point): every signal of that instance's run
+    trajectories: dict[tuple[str, int], SimResult] = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.columns["variant"])
@@ -358,13 +361,16 @@ class SweepResult:
 def sweep(scenario: str | Path | None, vary: Mapping[str, str] | Iterable[str], *,
           samples: int = 100, seed: int | None = None, variant: str | None = None,
           workers: int | None = None, scheduler: str | None = None,
-          progress: Callable[[int, int], None] | None = None) -> SweepResult:
+          progress: Callable[[int, int], None] | None = None,
+          trajectories: Sequence[int] = ()) -> SweepResult:
     """Sweep ``scenario`` (a TOML path; None: the built-in one) over ``vary`` (``{name: spec}``
     or ``["name=spec", ...]``, module docstring): ``samples`` Latin-hypercube samples of the
     distributions, ``seed`` (default: the scenario's ``[simulation] seed``, else 0), every
     ``[compare]`` variant or only ``variant``, in ``workers`` processes (default: one, whose
     compiled batch runs on every core) or on the Dask scheduler at ``scheduler``.
-    ``progress(done, total)`` is called as instances finish. Every name and value is checked
+    ``progress(done, total)`` is called as instances finish. ``trajectories``: points whose
+    full runs (every signal, in every swept variant) the result keeps in ``.trajectories``
+    (the rest keep only their metrics). Every name and value is checked
     before anything runs."""
     from loopworks.sim.scenario import load_scenario, run_autotune
 
@@ -397,6 +403,10 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, str] | Iterable[str], 
                 for ref in sc._model.autotune.process_gain}
     from loopworks.plant.sensor import mix_seed
 
+    for keep in trajectories:
+        if not (isinstance(keep, int) and 0 <= keep < len(points)):
+            raise InputError(f"--trajectory {keep}: no such point; points are 0 to "
+                             f"{len(points) - 1}")
     seeds = [mix_seed(sweep_seed, i) for i in range(len(points))]
     jobs = [Job(i, v, {**base, **point}, seeds[i])
             for v in variants for i, point in enumerate(points)]
@@ -414,8 +424,13 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, str] | Iterable[str], 
     grid_axes = [a for a in axes if not a.sampled]
     kind = ("grid" if not any(a.sampled for a in axes) else
             "monte carlo" if not grid_axes else "grid × monte carlo")
+    kept: dict[tuple[str, int], SimResult] = {}
+    for keep in trajectories:
+        for v in variants:
+            job = next(j for j in jobs if j.variant == v and j.point == keep)
+            kept[(v, keep)] = sc.build(v, job.changes, job.seed).run(sc.duration, sc.dt)
     return SweepResult(columns, names, kind, tuple(len(a.values) for a in grid_axes),
-                       seconds, metric_names)
+                       seconds, metric_names, kept)
 
 
 def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:
