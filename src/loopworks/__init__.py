@@ -15,7 +15,8 @@ from typing import TYPE_CHECKING, Any
 
 __version__ = "0.1.0"
 
-__all__ = ["Module", "Signal", "__version__", "block_class", "create_block", "kinds", "sweep"]
+__all__ = ["Module", "Signal", "__version__", "block_class", "create_block", "diagnose", "kinds",
+           "sweep"]
 
 if TYPE_CHECKING:
     from loopworks.blocks.block import Block
@@ -63,7 +64,8 @@ def block_class(kind: str) -> type[Block]:
 
 
 def __dir__() -> list[str]:
-    """The module's names, with the lazily imported ``Module``, ``Signal`` and ``sweep``."""
+    """The module's names, with the lazily imported ``Module``, ``Signal``, ``sweep`` and
+    ``diagnose``."""
     return sorted({*globals(), *__all__})
 
 
@@ -80,4 +82,8 @@ def __getattr__(name: str) -> Any:
         from loopworks.sim.sweep import sweep
 
         return sweep
+    if name == "diagnose":  # loopworks.diagnose("loop.csv", "integrating"): analysis/diagnosis
+        from loopworks.analysis.diagnosis import diagnose
+
+        return diagnose
     raise AttributeError(f"module 'loopworks' has no attribute {name!r}")
