@@ -1,0 +1,500 @@
+r"""How sticky is the valve: S and J of the Choudhury model fitted to a loop's record, with
+the process identified jointly (issue 15, point 4), and the PI controller identified from the
+same record.
+
+Model (a Hammerstein system, the structure of Jelali 2008 and Choudhury et al. 2008)::
+
+    OP ──► valve.choudhury (S, J) ──► x ──► process ──► PV (+ offset)
+
+* The valve is loopworks' own ``valve.choudhury`` block (plant-and-tuning 1.2; Choudhury,
+  Thornhill & Shah, *Modelling valve stiction*, Control Eng. Practice 13 (2005) 641-658),
+  run over the recorded OP by its compiled kernel (:func:`loopworks.blocks.kernel.run_rows`),
+  started at rest at the first OP: no second copy of its equations lives here.
+* The process is identified in discrete time with a dead time of d samples:
+
+  - self-regulating (FOPDT):   y_k = a·y_{k-1} + b·x_{k-d} + c,
+  - integrating:               y_k - y_{k-1} = b·x_{k-d} + c.
+
+  A FOPDT K·e^{-Ls}/(Ts + 1) under a zero-order hold with L = m·dt gives a = e^{-dt/T},
+  b = K·(1 - a) and d = m + 1 (one sample of the hold): the gain is K = b/(1 - a), the time
+  constant T = -dt/ln a and the dead time L = (d - 1)·dt. An integrating process
+  dy/dt = K·u(t - L) gives b = K·dt, so K = b/dt (PV units per % per second).
+
+Cost. The fit minimises the *output error* (simulation error): the PV the identified process
+produces when driven by the valve position alone, from its own past outputs, never from the
+measured PV. A one-step-ahead (equation-error, ARX) fit regresses on the noisy measured PV and
+is biased by noise (Ljung, *System Identification*, 2nd ed. 1999, sec. 7.3); the output error is
+not. For fixed (S, J, d, a) the simulated PV is linear in the remaining parameters::
+
+    ŷ_k = b·r_k + c' + e0·p_k,   r = x filtered by 1/(1 - a·q⁻¹) and delayed d samples,
+                                 p_k = a^k (self-regulating) or k (integrating, a = 1)
+
+(e0·p_k carries the unknown initial state, the constant c' the offset and the filtered c), so
+the problem is *separable* (Golub & Pereyra 1973): b, c', e0 come from linear least squares
+and only (S, J, d, a) are searched. This is the separable least-squares and global-search
+method of Jelali, *Estimation of valve stiction in control loops using separable
+least-squares and global search algorithms*, J. Process Control 18 (2008) 632-642, with a
+grid and pattern search in place of his genetic algorithm and with the output error as the
+cost: d is searched over every sample 0..``max_dead_time`` for every a, a on a logarithmic
+grid of time constants refined by a bounded scalar search; (S, J) on a coarse grid over
+0 ≤ J ≤ S ≤ 1.25·(OP peak-to-peak), refined by a compass (pattern) search that halves its
+step (Hooke & Jeeves 1961) down to :data:`S_STEP_FLOOR` of the OP range.
+
+Fit quality: R² = 1 - SSE/SST of the PV (SST about its mean). ``r2_linear`` is the same fit
+with S = J = 0 (a linear valve): the gain r2 - r2_linear says how much the valve nonlinearity
+explains. Practitioner terms (plant-and-tuning 1.7): resolution (stick-slip) = J, deadband
+(backlash) = S - J.
+
+The controller (:func:`fit_controller`) is identified from the velocity form of the PI law
+(Åström & Hägglund, *Advanced PID Control*, ISA 2006, sec. 3.4; backward-Euler integral as in
+loopworks' ``pid``)::
+
+    ΔOP_k = Kc·(Δe_k + (dt/Ti)·e_k),   e = SP - PV (reverse acting)
+
+by linear least squares in θ1 = Kc, θ2 = Kc·dt/Ti. A negative Kc means direct action
+(e = PV - SP). A derivative term is not modelled: a PID's D action (and its filter) appears as
+misfit and lowers R².
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
+
+from loopworks.analysis.loopdata import LoopData
+
+FloatArray = npt.NDArray[np.float64]
+LoopType = Literal["self-regulating", "integrating"]
+_LOOP_TYPES: tuple[str, ...] = ("self-regulating", "integrating")
+
+#: Below this output-error R² of the best fit the record does not support an estimate [ours:
+#: half the PV variance unexplained means the model, and S and J with it, are not trusted].
+MIN_R2 = 0.5
+#: Fewest samples of a usable record (the longest run where OP and PV are finite) [ours].
+MIN_SAMPLES = 50
+#: Fewest OP swings (direction changes by at least a quarter of the OP range) [ours: the valve
+#: must be seen to move both ways at least twice before S, which is about reversals, can be
+#: estimated].
+MIN_SWINGS = 2
+#: Smallest OP range, % of span, that counts as the OP moving at all [ours].
+MIN_OP_RANGE = 0.05
+#: Upper end of the S grid, as a multiple of the OP peak-to-peak [ours: a valve with S above
+#: the OP range never reverses, so larger values all fit alike].
+S_RANGE_FACTOR = 1.25
+#: Coarse grid: S values (0 included) and J/S fractions.
+S_GRID = 13
+J_FRACTIONS = (0.0, 1.0 / 6.0, 1.0 / 3.0, 0.5, 2.0 / 3.0, 5.0 / 6.0, 1.0)
+#: The pattern search stops when its step is below this fraction of the OP peak-to-peak.
+S_STEP_FLOOR = 0.005
+#: Time constants of the a-grid, as (smallest, largest) multiples of (dt, record length).
+T_GRID = 12
+#: Default largest dead time searched, as a fraction of the record (capped by MAX_DEAD_SAMPLES).
+DEAD_FRACTION = 0.1
+MAX_DEAD_SAMPLES = 200
+#: Increment span m, samples, of the integrating search cost (:func:`_fit_increments`) [ours:
+#: long enough to average PV noise, short against a limit cycle].
+INCREMENT_SAMPLES = 10
+#: Most rounds of the (a, d) coordinate descent that refines the process.
+D_ROUNDS = 6
+#: Below this R² the controller identification is not trusted [ours].
+MIN_CONTROLLER_R2 = 0.5
+#: Fewest usable samples (automatic, unsaturated) for the controller fit [ours].
+MIN_CONTROLLER_SAMPLES = 20
+
+
+@dataclass(frozen=True)
+class ValveFit:
+    """The fitted stiction of one loop's valve (module docstring).
+
+    ``s`` and ``j`` are Choudhury's S and J, % of valve span; ``resolution`` = J and
+    ``deadband`` = S - J (plant-and-tuning 1.7). ``process``: ``model`` ("fopdt" or
+    "integrating"), ``gain`` (PV per % of valve; per % per second when integrating),
+    ``time_constant_s`` (None when integrating), ``dead_time_s``. ``r2``: output-error R² of
+    the PV; ``r2_linear``: the same with S = J = 0. ``ok`` is False, and S, J NaN, when the
+    record does not support an estimate; ``reason`` says why or summarises the fit."""
+
+    s: float
+    j: float
+    resolution: float
+    deadband: float
+    process: dict[str, Any]
+    r2: float
+    r2_linear: float
+    reason: str
+    ok: bool
+
+
+@dataclass(frozen=True)
+class ControllerFit:
+    """The PI controller identified from a record: ``kc`` (> 0, %OP per PV unit), ``ti_s``
+    (inf when no integral action is found), ``action`` ("reverse": e = SP - PV, or
+    "direct"), ``r2`` of ΔOP, ``ok`` and ``reason``."""
+
+    kc: float
+    ti_s: float
+    r2: float
+    ok: bool
+    reason: str
+    action: str = "reverse"
+
+
+@dataclass(frozen=True)
+class _Process:
+    """The best process for one valve output: output-error SSE, a, b, d (samples)."""
+
+    sse: float
+    a: float
+    b: float
+    d: int
+
+
+# ----------------------------------------------------------------------------- valve
+
+def valve_position(op: FloatArray, s: float, j: float) -> FloatArray:
+    """The stem position of loopworks' ``valve.choudhury`` block with these S, J (%) driven by
+    ``op`` (one value per scan), started at rest at the first OP (its ``y0``): the block's own
+    compiled kernel run over the rows (:func:`loopworks.blocks.kernel.run_rows`). The model is
+    rate-independent (spec 1.2), so the scan time does not matter; 1 s is passed."""
+    from loopworks import create_block
+    from loopworks.blocks.kernel import run_rows
+
+    block = create_block("valve.choudhury", s=float(s), j=float(j),
+                         y0=float(min(max(op[0], 0.0), 100.0)))
+    n = len(op)
+    names = [p.name for p in block.OUTPUTS]
+    U = np.ascontiguousarray(np.asarray(op, dtype=np.float64).reshape(n, 1))
+    US = np.full((n, 1), 128, dtype=np.int64)  # Good
+    Y = np.empty((n, len(names)))
+    YS = np.empty((n, len(names)), dtype=np.int64)
+    Y[0] = block.y
+    YS[0] = block.ys
+    run_rows(type(block).kernel, np.ones(n), block.p, block.x, U, US, Y, YS)
+    return Y[:, names.index("position")].copy()
+
+
+# ----------------------------------------------------------------------------- process
+
+def _sse_all_d(x: FloatArray, y: FloatArray, a: float, dmax: int, yy: float,
+               only: int | None = None) -> tuple[FloatArray, FloatArray]:
+    """Output-error SSE and b of ŷ = b·r_d + c' + e0·p for every dead time d = 0..dmax (or
+    the one d ``only``) at this a (a = 1: integrating). x is centred; ``yy`` = y·y."""
+    n = len(y)
+    xp = np.concatenate([np.full(dmax, x[0]), x])  # at rest before the record
+    if a == 1.0:
+        f = np.cumsum(xp)
+        p = np.arange(n, dtype=np.float64)
+    elif a == 0.0:
+        f = xp
+        p = np.zeros(n)
+        p[0] = 1.0
+    else:
+        f = lfilter([1.0], [1.0, -a], xp)
+        p = a ** np.arange(n, dtype=np.float64)
+    if only is not None:
+        r = f[dmax - only:dmax - only + n]
+        rr = np.array([r @ r])
+        r1, rp, ry = np.array([r.sum()]), np.array([r @ p]), np.array([r @ y])
+    else:
+        # row d of the regressor is f[dmax - d : dmax - d + n]: its products with 1, p, y and
+        # itself for every d at once, as correlations and sliding sums, in d order
+        c1 = np.concatenate([[0.0], np.cumsum(f)])
+        c2 = np.concatenate([[0.0], np.cumsum(f * f)])
+        r1 = (c1[n:] - c1[:-n])[::-1]
+        rr = (c2[n:] - c2[:-n])[::-1]
+        rp = np.correlate(f, p, "valid")[::-1]
+        ry = np.correlate(f, y, "valid")[::-1]
+    D = len(rr)
+    G = np.empty((D, 3, 3))
+    G[:, 0, 0] = rr
+    G[:, 0, 1] = G[:, 1, 0] = r1
+    G[:, 0, 2] = G[:, 2, 0] = rp
+    G[:, 1, 1] = n
+    G[:, 1, 2] = G[:, 2, 1] = p.sum()
+    G[:, 2, 2] = p @ p
+    h = np.empty((D, 3))
+    h[:, 0] = ry
+    h[:, 1] = y.sum()
+    h[:, 2] = p @ y
+    # scale to unit diagonal, with a tiny ridge, so that a constant r or p is harmless
+    sc = 1.0 / np.sqrt(np.maximum(np.einsum("kii->ki", G), 1e-300))
+    Gs = G * sc[:, :, None] * sc[:, None, :] + 1e-10 * np.eye(3)
+    theta = np.linalg.solve(Gs, (h * sc)[:, :, None])[:, :, 0] * sc
+    sse = np.maximum(yy - np.einsum("ij,ij->i", theta, h), 0.0)
+    return sse, theta[:, 0]
+
+
+def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int) -> _Process:
+    """The output-error best process for valve position ``x`` (module docstring): every d,
+    a on a log grid of time constants, then a bounded scalar search of ln T at the best d."""
+    xc = x - x.mean()
+    yy = float(y @ y)
+    if integrating:
+        sse, b = _sse_all_d(xc, y, 1.0, dmax, yy)
+        d = int(np.argmin(sse))
+        return _Process(float(sse[d]), 1.0, float(b[d]), d)
+    n = len(y)
+    taus = np.geomspace(0.25, float(n), T_GRID)  # in samples
+    best = _Process(math.inf, 0.0, 0.0, 0)
+    best_i = -1
+    for i, a in enumerate([0.0, *np.exp(-1.0 / taus)]):
+        sse, b = _sse_all_d(xc, y, float(a), dmax, yy)
+        d = int(np.argmin(sse))
+        if sse[d] < best.sse:
+            best, best_i = _Process(float(sse[d]), float(a), float(b[d]), d), i
+    # a and d trade against each other along a valley: coordinate descent from the grid's
+    # best, ln T refined at the current d (bounded, between the grid's second neighbours of the
+    # best a), then every d at that a, until d stays
+    lt = np.log(taus)
+    lo = lt[0] - 2.0 if best_i <= 2 else lt[best_i - 3]
+    hi = lt[-1] + 1.0 if best_i >= len(taus) - 1 else lt[best_i + 1]
+
+    def cost(log_tau: float, d: int) -> float:
+        s, _ = _sse_all_d(xc, y, math.exp(-math.exp(-log_tau)), dmax, yy, only=d)
+        return float(s[0])
+
+    for _ in range(D_ROUNDS):
+        res = minimize_scalar(cost, bounds=(lo, hi), args=(best.d,), method="bounded",
+                              options={"xatol": 0.005})
+        a = math.exp(-math.exp(-float(res.x)))
+        sse, b = _sse_all_d(xc, y, a, dmax, yy)
+        d = int(np.argmin(sse))
+        if not sse[d] < best.sse:
+            break
+        moved = d != best.d
+        best = _Process(float(sse[d]), a, float(b[d]), d)
+        if not moved:
+            break
+    return best
+
+
+def _fit_increments(x: FloatArray, y: FloatArray, m: int, dmax: int) -> _Process:
+    """The search cost of an integrating loop: least squares of the m-sample PV increments,
+
+        y_k - y_{k-m} = b·(x_{k-d} + ... + x_{k-d-m+1}) + c·m,
+
+    for every d. Its regressors are valve positions only (no measured PV), so, like the output
+    error, it is not biased by PV noise; unlike the output error of an integrator, a valve
+    mismatch costs where it happens and does not accumulate into a drift, which leaves the
+    cost over (S, J) smooth enough to search (an output-error map of a level loop is a needle
+    at the true S, J surrounded by plateaus) [ours]."""
+    xc = x - x.mean()
+    n = len(y)
+    c = np.concatenate([[0.0], np.cumsum(np.concatenate([np.full(dmax + m, xc[0]), xc]))])
+    f = (c[m:] - c[:-m])[1 + m:]  # f[dmax - d + i] = x_{i+m-d} + ... + x_{i+1-d}
+    z = y[m:] - y[:-m]
+    nz = n - m
+    c1 = np.concatenate([[0.0], np.cumsum(f)])
+    c2 = np.concatenate([[0.0], np.cumsum(f * f)])
+    r1 = (c1[nz:] - c1[:-nz])[::-1][:dmax + 1]
+    rr = (c2[nz:] - c2[:-nz])[::-1][:dmax + 1]
+    rz = np.correlate(f, z, "valid")[::-1][:dmax + 1]
+    zc = z - z.mean()
+    var_r = rr - r1 * r1 / nz
+    moves = var_r > 1e-12 * max(float(rr.max()), 1e-300)  # a valve that never moves explains
+    var_r = np.where(moves, var_r, 1.0)                    # nothing (b = 0)
+    cov = np.where(moves, rz - r1 * z.sum() / nz, 0.0)
+    sse = np.maximum(zc @ zc - cov * cov / var_r, 0.0)
+    d = int(np.argmin(sse))
+    return _Process(float(sse[d]), 1.0, float(cov[d] / var_r[d]), d)
+
+
+def _process_dict(proc: _Process | None, integrating: bool, dt: float) -> dict[str, Any]:
+    """The identified process in physical units (module docstring)."""
+    model = "integrating" if integrating else "fopdt"
+    if proc is None:
+        return {"model": model, "gain": math.nan,
+                "time_constant_s": None if integrating else math.nan,
+                "dead_time_s": math.nan}
+    dead = max(proc.d - 1, 0) * dt
+    if integrating:
+        return {"model": model, "gain": proc.b / dt, "time_constant_s": None,
+                "dead_time_s": dead}
+    tau = 0.0 if proc.a <= 0.0 else -dt / math.log(proc.a)
+    return {"model": model, "gain": proc.b / (1.0 - proc.a), "time_constant_s": tau,
+            "dead_time_s": dead}
+
+
+# ----------------------------------------------------------------------------- record checks
+
+def _longest_finite(*arrays: FloatArray) -> slice:
+    """The longest run of samples where every array is finite."""
+    good = np.logical_and.reduce([np.isfinite(a) for a in arrays])
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], good.astype(np.int8), [0]])))
+    if len(edges) == 0:
+        return slice(0, 0)
+    starts, ends = edges[::2], edges[1::2]
+    k = int(np.argmax(ends - starts))
+    return slice(int(starts[k]), int(ends[k]))
+
+
+def count_swings(x: FloatArray, hysteresis: float) -> int:
+    """Direction changes of ``x`` by at least ``hysteresis`` (a turning point counts once x has
+    moved ``hysteresis`` back from the extreme since the last one)."""
+    if len(x) == 0 or hysteresis <= 0.0:
+        return 0
+    swings, direction = 0, 0
+    hi = lo = float(x[0])
+    for v in x:
+        v = float(v)
+        hi, lo = max(hi, v), min(lo, v)
+        if direction >= 0 and v < hi - hysteresis:
+            swings += direction > 0
+            direction, lo = -1, v
+        elif direction <= 0 and v > lo + hysteresis:
+            swings += direction < 0
+            direction, hi = 1, v
+    return swings
+
+
+# ----------------------------------------------------------------------------- valve fit
+
+def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
+              max_dead_time: float | None = None) -> ValveFit:
+    """Fit Choudhury's S and J jointly with the process (module docstring).
+
+    ``loop_type``: ``"self-regulating"`` (FOPDT process) or ``"integrating"``.
+    ``max_dead_time``: the longest dead time searched, s (default :data:`DEAD_FRACTION` of the
+    record, at most :data:`MAX_DEAD_SAMPLES` samples). The record used is the longest run where
+    OP and PV are finite. ``ok`` is False, with S and J NaN, when that run is shorter than
+    :data:`MIN_SAMPLES`, when OP or PV do not move (OP range below :data:`MIN_OP_RANGE` % or
+    fewer than :data:`MIN_SWINGS` swings of a quarter of its range), or when the best fit
+    explains less than :data:`MIN_R2` of the PV variance."""
+    if loop_type not in _LOOP_TYPES:
+        raise ValueError(f"loop_type must be one of {_LOOP_TYPES}, not {loop_type!r}")
+    integrating = loop_type == "integrating"
+    dt = data.dt
+    span = _longest_finite(data.op, data.pv)
+    op = np.asarray(data.op[span], dtype=np.float64)
+    pv = np.asarray(data.pv[span], dtype=np.float64)
+    n = len(op)
+    cut = "" if n == len(data) else (f" (the longest finite run, {n} of {len(data)} samples)")
+
+    def refuse(why: str, r2: float = math.nan, r2_lin: float = math.nan,
+               proc: _Process | None = None) -> ValveFit:
+        return ValveFit(math.nan, math.nan, math.nan, math.nan,
+                        _process_dict(proc, integrating, dt), r2, r2_lin, why, False)
+
+    if n < MIN_SAMPLES:
+        return refuse(f"{n} usable samples{cut}: at least {MIN_SAMPLES} are needed to fit "
+                      f"the valve and the process.")
+    op_range = float(op.max() - op.min())
+    sst = float(((pv - pv.mean()) ** 2).sum())
+    if op_range < MIN_OP_RANGE:
+        return refuse(f"OP moves over {op_range:.3g} % only{cut} (below {MIN_OP_RANGE:g} %): "
+                      f"a valve that is not driven shows no stiction to estimate.")
+    if not sst > 0.0:
+        return refuse(f"PV is constant{cut}: nothing to fit.")
+    swings = count_swings(op, op_range / 4.0)
+    if swings < MIN_SWINGS:
+        return refuse(f"OP changes direction {swings} time{'s' * (swings != 1)} by a quarter "
+                      f"of its {op_range:.3g} % range{cut}: at least {MIN_SWINGS} are needed "
+                      f"to see the valve reverse.")
+    dmax = (round(max_dead_time / dt) + 1 if max_dead_time is not None
+            else int(min(MAX_DEAD_SAMPLES, max(1, round(DEAD_FRACTION * n)))))
+    dmax = max(0, min(dmax, n // 2))
+    y = pv - pv.mean()
+    cache: dict[tuple[float, float], _Process] = {}
+
+    def evaluate(s: float, j: float) -> _Process:
+        key = (round(s, 9), round(j, 9))
+        if key not in cache:
+            x = valve_position(op, s, j)
+            cache[key] = (_fit_increments(x, y, INCREMENT_SAMPLES, dmax) if integrating
+                          else _fit_process(x, y, False, dmax))
+        return cache[key]
+
+    def output_error(s: float, j: float) -> _Process:
+        return (_fit_process(valve_position(op, s, j), y, True, dmax) if integrating
+                else evaluate(s, j))
+
+    linear = evaluate(0.0, 0.0)
+    r2_lin = 1.0 - output_error(0.0, 0.0).sse / sst
+    # coarse grid over 0 <= J <= S <= S_RANGE_FACTOR·range
+    s_hi = S_RANGE_FACTOR * op_range
+    best_sj, best = (0.0, 0.0), linear
+    for s in np.linspace(0.0, s_hi, S_GRID)[1:]:
+        for f in J_FRACTIONS:
+            proc = evaluate(float(s), float(f * s))
+            if proc.sse < best.sse:
+                best_sj, best = (float(s), float(f * s)), proc
+    # compass search: the 8 neighbours at step h, move to the best, halve h when none is better
+    h = s_hi / (S_GRID - 1)
+    while h >= S_STEP_FLOOR * op_range:
+        moved = False
+        s0, j0 = best_sj
+        for ds, dj in ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)):
+            s, j = s0 + ds * h, j0 + dj * h
+            if s < 0.0 or j < 0.0 or j > s or s > 2.0 * s_hi:
+                continue
+            proc = evaluate(s, j)
+            if proc.sse < best.sse:
+                best_sj, best, moved = (s, j), proc, True
+        if not moved:
+            h /= 2.0
+    s, j = best_sj
+    best = output_error(s, j)
+    r2 = 1.0 - best.sse / sst
+    process = _process_dict(best, integrating, dt)
+    if r2 < MIN_R2:
+        return refuse(f"the best valve-and-process fit explains R² = {r2:.2f} of the PV "
+                      f"variance{cut}, below {MIN_R2:g}: the record does not support an "
+                      f"estimate of S and J (is the PV driven by the OP at all?).",
+                      r2, r2_lin, best)
+    reason = (f"S = {s:.3g} %, J = {j:.3g} % (deadband {s - j:.3g} %, resolution {j:.3g} %) "
+              f"with {'an integrating' if integrating else 'a FOPDT'} process of gain "
+              f"{process['gain']:.3g}; output-error R² {r2:.3f} against {r2_lin:.3f} for a "
+              f"linear valve{cut}.")
+    return ValveFit(s, j, j, s - j, process, r2, r2_lin, reason, True)
+
+
+# ----------------------------------------------------------------------------- controller
+
+def fit_controller(data: LoopData) -> ControllerFit:
+    """Identify the PI controller by linear least squares of its velocity form (module
+    docstring): ΔOP_k = θ1·Δe_k + θ2·e_k with e = SP - PV, Kc = |θ1|, Ti = dt·θ1/θ2, direct
+    action when θ1 < 0. Scans are used where SP, PV, OP are finite at k and k-1, OP is inside
+    (0, 100) % (not saturated) and, when the record has a mode, the loop is automatic
+    (mode ≥ 1) at both. A derivative action is ignored (it lowers R²)."""
+    dt = data.dt
+    e = np.asarray(data.sp - data.pv, dtype=np.float64)
+    op = np.asarray(data.op, dtype=np.float64)
+    de, dop, ek = np.diff(e), np.diff(op), e[1:]
+    use = np.isfinite(de) & np.isfinite(dop)
+    inside = (op > 0.0) & (op < 100.0)
+    use &= inside[1:] & inside[:-1]
+    if data.mode is not None:
+        auto = data.mode >= 1.0
+        use &= auto[1:] & auto[:-1]
+    m = int(use.sum())
+    nan = math.nan
+    if m < MIN_CONTROLLER_SAMPLES:
+        return ControllerFit(nan, nan, nan, False, f"{m} usable scans (automatic, OP inside "
+                             f"0..100 %, values finite): at least {MIN_CONTROLLER_SAMPLES} are "
+                             f"needed.")
+    A = np.stack([de[use], ek[use]], axis=1)
+    z = dop[use]
+    sst = float(((z - z.mean()) ** 2).sum())
+    if not sst > 0.0 or not np.any(A):
+        return ControllerFit(nan, nan, nan, False, "OP or the control error does not move: "
+                             "no controller to identify.")
+    theta, *_ = np.linalg.lstsq(A, z, rcond=None)
+    r2 = 1.0 - float(((z - A @ theta) ** 2).sum()) / sst
+    th1, th2 = float(theta[0]), float(theta[1])
+    action = "direct" if th1 < 0.0 else "reverse"
+    kc = abs(th1)
+    ti = dt * th1 / th2 if th1 * th2 > 0.0 else math.inf
+    integral = (f"Ti = {ti:.4g} s" if math.isfinite(ti)
+                else "no integral action identified (Ti = inf)")
+    if r2 < MIN_CONTROLLER_R2:
+        return ControllerFit(nan, nan, r2, False, f"the velocity PI form explains R² = "
+                             f"{r2:.2f} of the OP moves, below {MIN_CONTROLLER_R2:g}: not a PI "
+                             f"controller acting on SP - PV at this sampling (derivative "
+                             f"action, filtering or a coarser historian period?).", action)
+    return ControllerFit(kc, ti, r2, True, f"{action}-acting PI: Kc = {kc:.4g}, {integral}; "
+                         f"velocity-form R² {r2:.3f} over {m} scans.", action)

@@ -1,0 +1,170 @@
+"""Valve stiction (S, J) and PI controller identified from closed-loop records (issue 15, point 4).
+
+The records are made by loopworks' own blocks in a Module, wired as a plant is (the process and
+the transmitter run first each scan, then the controller, then the valve):
+
+    pid ─► valve.choudhury (S, J) ─► process.fopdt / process.ipdt ─► sensor.transmitter ─► pid
+
+The golden values are the parameters the records were generated with (S, J, K, T, L, Kc, Ti),
+not outputs of the fit. The flow loop is plant-and-tuning 5.1's first row (FOPDT K = 1,
+T = 10 s, L = 2 s; PI Kc = 1, Ti = 10 s; S = 3 %, J = 1 %), sampled at 0.5 s with 0.02 %
+transmitter noise.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+import pytest
+
+import loopworks
+from loopworks.analysis.loopdata import LoopData
+from loopworks.analysis.valve_fit import (
+    MIN_R2,
+    ControllerFit,
+    ValveFit,
+    fit_controller,
+    fit_valve,
+    valve_position,
+)
+from loopworks.sim.module import Event, Module
+
+DT = 0.5
+
+
+def closed_loop(s: float, j: float, *, process: str = "process.fopdt",
+                plant: dict[str, Any] | None = None, kc: float = 1.0, ti: float = 10.0,
+                action: str = "reverse", noise: float = 0.02, duration: float = 1000.0,
+                steps: tuple[tuple[float, float], ...] = ((10.0, 51.0),)) -> LoopData:
+    """The record (SP, PV, OP) of the loop above, started at rest at 50 %, with SP steps."""
+    plant = plant or {"gain": 1.0, "time_constant": 10.0, "dead_time": 2.0}
+    blocks = {
+        "process": loopworks.create_block(process, u0=50.0, y0=50.0, **plant),
+        "sensor": loopworks.create_block("sensor.transmitter", noise_std=noise, seed=3),
+        "pid": loopworks.create_block("pid", k=kc, ti=ti, bias=50.0, action=action),
+        "valve": loopworks.create_block("valve.choudhury", s=s, j=j, y0=50.0),
+    }
+    wires = {"process.u": "valve.position", "sensor.y": "process.y", "pid.pv": "sensor.pv",
+             "valve.op": "pid.out"}
+    module = Module(blocks, wires, inputs={"pid": {"sp": 50.0}},
+                    order=["process", "sensor", "pid", "valve"],
+                    events=[Event(t, "pid.sp", v) for t, v in steps])
+    run = module.run(duration, DT)
+    v = run.values
+    return LoopData(t=run.t, sp=v["pid.sp"], pv=v["sensor.pv"], op=v["pid.out"])
+
+
+@pytest.fixture(scope="module")
+def flow() -> tuple[LoopData, ValveFit, float]:
+    data = closed_loop(3.0, 1.0)
+    start = time.perf_counter()
+    fit = fit_valve(data)
+    return data, fit, time.perf_counter() - start
+
+
+def test_the_valve_is_the_block_run_over_the_op() -> None:
+    # the block stepped scan by scan from Python, started at rest at the first OP
+    rng = np.random.default_rng(1)
+    op = 50.0 + np.cumsum(rng.normal(0.0, 0.5, 300))
+    block = loopworks.create_block("valve.choudhury", s=3.0, j=1.0, y0=float(op[0]))
+    stepped = np.array([block.step(DT, op=float(u))["position"][0] for u in op])
+    assert np.array_equal(valve_position(op, 3.0, 1.0), stepped)
+    assert not np.array_equal(stepped, op)  # the valve sticks: the check is not vacuous
+
+
+def test_flow_loop_recovers_s_and_j(flow: tuple[LoopData, ValveFit, float]) -> None:
+    _, fit, seconds = flow
+    assert fit.ok, fit.reason
+    assert fit.s == pytest.approx(3.0, rel=0.30)
+    assert abs(fit.j - 1.0) <= 0.5  # % of span
+    assert fit.resolution == fit.j
+    assert fit.deadband == pytest.approx(fit.s - fit.j)
+    assert fit.r2 > 0.95
+    assert fit.r2 - fit.r2_linear > 0.05  # the valve nonlinearity explains the limit cycle
+    proc = fit.process
+    assert proc["model"] == "fopdt"
+    assert proc["gain"] == pytest.approx(1.0, rel=0.10)
+    assert proc["time_constant_s"] == pytest.approx(10.0, rel=0.20)
+    assert abs(proc["dead_time_s"] - 2.0) <= 2 * DT
+    assert seconds < 10.0
+
+
+def test_level_loop_recovers_s_and_j() -> None:
+    # integrating level loop: dy/dt = 0.02·(u(t - 2 s) - 50) %/s; PI Kc = 2, Ti = 60 s
+    data = closed_loop(2.0, 1.0, process="process.ipdt",
+                       plant={"gain": 0.02, "dead_time": 2.0}, kc=2.0, ti=60.0,
+                       duration=1500.0)
+    fit = fit_valve(data, "integrating")
+    assert fit.ok, fit.reason
+    assert fit.s == pytest.approx(2.0, rel=0.30)
+    assert abs(fit.j - 1.0) <= 0.5
+    assert fit.process["model"] == "integrating"
+    assert fit.process["time_constant_s"] is None
+    assert fit.process["gain"] == pytest.approx(0.02, rel=0.10)
+    assert fit.r2 > 0.9
+
+
+def test_linear_valve_gives_small_s_and_no_r2_gain() -> None:
+    steps = ((10.0, 51.0), (250.0, 49.0), (500.0, 52.0), (750.0, 50.0))
+    fit = fit_valve(closed_loop(0.0, 0.0, steps=steps))
+    assert fit.ok, fit.reason
+    assert fit.s < 0.5
+    assert fit.j <= fit.s
+    assert fit.r2 - fit.r2_linear < 0.01
+    assert fit.r2 > 0.95
+
+
+def test_controller_recovered_from_noise_free_data() -> None:
+    data = closed_loop(3.0, 1.0, kc=1.5, ti=12.0, noise=0.0, duration=500.0)
+    fit = fit_controller(data)
+    assert isinstance(fit, ControllerFit)
+    assert fit.ok, fit.reason
+    assert fit.action == "reverse"
+    assert fit.kc == pytest.approx(1.5, rel=0.05)
+    assert fit.ti_s == pytest.approx(12.0, rel=0.05)
+
+
+def test_direct_acting_controller_detected() -> None:
+    # negative process gain under a direct-acting PI (e = PV - SP)
+    data = closed_loop(3.0, 1.0, plant={"gain": -1.0, "time_constant": 10.0, "dead_time": 2.0},
+                       action="direct", kc=0.8, ti=15.0, noise=0.0, duration=500.0)
+    fit = fit_controller(data)
+    assert fit.ok, fit.reason
+    assert fit.action == "direct"
+    assert fit.kc == pytest.approx(0.8, rel=0.05)
+    assert fit.ti_s == pytest.approx(15.0, rel=0.05)
+
+
+def _record(op: np.ndarray, pv: np.ndarray) -> LoopData:
+    return LoopData(t=DT * np.arange(len(op)), sp=np.full(len(op), 50.0), pv=pv, op=op)
+
+
+def test_constant_record_is_refused() -> None:
+    flat = np.full(500, 50.0)
+    fit = fit_valve(_record(flat, flat))
+    assert not fit.ok
+    assert math.isnan(fit.s) and math.isnan(fit.j)
+    assert "OP moves" in fit.reason
+    ctrl = fit_controller(_record(flat, flat))
+    assert not ctrl.ok
+    assert "does not move" in ctrl.reason
+
+
+def test_pure_noise_is_refused() -> None:
+    rng = np.random.default_rng(7)
+    op = 50.0 + rng.normal(0.0, 1.0, 1000)
+    pv = 50.0 + rng.normal(0.0, 1.0, 1000)
+    fit = fit_valve(_record(op, pv))
+    assert not fit.ok
+    assert math.isnan(fit.s) and math.isnan(fit.resolution)
+    assert fit.r2 < MIN_R2
+    assert f"below {MIN_R2:g}" in fit.reason
+    assert not fit_controller(_record(op, pv)).ok  # OP is not a PI of SP - PV either
+
+
+def test_unknown_loop_type_is_an_error(flow: tuple[LoopData, ValveFit, float]) -> None:
+    with pytest.raises(ValueError, match="loop_type"):
+        fit_valve(flow[0], "cascade")
