@@ -21,7 +21,14 @@ The rules, in order:
    area ratio (Singhal 2005)      yes, on e                 no (self-regulating only)
    curve fit (He et al. 2007)     on OP                     on PV
    bicoherence (Choudhury 2004)   on e: linear → against    the same
+   valve fit (Jelali 2008)        votes                     votes
    =============================  ========================  ==========================
+
+   The valve fit (:mod:`loopworks.analysis.valve_fit`) works without a limit cycle: it votes
+   stiction when the fitted S is at least :data:`MIN_S` % and the valve nonlinearity explains at
+   least :data:`MIN_R2_GAIN` more of the PV variance than a linear valve; no stiction when
+   the fit is good and S is below :data:`MIN_S` or the gain below :data:`NO_R2_GAIN`;
+   otherwise (or when the record does not support a fit) it abstains.
 
    The bicoherence votes only against stiction (a loop whose error is linear, NGI ≤ 0.001 with
    enough segments, has no valve nonlinearity to find: Choudhury, Shah & Thornhill 2004 run
@@ -35,6 +42,10 @@ The rules, in order:
    otherwise ``undetermined``. Confidence = |score| / W, in [0, 1]: the weighted share of the
    applicable evidence that agrees with the verdict, net of the evidence against it (0 for
    ``undetermined``).
+5. **How sticky and what to do** (a ``stiction`` verdict whose valve fit is good): S and J
+   with resolution = J and deadband = S − J (spec 1.7), the process and the fit's R²; with
+   the PI identified from the same data (:func:`~loopworks.analysis.valve_fit.fit_controller`),
+   every compensator simulated on the fitted loop (:mod:`loopworks.analysis.recommend`).
 """
 
 from __future__ import annotations
@@ -55,11 +66,20 @@ from loopworks.analysis.horch import horch_test
 from loopworks.analysis.loopdata import LoopData, read_csv
 from loopworks.analysis.oscillation import Oscillation, regularity
 from loopworks.analysis.quality import Quality, check_quality
+from loopworks.analysis.valve_fit import ValveFit, fit_controller, fit_valve, model_pv
 from loopworks.errors import InputError
 
 #: each method's weight in the verdict (rule 4)
 WEIGHTS: dict[str, float] = {"horch": 1.0, "area_ratio": 1.0, "curve_fit": 1.0,
-                             "bicoherence": 1.0}
+                             "bicoherence": 1.0, "valve_fit": 1.0}
+#: the valve fit votes stiction from this S (% of span) on [ours: below it a stick band is
+#: inside what the transmitter noise and the fit's own resolution can show]
+MIN_S = 0.3
+#: ... when the fitted valve explains at least this much more of the PV variance than a
+#: linear one [ours]
+MIN_R2_GAIN = 0.03
+#: the valve fit votes no stiction below this gain in R² (a good fit that needs no stiction)
+NO_R2_GAIN = 0.005
 #: the score a verdict needs (rule 4): one full vote's worth of net evidence
 DECIDE = 1.0
 #: the bicoherence abstains below this many segments: its noise level on Gaussian data is
@@ -101,6 +121,8 @@ class Diagnosis:
     reason: str = ""
     stiction: dict[str, Any] | None = None
     recommendation: dict[str, Any] | None = None
+    #: the fitted model's PV over the record (the report's PV-OP plot), not in the JSON
+    model_pv: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def indices(self) -> dict[str, float]:
@@ -164,6 +186,23 @@ def _battery(data: LoopData, loop_type: LoopType) -> list[Evidence]:
     return out
 
 
+def _valve_fit_vote(fit: ValveFit) -> Evidence:
+    """The valve fit's vote (module docstring, rule 3)."""
+    name = "valve and process fitted jointly (Choudhury S, J; Jelali 2008)"
+    gain = fit.r2 - fit.r2_linear
+    if not fit.ok:
+        return Evidence("valve_fit", name, "undetermined", WEIGHTS["valve_fit"], math.nan,
+                        fit.reason)
+    why = f"{fit.reason} R² gain over a linear valve {gain:.3f}"
+    if fit.s >= MIN_S and gain >= MIN_R2_GAIN:
+        vote: Verdict = "stiction"
+    elif fit.s < MIN_S or gain < NO_R2_GAIN:
+        vote = "no_stiction"
+    else:
+        vote = "undetermined"
+    return Evidence("valve_fit", name, vote, WEIGHTS["valve_fit"], fit.s, why)
+
+
 def _bicoherence_vote(e: np.ndarray, dt: float) -> Evidence:
     """The bicoherence's vote (module docstring, rule 3): against stiction when the error is
     linear, else abstain."""
@@ -204,12 +243,14 @@ def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
 
 
 def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
-             columns: Mapping[str, str] | None = None) -> Diagnosis:
+             columns: Mapping[str, str] | None = None, *, recommend: bool = True,
+             samples: int = 24) -> Diagnosis:
     """Diagnose one loop (module docstring) from ``data``: a :class:`LoopData`, or the path
     of a historian CSV (read by :func:`~loopworks.analysis.loopdata.read_csv` with
     ``columns``; a repeated time stamp keeps the later row, as a historian's hold does, and
     the data's ``resampled`` note says so). ``loop_type``: ``"self-regulating"`` (flow,
-    pressure, temperature) or ``"integrating"`` (level)."""
+    pressure, temperature) or ``"integrating"`` (level). ``recommend``: simulate the options
+    for a sticky valve (``samples`` draws of the fit's uncertainty each)."""
     if loop_type not in LOOP_TYPES:
         raise InputError(f"loop type '{loop_type}' is not allowed: expected "
                          + " or ".join(LOOP_TYPES))
@@ -223,6 +264,40 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
                          + "; ".join(quality.reasons))
     osc = regularity(data.sp - data.pv, data.dt)
     evidence = _battery(data, lt)
+    fit = fit_valve(data, lt)
+    evidence.append(_valve_fit_vote(fit))
     verdict, confidence, score, reason = verdict_of(evidence)
+    stiction = model = rec = None
+    if verdict == "stiction" and fit.ok:
+        model = model_pv(data, fit)
+        stiction = {"s": fit.s, "j": fit.j, "resolution": fit.resolution,
+                    "deadband": fit.deadband, "r2": fit.r2, "r2_linear": fit.r2_linear,
+                    "process": dict(fit.process), "reason": fit.reason}
+        if recommend:
+            rec = _recommendation(data, fit, model, samples)
     return Diagnosis(verdict, confidence, lt, data.source, quality, osc, evidence, score,
-                     reason)
+                     reason, stiction, rec, model)
+
+
+def _recommendation(data: LoopData, fit: ValveFit, model: np.ndarray,
+                    samples: int) -> dict[str, Any] | None:
+    """The options simulated on the fitted loop (:mod:`loopworks.analysis.recommend`), or a
+    sentence saying why they cannot be."""
+    from loopworks.analysis.recommend import recommend
+
+    ctl = fit_controller(data)
+    if not ctl.ok or not math.isfinite(ctl.ti_s):
+        return {"recommended": None, "options": [], "summary": "the controller could not be "
+                f"identified from the data ({ctl.reason}), so the options cannot be "
+                "simulated. Repair or replace the valve at the next opportunity."}
+    residual = data.pv - model
+    noise = float(np.nanstd(residual)) if np.isfinite(residual).any() else 0.0
+    try:
+        out = recommend(fit.s, fit.j, fit.process, ctl.kc, ctl.ti_s, noise, data.dt,
+                        samples=samples)
+    except InputError as exc:
+        return {"recommended": None, "options": [], "summary": f"the fitted loop cannot be "
+                f"simulated ({exc}). Repair or replace the valve at the next opportunity."}
+    out["controller"] = {"kc": ctl.kc, "ti_s": ctl.ti_s, "r2": ctl.r2, "action": ctl.action}
+    out.pop("scenario", None)
+    return out

@@ -60,18 +60,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
+from loopworks.analysis import LOOP_TYPES as _LOOP_TYPES
 from loopworks.analysis.loopdata import LoopData
 
 FloatArray = npt.NDArray[np.float64]
-LoopType = Literal["self-regulating", "integrating"]
-_LOOP_TYPES: tuple[str, ...] = ("self-regulating", "integrating")
 
 #: Below this output-error R² of the best fit the record does not support an estimate [ours:
 #: half the PV variance unexplained means the model, and S and J with it, are not trusted].
@@ -451,6 +450,36 @@ def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
               f"{process['gain']:.3g}; output-error R² {r2:.3f} against {r2_lin:.3f} for a "
               f"linear valve{cut}.")
     return ValveFit(s, j, j, s - j, process, r2, r2_lin, reason, True)
+
+
+def model_pv(data: LoopData, fit: ValveFit) -> FloatArray:
+    """The PV the fitted model (valve S, J and the identified process) gives for the recorded
+    OP, over the whole record: the process's dead time and time constant as fitted, its gain,
+    offset and initial state by least squares against the recorded PV (module docstring's
+    separable form); NaN where OP or PV is not finite, or everywhere when ``fit.ok`` is
+    False."""
+    out = np.full(len(data), math.nan)
+    if not fit.ok:
+        return out
+    span = _longest_finite(data.op, data.pv)
+    op, pv = np.asarray(data.op[span]), np.asarray(data.pv[span])
+    n, dt = len(op), data.dt
+    x = valve_position(op, fit.s, fit.j)
+    x = x - x.mean()
+    proc = fit.process
+    d = round(float(proc["dead_time_s"]) / dt) + 1 if proc["dead_time_s"] > 0 else 0
+    xp = np.concatenate([np.full(d, x[0]), x])[:n]
+    if proc["model"] == "integrating":
+        r, p = np.cumsum(xp), np.arange(n, dtype=np.float64)
+    else:
+        tau = float(proc["time_constant_s"] or 0.0)
+        a = math.exp(-dt / tau) if tau > 0.0 else 0.0
+        r = lfilter([1.0], [1.0, -a], xp)
+        p = a ** np.arange(n, dtype=np.float64)
+    A = np.column_stack([r, np.ones(n), p])
+    theta, *_ = np.linalg.lstsq(A, pv, rcond=None)
+    out[span] = A @ theta
+    return out
 
 
 # ----------------------------------------------------------------------------- controller
