@@ -23,12 +23,18 @@ def _vote(key: str, vote: str, weight: float = 1.0) -> Evidence:
 
 
 def test_the_verdict_rule() -> None:
-    # score = Σ w·v; stiction needs score >= DECIDE and two votes for; no_stiction <= -DECIDE
+    # score = Σ w·v; stiction needs score >= DECIDE and two votes for (or the valve fit's);
+    # no_stiction needs score <= -DECIDE
     verdict, conf, score, _ = verdict_of([_vote("a", "stiction"), _vote("b", "stiction"),
                                           _vote("c", "no_stiction"), _vote("d", "undetermined")])
     assert (verdict, score) == ("stiction", 1.0) and conf == pytest.approx(1.0 / 4.0)
-    # one strong vote alone is not a stiction verdict
+    # one shape index alone is not a stiction verdict; the valve fit (which needs no limit
+    # cycle) is, when nothing votes against it
     assert verdict_of([_vote("a", "stiction", 2.0), _vote("b", "undetermined")])[0] == \
+        "undetermined"
+    assert verdict_of([_vote("valve_fit", "stiction"), _vote("b", "undetermined")])[0] == \
+        "stiction"
+    assert verdict_of([_vote("valve_fit", "stiction"), _vote("b", "no_stiction")])[0] == \
         "undetermined"
     verdict, conf, score, _ = verdict_of([_vote("a", "no_stiction"), _vote("b", "undetermined")])
     assert (verdict, score, conf) == ("no_stiction", -1.0, 0.5)

@@ -24,21 +24,24 @@ The rules, in order:
    valve fit (Jelali 2008)        votes                     votes
    =============================  ========================  ==========================
 
+   Horch, the area ratio and the curve fit were published for oscillating loops: they
+   abstain when the error does not oscillate regularly (:data:`NEEDS_OSCILLATION`).
    The valve fit (:mod:`loopworks.analysis.valve_fit`) works without a limit cycle: it votes
    stiction when the fitted S is at least :data:`MIN_S` % and the valve nonlinearity explains at
    least :data:`MIN_R2_GAIN` more of the PV variance than a linear valve; no stiction when
    the fit is good and S is below :data:`MIN_S` or the gain below :data:`NO_R2_GAIN`;
    otherwise (or when the record does not support a fit) it abstains.
 
-   The bicoherence votes only against stiction (a loop whose error is linear, NGI ≤ 0.001 with
-   enough segments, has no valve nonlinearity to find: Choudhury, Shah & Thornhill 2004 run
-   the stiction test only on nonlinear loops) or abstains: a nonlinearity alone does not say
-   which (a saturation, a nonlinear process), and on short records its noise level exceeds the
-   threshold (:mod:`loopworks.analysis.bicoherence`), so it abstains when the record gives
-   fewer than :data:`MIN_BICOHERENCE_SEGMENTS` segments.
+   The bicoherence is reported with weight 0 (it does not vote). By its rule it can only say
+   "linear, so no stiction" (Choudhury, Shah & Thornhill 2004 run the stiction test only on
+   nonlinear loops) or abstain, but on the simulated set (docs/diagnose.md) it found every
+   error linear, sticky or not: a symmetric stick-slip cycle has odd harmonics only and no
+   quadratic phase coupling, and on records of a few thousand samples its noise level is
+   above the 0.001 threshold (:mod:`loopworks.analysis.bicoherence`).
 4. **Verdict**: the score is Σ wᵢ·vᵢ (v = +1 stiction, −1 no stiction, 0 undetermined) over
-   the applicable methods and W = Σ wᵢ. ``stiction`` when the score ≥ :data:`DECIDE` and at
-   least two methods vote stiction; ``no_stiction`` when the score ≤ −:data:`DECIDE`;
+   the applicable methods and W = Σ wᵢ. ``stiction`` when the score ≥ :data:`DECIDE` and
+   either two methods vote stiction or the valve fit does (the one method that needs no
+   cycle); ``no_stiction`` when the score ≤ −:data:`DECIDE`;
    otherwise ``undetermined``. Confidence = |score| / W, in [0, 1]: the weighted share of the
    applicable evidence that agrees with the verdict, net of the evidence against it (0 for
    ``undetermined``).
@@ -66,12 +69,22 @@ from loopworks.analysis.horch import horch_test
 from loopworks.analysis.loopdata import LoopData, read_csv
 from loopworks.analysis.oscillation import Oscillation, regularity
 from loopworks.analysis.quality import Quality, check_quality
-from loopworks.analysis.valve_fit import ValveFit, fit_controller, fit_valve, model_pv
+from loopworks.analysis.valve_fit import (
+    ControllerFit,
+    ValveFit,
+    fit_controller,
+    fit_valve,
+    model_pv,
+)
 from loopworks.errors import InputError
 
 #: each method's weight in the verdict (rule 4)
 WEIGHTS: dict[str, float] = {"horch": 1.0, "area_ratio": 1.0, "curve_fit": 1.0,
-                             "bicoherence": 1.0, "valve_fit": 1.0}
+                             "bicoherence": 0.0, "valve_fit": 1.0}
+#: the methods published for oscillating loops only ("... in oscillating control loops":
+#: Horch 1999, Singhal & Salsbury 2005, He et al. 2007): they abstain when the error does not
+#: oscillate (rule 3)
+NEEDS_OSCILLATION = ("horch", "area_ratio", "curve_fit")
 #: the valve fit votes stiction from this S (% of span) on [ours: below it a stick band is
 #: inside what the transmitter noise and the fit's own resolution can show]
 MIN_S = 0.3
@@ -166,8 +179,19 @@ def _clean(value: Any) -> Any:
     return value
 
 
-def _battery(data: LoopData, loop_type: LoopType) -> list[Evidence]:
+def _battery(data: LoopData, loop_type: LoopType, osc: Oscillation) -> list[Evidence]:
     """Every applicable method's vote (module docstring, rule 3)."""
+    out = _methods(data, loop_type)
+    if osc.detected:
+        return out
+    return [Evidence(e.key, e.method, "undetermined", e.weight, e.value,
+                     f"abstains: published for oscillating loops, and this one does not "
+                     f"oscillate regularly ({e.reason})") if e.key in NEEDS_OSCILLATION else e
+            for e in out]
+
+
+def _methods(data: LoopData, loop_type: LoopType) -> list[Evidence]:
+    """Each method's own vote by its published rule."""
     e = data.sp - data.pv
     out: list[Evidence] = []
     if loop_type == "self-regulating":
@@ -230,12 +254,12 @@ def _bicoherence_vote(e: np.ndarray, dt: float) -> Evidence:
 def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
     """(verdict, confidence, score, reason) from the evidence (module docstring, rule 4)."""
     score = sum(_SIGN[e.vote] * e.weight for e in evidence)
-    total = sum(e.weight for e in evidence)
-    for_ = [e.key for e in evidence if e.vote == "stiction"]
-    against = [e.key for e in evidence if e.vote == "no_stiction"]
+    total = sum(e.weight for e in evidence) or 1.0
+    for_ = [e.key for e in evidence if e.vote == "stiction" and e.weight > 0]
+    against = [e.key for e in evidence if e.vote == "no_stiction" and e.weight > 0]
     tally = (f"score {score:+.2g} of {total:g} (for: {', '.join(for_) or 'none'}; against: "
              f"{', '.join(against) or 'none'})")
-    if score >= DECIDE and len(for_) >= 2:
+    if score >= DECIDE and (len(for_) >= 2 or "valve_fit" in for_):
         return "stiction", abs(score) / total, score, tally
     if score <= -DECIDE:
         return "no_stiction", abs(score) / total, score, tally
@@ -263,8 +287,10 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
                          reason="the data fails the quality gate: "
                          + "; ".join(quality.reasons))
     osc = regularity(data.sp - data.pv, data.dt)
-    evidence = _battery(data, lt)
-    fit = fit_valve(data, lt)
+    evidence = _battery(data, lt, osc)
+    ctl = fit_controller(data)
+    sign = 0.0 if not ctl.ok else (1.0 if ctl.action == "reverse" else -1.0)
+    fit = fit_valve(data, lt, gain_sign=sign)
     evidence.append(_valve_fit_vote(fit))
     verdict, confidence, score, reason = verdict_of(evidence)
     stiction = model = rec = None
@@ -274,18 +300,17 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
                     "deadband": fit.deadband, "r2": fit.r2, "r2_linear": fit.r2_linear,
                     "process": dict(fit.process), "reason": fit.reason}
         if recommend:
-            rec = _recommendation(data, fit, model, samples)
+            rec = _recommendation(data, fit, ctl, model, samples)
     return Diagnosis(verdict, confidence, lt, data.source, quality, osc, evidence, score,
                      reason, stiction, rec, model)
 
 
-def _recommendation(data: LoopData, fit: ValveFit, model: np.ndarray,
+def _recommendation(data: LoopData, fit: ValveFit, ctl: ControllerFit, model: np.ndarray,
                     samples: int) -> dict[str, Any] | None:
     """The options simulated on the fitted loop (:mod:`loopworks.analysis.recommend`), or a
     sentence saying why they cannot be."""
     from loopworks.analysis.recommend import recommend
 
-    ctl = fit_controller(data)
     if not ctl.ok or not math.isfinite(ctl.ti_s):
         return {"recommended": None, "options": [], "summary": "the controller could not be "
                 f"identified from the data ({ctl.reason}), so the options cannot be "

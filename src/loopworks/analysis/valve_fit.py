@@ -72,6 +72,11 @@ from loopworks.analysis.loopdata import LoopData
 
 FloatArray = npt.NDArray[np.float64]
 
+#: the high-pass window (:func:`_high_pass`) as a fraction of the record, and its least
+#: number of samples [ours: 5 % of a 2000-sample record is 100 samples, several times a
+#: stiction cycle and shorter than a slow load's drift]
+HP_FRACTION = 0.05
+HP_MIN_SAMPLES = 25
 #: Below this output-error R² of the best fit the record does not support an estimate [ours:
 #: half the PV variance unexplained means the model, and S and J with it, are not trusted].
 MIN_R2 = 0.5
@@ -179,6 +184,19 @@ def valve_position(op: FloatArray, s: float, j: float) -> FloatArray:
 
 # ----------------------------------------------------------------------------- process
 
+def _high_pass(x: FloatArray, width: int) -> FloatArray:
+    """x minus its centred moving average over ``width`` samples (ends held): the slow part
+    of the record (a load that drifts, the OP that follows it) taken out of both the PV and
+    the valve position before the process is fitted. The filter is linear and time
+    invariant, so it commutes with the process: HP(PV) = G·HP(x) + HP(load), and HP(load)
+    is small for a load slower than the window [ours]."""
+    from scipy.ndimage import uniform_filter1d
+
+    return np.asarray(x - uniform_filter1d(np.asarray(x, dtype=np.float64), width,
+                                           mode="nearest"), dtype=np.float64)
+
+
+
 def _sse_all_d(x: FloatArray, y: FloatArray, a: float, dmax: int, yy: float,
                only: int | None = None) -> tuple[FloatArray, FloatArray]:
     """Output-error SSE and b of ŷ = b·r_d + c' + e0·p for every dead time d = 0..dmax (or
@@ -228,13 +246,28 @@ def _sse_all_d(x: FloatArray, y: FloatArray, a: float, dmax: int, yy: float,
     return sse, theta[:, 0]
 
 
-def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int) -> _Process:
+def _admissible(sse: FloatArray, b: FloatArray, sign: float) -> FloatArray:
+    """``sse`` with the physically impossible fits ruled out (inf): d = 0 (no sample of delay:
+    under a zero-order hold a process answers one sample late at the earliest, and in a closed
+    loop a d = 0 fit finds the controller's own PV → OP relation, inverted), and a gain of the
+    wrong sign (``sign`` +1 for a reverse-acting controller's process, −1 for a direct-acting
+    one's, 0: either) [ours]."""
+    out = np.array(sse, dtype=np.float64)
+    out[0] = math.inf
+    if sign != 0.0:
+        out[sign * np.asarray(b) <= 0.0] = math.inf
+    return out
+
+
+def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int,
+                 sign: float = 0.0) -> _Process:
     """The output-error best process for valve position ``x`` (module docstring): every d,
     a on a log grid of time constants, then a bounded scalar search of ln T at the best d."""
     xc = x - x.mean()
     yy = float(y @ y)
     if integrating:
         sse, b = _sse_all_d(xc, y, 1.0, dmax, yy)
+        sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
         return _Process(float(sse[d]), 1.0, float(b[d]), d)
     n = len(y)
@@ -243,6 +276,7 @@ def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int) -> 
     best_i = -1
     for i, a in enumerate([0.0, *np.exp(-1.0 / taus)]):
         sse, b = _sse_all_d(xc, y, float(a), dmax, yy)
+        sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
         if sse[d] < best.sse:
             best, best_i = _Process(float(sse[d]), float(a), float(b[d]), d), i
@@ -262,6 +296,7 @@ def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int) -> 
                               options={"xatol": 0.005})
         a = math.exp(-math.exp(-float(res.x)))
         sse, b = _sse_all_d(xc, y, a, dmax, yy)
+        sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
         if not sse[d] < best.sse:
             break
@@ -272,7 +307,8 @@ def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int) -> 
     return best
 
 
-def _fit_increments(x: FloatArray, y: FloatArray, m: int, dmax: int) -> _Process:
+def _fit_increments(x: FloatArray, y: FloatArray, m: int, dmax: int,
+                    sign: float = 0.0) -> _Process:
     """The search cost of an integrating loop: least squares of the m-sample PV increments,
 
         y_k - y_{k-m} = b·(x_{k-d} + ... + x_{k-d-m+1}) + c·m,
@@ -299,6 +335,7 @@ def _fit_increments(x: FloatArray, y: FloatArray, m: int, dmax: int) -> _Process
     var_r = np.where(moves, var_r, 1.0)                    # nothing (b = 0)
     cov = np.where(moves, rz - r1 * z.sum() / nz, 0.0)
     sse = np.maximum(zc @ zc - cov * cov / var_r, 0.0)
+    sse = _admissible(sse, cov / var_r, sign)
     d = int(np.argmin(sse))
     return _Process(float(sse[d]), 1.0, float(cov[d] / var_r[d]), d)
 
@@ -354,7 +391,7 @@ def count_swings(x: FloatArray, hysteresis: float) -> int:
 # ----------------------------------------------------------------------------- valve fit
 
 def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
-              max_dead_time: float | None = None) -> ValveFit:
+              max_dead_time: float | None = None, gain_sign: float = 0.0) -> ValveFit:
     """Fit Choudhury's S and J jointly with the process (module docstring).
 
     ``loop_type``: ``"self-regulating"`` (FOPDT process) or ``"integrating"``.
@@ -383,7 +420,9 @@ def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
         return refuse(f"{n} usable samples{cut}: at least {MIN_SAMPLES} are needed to fit "
                       f"the valve and the process.")
     op_range = float(op.max() - op.min())
-    sst = float(((pv - pv.mean()) ** 2).sum())
+    width = max(HP_MIN_SAMPLES, round(HP_FRACTION * n))
+    y = _high_pass(pv, width)
+    sst = float((y ** 2).sum())
     if op_range < MIN_OP_RANGE:
         return refuse(f"OP moves over {op_range:.3g} % only{cut} (below {MIN_OP_RANGE:g} %): "
                       f"a valve that is not driven shows no stiction to estimate.")
@@ -396,20 +435,21 @@ def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
                       f"to see the valve reverse.")
     dmax = (round(max_dead_time / dt) + 1 if max_dead_time is not None
             else int(min(MAX_DEAD_SAMPLES, max(1, round(DEAD_FRACTION * n)))))
-    dmax = max(0, min(dmax, n // 2))
-    y = pv - pv.mean()
+    dmax = max(1, min(dmax, n // 2))
     cache: dict[tuple[float, float], _Process] = {}
 
     def evaluate(s: float, j: float) -> _Process:
         key = (round(s, 9), round(j, 9))
         if key not in cache:
-            x = valve_position(op, s, j)
-            cache[key] = (_fit_increments(x, y, INCREMENT_SAMPLES, dmax) if integrating
-                          else _fit_process(x, y, False, dmax))
+            x = _high_pass(valve_position(op, s, j), width)
+            cache[key] = (_fit_increments(x, y, INCREMENT_SAMPLES, dmax, gain_sign)
+                          if integrating else _fit_process(x, y, False, dmax, gain_sign))
         return cache[key]
 
     def output_error(s: float, j: float) -> _Process:
-        return (_fit_process(valve_position(op, s, j), y, True, dmax) if integrating
+        return (_fit_process(_high_pass(valve_position(op, s, j), width), y, True, dmax,
+                             gain_sign)
+                if integrating
                 else evaluate(s, j))
 
     linear = evaluate(0.0, 0.0)
