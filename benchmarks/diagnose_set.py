@@ -1,13 +1,14 @@
 """The stiction detector's test set (issue 15): generate it, show its composition and time.
 
-    python benchmarks/diagnose_set.py [--n N] [--seed S] [--oracle]
+    python benchmarks/diagnose_set.py [--n N] [--seed S] [--oracle | --diagnose]
 
 Generates :func:`loopworks.analysis.synthetic.make_set` and prints the loops per group, loop
 type, valve and controller, and how long generation took (the first run on a machine also
 compiles each module layout's plan, cached afterwards). :func:`evaluate` scores a detector on
 the set: give it ``diagnose(data, loop_type) -> {"verdict": "stiction" | "no_stiction",
 "s": ..., "j": ...}`` (s and j optional). ``--oracle`` runs it with a detector that reads the
-truth, to show the table's form.
+truth, to show the table's form; ``--diagnose`` scores ``loopworks.diagnose`` (without the
+recommendation's simulations), the table of docs/diagnose.md.
 """
 
 from __future__ import annotations
@@ -95,6 +96,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--oracle", action="store_true",
                         help="evaluate a detector that reads the truth (shows the table)")
+    parser.add_argument("--diagnose", action="store_true",
+                        help="evaluate loopworks.diagnose on the set")
     args = parser.parse_args()
     t0 = time.perf_counter()
     loops = make_set(n=args.n, seed=args.seed)
@@ -111,6 +114,18 @@ def main() -> None:
             return {"verdict": x.label, "s": x.s, "j": x.j}
 
         print(evaluate(loops, oracle))
+    if args.diagnose:
+        from loopworks.analysis.diagnosis import diagnose
+
+        def detector(data: LoopData, loop_type: str) -> dict[str, Any]:
+            d = diagnose(data, loop_type, recommend=False)
+            st = d.stiction or {}
+            return {"verdict": d.verdict, "s": st.get("s"), "j": st.get("j")}
+
+        t0 = time.perf_counter()
+        table = evaluate(loops, detector)
+        print(table)
+        print(f"diagnosed in {time.perf_counter() - t0:.1f} s")
 
 
 if __name__ == "__main__":

@@ -81,6 +81,9 @@ from loopworks.errors import InputError
 #: each method's weight in the verdict (rule 4)
 WEIGHTS: dict[str, float] = {"horch": 1.0, "area_ratio": 1.0, "curve_fit": 1.0,
                              "bicoherence": 0.0, "valve_fit": 1.0}
+#: the oscillation test's noise band (:func:`~loopworks.analysis.oscillation.regularity`): ACF
+#: zero crossings count only between lobes that leave ±this·1/√N
+OSCILLATION_NOISE_SIGMAS = 3.0
 #: the methods published for oscillating loops only ("... in oscillating control loops":
 #: Horch 1999, Singhal & Salsbury 2005, He et al. 2007): they abstain when the error does not
 #: oscillate (rule 3)
@@ -286,7 +289,7 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
         return Diagnosis("undetermined", 0.0, lt, data.source, quality, None,
                          reason="the data fails the quality gate: "
                          + "; ".join(quality.reasons))
-    osc = regularity(data.sp - data.pv, data.dt)
+    osc = regularity(data.sp - data.pv, data.dt, noise_sigmas=OSCILLATION_NOISE_SIGMAS)
     evidence = _battery(data, lt, osc)
     ctl = fit_controller(data)
     sign = 0.0 if not ctl.ok else (1.0 if ctl.action == "reverse" else -1.0)
