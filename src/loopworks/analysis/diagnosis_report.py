@@ -55,9 +55,9 @@ def pv_op(result: Diagnosis, data: LoopData, path: Path) -> Path:
     ax.plot(data.op, data.pv, lw=0.6, color="0.6", label="data")
     ax.plot(data.op, data.pv, ".", ms=2, color="tab:blue")
     fit = result.stiction
-    if fit is not None and fit.get("model_pv") is not None:
-        ax.plot(data.op, fit["model_pv"], lw=1.2, color="tab:red",
-                label=f"fitted model (S = {fit['s']:.3g} %, J = {fit['j']:.3g} %)")
+    if fit is not None and result.model_pv is not None:
+        ax.plot(data.op, result.model_pv, lw=0.9, color="tab:red", alpha=0.8,
+                label=f"fitted model's PV (S = {fit['s']:.3g} %, J = {fit['j']:.3g} %)")
     ax.set_xlabel("OP (%)")
     ax.set_ylabel("PV")
     ax.set_title(f"PV against OP: {result.verdict} (confidence {result.confidence:.2f})")
@@ -73,14 +73,26 @@ def recommendation(result: Diagnosis, path: Path) -> Path | None:
     if rec is None or not rec.get("options"):
         return None
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 5), layout="constrained")
+    fig, ax = plt.subplots(figsize=(7.5, 5.2), layout="constrained")
     for opt in rec["options"]:
-        ax.plot(opt["valve_travel"], opt["pv_std"], "o", ms=8)
-        ax.annotate(opt["name"], (opt["valve_travel"], opt["pv_std"]),
+        x, y = opt["valve_travel"], opt["pv_std"]
+        chosen = opt["name"] == rec.get("recommended")
+        ax.errorbar(x, y, yerr=[[y - opt["pv_std_p5"]], [opt["pv_std_p95"] - y]],
+                    xerr=[[x - opt["valve_travel_p5"]], [opt["valve_travel_p95"] - x]],
+                    fmt="o", ms=9 if chosen else 6, capsize=3, lw=0.8,
+                    mec="k" if chosen else None)
+        ax.annotate(opt["name"] + (" (recommended)" if chosen else ""), (x, y),
                     textcoords="offset points", xytext=(6, 4))
+    base = next((o for o in rec["options"] if o["name"] == "none"), None)
+    if base is not None:
+        from loopworks.analysis.recommend import TRAVEL_FACTOR
+
+        ax.axvline(TRAVEL_FACTOR * base["valve_travel"], color="0.5", ls="--", lw=0.8,
+                   label=f"acceptable travel: {TRAVEL_FACTOR:g}× no compensation")
+        ax.legend(loc="best")
     ax.set_xlabel("predicted valve travel (% of stroke)")
     ax.set_ylabel("predicted PV standard deviation")
-    ax.set_title("what each option would do (simulated on the fitted loop)")
+    ax.set_title("what each option would do on the fitted loop (median, 5-95 %)")
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
