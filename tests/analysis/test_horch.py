@@ -16,6 +16,7 @@ from loopworks.analysis.horch import (
     horch_test,
 )
 from loopworks.analysis.oscillation import regularity
+from tests.analysis.conftest import SPEC_DT
 
 DT = 0.1
 PERIOD = 100.0
@@ -117,53 +118,10 @@ def test_no_variation_or_no_crossing_is_undetermined() -> None:
     assert "no zero crossing" in short.reason
 
 
-def choudhury_pi_loop(t_end: float = 4000.0, dt: float = 0.05, s_band: float = 3.0,
-                      j_slip: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """SP, PV, OP of spec 5.1's first case: FOPDT K = 1, T = 10 s, L = 2 s (exact ZOH
-    discretisation), ideal PI Kc = 1, Ti = 10 s on e = SP − PV, a Choudhury valve (spec 1.2:
-    S, J in %) starting stuck at 50 %, SP 50 -> 51 % at t = 10 s."""
-    gain, tau, kc, ti = 1.0, 10.0, 1.0, 10.0
-    n, nd = round(t_end / dt), round(2.0 / dt)
-    a = math.exp(-dt / tau)
-    sp = np.where(np.arange(n) * dt >= 10.0, 51.0, 50.0)
-    pv, op = np.empty(n), np.empty(n)
-    y = x_prev = xss = 50.0
-    v_prev, integral, p, stuck = 0.0, 0.0, 50.0, True
-    line = [50.0] * nd  # valve positions on their way through the dead time
-    for k in range(n):
-        pv[k] = p
-        e = sp[k] - p
-        x = min(max(50.0 + kc * (e + integral / ti), 0.0), 100.0)
-        integral += e * dt
-        v = x - x_prev
-        s, s_prev = np.sign(v), np.sign(v_prev)
-        if s == s_prev:
-            if not stuck:
-                y = x - s * (s_band - j_slip) / 2
-            else:
-                resume = np.sign(x - xss) * np.sign(xss - y) == 1
-                slip = abs(x - xss) > j_slip if resume else abs(x - y) > (s_band + j_slip) / 2
-                if slip:
-                    stuck, y = False, x - s * (s_band - j_slip) / 2
-        else:
-            if not stuck:
-                xss = x_prev
-            if s != 0 and abs(x - y) > (s_band + j_slip) / 2:
-                stuck, y = False, x - s * (s_band - j_slip) / 2
-            else:
-                stuck = True
-        x_prev, v_prev = x, v
-        op[k] = x
-        line.append(y)
-        p = 50.0 + a * (p - 50.0) + gain * (1.0 - a) * (line.pop(0) - 50.0)
-    return sp, pv, op
-
-
-def test_closed_loop_with_sticky_valve() -> None:
-    dt = 0.05
-    sp, pv, op = choudhury_pi_loop(dt=dt)
-    half = len(pv) // 2  # the limit cycle, as spec 5.1 measures it (second half)
-    sp, pv, op = sp[half:], pv[half:], op[half:]
+def test_closed_loop_with_sticky_valve(
+        spec_cycle: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+    dt = SPEC_DT
+    sp, pv, op = spec_cycle  # the limit cycle, as spec 5.1 measures it (second half)
     # spec 5.1: PV amplitude 0.556, OP amplitude 1.560, period 112.0 s
     assert np.ptp(pv) / 2 == pytest.approx(0.556, rel=0.05)
     assert np.ptp(op) / 2 == pytest.approx(1.560, rel=0.05)

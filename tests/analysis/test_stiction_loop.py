@@ -1,8 +1,9 @@
 """Closed-loop check: a PI loop with a Choudhury stick-slip valve, seen by both methods.
 
 Loop (plant-and-tuning 5.1, first row): FOPDT K = 1, T = 10 s, dead time 2 s; ideal PI Kc = 1,
-Ti = 10 s, e = SP - PV; valve S = 3 %, J = 1 % (spec 1.2 logic, started stuck at 50 %); dt =
-0.05 s; SP 50 → 51 % at t = 10 s. The spec reports OP amplitude 1.560, PV amplitude 0.556 and
+Ti = 10 s, e = SP - PV; valve S = 3 %, J = 1 % (loopworks' valve.choudhury, spec 1.2); dt =
+0.05 s; SP 50 → 51 % at t = 10 s (the ``spec_cycle`` fixture, tests/analysis/conftest.py).
+The spec reports OP amplitude 1.560, PV amplitude 0.556 and
 period 112.0 s for this loop (second half of a 4000 s run); the simulation below must reproduce
 them before the detectors are judged on it."""
 
@@ -15,50 +16,16 @@ import pytest
 
 from loopworks.analysis.bicoherence import apparent_stiction
 from loopworks.analysis.curve_fit import curve_fit_index
+from tests.analysis.conftest import SPEC_DT
 
-DT = 0.05
+DT = SPEC_DT
 S, J = 3.0, 1.0
 
 
-def simulate(t_end: float = 3000.0) -> tuple[np.ndarray, np.ndarray]:
-    """(OP, PV) of the loop above; the valve follows spec 1.2 step by step."""
-    gain, tau, dead, kc, ti = 1.0, 10.0, 2.0, 1.0, 10.0
-    n, d, a = round(t_end / DT), round(dead / DT), math.exp(-DT / tau)
-    op, pv = np.empty(n), np.empty(n)
-    y, integ = 50.0, 50.0 / kc  # steady state: PV = SP = OP = valve = 50 %
-    x_prev, v_prev, pos, stuck, xss = 50.0, 0.0, 50.0, True, 50.0
-    line = [50.0] * d  # valve positions inside the dead time
-    for k in range(n):
-        e = (51.0 if k * DT >= 10.0 else 50.0) - y
-        integ += e * DT / ti
-        x = min(max(kc * (e + integ), 0.0), 100.0)  # 1. saturation
-        v = x - x_prev
-        s, s_prev = np.sign(v), np.sign(v_prev)  # 2.
-        if s == s_prev:  # 3. same direction
-            if not stuck:
-                pos = x - s * (S - J) / 2.0
-            else:
-                resume = np.sign(x - xss) * np.sign(xss - pos) == 1.0
-                if (abs(x - xss) > J) if resume else (abs(x - pos) > (S + J) / 2.0):
-                    stuck, pos = False, x - s * (S - J) / 2.0
-        else:  # 4. reversal or pause
-            if not stuck:
-                xss = x_prev
-            if s != 0.0 and abs(x - pos) > (S + J) / 2.0:
-                stuck, pos = False, x - s * (S - J) / 2.0
-            else:
-                stuck = True
-        x_prev, v_prev = x, v  # 5.
-        line.append(pos)
-        y = a * y + (1.0 - a) * gain * line.pop(0)  # exact ZOH step of the FOPDT
-        op[k], pv[k] = x, y
-    return op, pv
-
-
 @pytest.fixture(scope="module")
-def cycle() -> tuple[np.ndarray, np.ndarray, float]:
-    op, pv = simulate()
-    op, pv = op[op.size // 2 :], pv[pv.size // 2 :]  # the settled limit cycle
+def cycle(spec_cycle: tuple[np.ndarray, np.ndarray, np.ndarray]
+          ) -> tuple[np.ndarray, np.ndarray, float]:
+    _, pv, op = spec_cycle  # the settled limit cycle (loopworks' own blocks)
     oc = op - op.mean()
     ups = np.flatnonzero((oc[:-1] < 0.0) & (oc[1:] >= 0.0))
     return op, pv, float(np.diff(ups).mean() * DT)

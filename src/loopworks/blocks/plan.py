@@ -316,6 +316,21 @@ def _header(kernels: dict[tuple[Any, bool], str], refs: dict[Any, Any],
     return lines
 
 
+def _scan(slots: Sequence[Slot], kernels: dict[tuple[Any, bool], str], pad: str) -> list[str]:
+    """One scan of a module's blocks in order, at time ``t``: each block's wired inputs
+    copied from their sources, its clock set, its guarded kernel called."""
+    lines = []
+    for slot in slots:
+        for i, src, j in slot.links:
+            s = slots[src]
+            lines.append(f"{pad}F[{slot.u0 + i}] = F[{s.y0 + j}]")
+            lines.append(f"{pad}S[{slot.s0 + i}] = S[{s.ys0 + j}]")
+        if slot.clock is not None:
+            lines.append(f"{pad}F[{slot.u0 + slot.clock}] = t")
+        lines.append(pad + _call(slot, kernels[(slot.kernel, slot.full)], "dt"))
+    return lines
+
+
 def kernel_call(kernel: Any, jit: bool, full: bool) -> Any:
     """The compiled ``call(dt, p, x, u, us, y, ys)`` of ``kernel`` under the guard: a numba
     dispatcher cached on disk, for every array size (``jit`` is always True: the signature
@@ -340,14 +355,7 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
                   "    for k in range(n):",
                   "        t = t0 if k == 0 else (k0 + k) * dt",
                   "        T[at + k] = t"]
-        for slot in slots:
-            for i, src, j in slot.links:
-                s = slots[src]
-                lines.append(f"        F[{slot.u0 + i}] = F[{s.y0 + j}]")
-                lines.append(f"        S[{slot.s0 + i}] = S[{s.ys0 + j}]")
-            if slot.clock is not None:
-                lines.append(f"        F[{slot.u0 + slot.clock}] = t")
-            lines.append("        " + _call(slot, kernels[(slot.kernel, slot.full)], "dt"))
+        lines += _scan(slots, kernels, " " * 8)
         lines += ["        for j in range(IF.shape[0]):",
                   "            RF[j, at + k] = F[IF[j]]",
                   "        for j in range(IS.shape[0]):",
@@ -364,14 +372,7 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
                   "        S = numba.carray(int64_at(sa + i * ns * 8), ns)",
                   "        for k in range(m):",
                   "            t = (k0 + k) * dt"]
-        for slot in slots:
-            for i, src, j in slot.links:
-                s = slots[src]
-                lines.append(f"            F[{slot.u0 + i}] = F[{s.y0 + j}]")
-                lines.append(f"            S[{slot.s0 + i}] = S[{s.ys0 + j}]")
-            if slot.clock is not None:
-                lines.append(f"            F[{slot.u0 + slot.clock}] = t")
-            lines.append("            " + _call(slot, kernels[(slot.kernel, slot.full)], "dt"))
+        lines += _scan(slots, kernels, " " * 12)
         lines += ["            for j in range(IR.shape[0]):",
                   "                R[i, j, at + k] = F[IR[j]]"]
     if "call" in entries:
