@@ -135,3 +135,19 @@ def test_a_clean_loop_and_an_external_oscillation_are_not_called_sticky() -> Non
                                    sine_period=150.0), recommend=False)
     assert external.verdict != "stiction", external.reason
     assert external.oscillation is not None and external.oscillation.detected
+
+
+def test_a_simulate_report_csv_is_diagnosed(tmp_path: Path) -> None:
+    # the Done-when's "on simulated CSVs from loopworks simulate": the built-in scenario's
+    # loop, its columns mapped (a module's CSV names every port block.port)
+    out = tmp_path / "report"
+    run = CliRunner().invoke(app, ["simulate", "-o", str(out), "-q"])
+    assert run.exit_code == 0, run.output
+    run = CliRunner().invoke(app, [
+        "diagnose", str(out / "compensation_off.csv"), "--json", "--columns",
+        "sp=pid.working_sp,pv=pid.pv,op=pid.out,position=valve.position"])
+    assert run.exit_code == 0, run.output
+    doc = json.loads(run.stdout)
+    assert doc["quality"]["passed"] and doc["quality"]["samples"] == 7200
+    # its valve sticks (0.5 % stick-slip, 0.2 % backlash): never called clean
+    assert doc["verdict"] in ("stiction", "undetermined"), doc["reason"]

@@ -241,9 +241,15 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
             taken.add(hits[0])
         elif role in REQUIRED:
             looked = ", ".join(ALIASES[role])
+            # a module's CSV (loopworks simulate) names its ports block.port: offer those
+            near = [names[i] for i, h in enumerate(lower)
+                    if h.rpartition(".")[2] in ALIASES[role] and "." in h]
+            hint = (f"; perhaps {', '.join(repr(n) for n in near)} (--columns "
+                    f"{role}={near[0]})" if near else "")
             raise FileFormatError(f"{source}, line {line}: no {MEANING[role]} column: looked "
-                                  f"for {looked} (any letter case); the columns are {present}; "
-                                  f"map one with columns={{'{role}': NAME}}")
+                                  f"for {looked} (any letter case){hint}; the columns are "
+                                  f"{present}; map one with columns={{'{role}': NAME}} "
+                                  f"(--columns {role}=NAME)")
     return found
 
 
