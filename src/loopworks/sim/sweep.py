@@ -47,6 +47,7 @@ import statistics
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from contextlib import suppress
 from dataclasses import dataclass, field
 from itertools import product
 from multiprocessing import get_context
@@ -106,10 +107,8 @@ def _item(text: str) -> Value:
     """A list item: an int, a float, else a name (a mode, a choice)."""
     t = text.strip()
     for cast in (int, float):
-        try:
+        with suppress(ValueError):  # not this type: try the next, else it is a name
             return cast(t)
-        except ValueError:
-            pass
     return t
 
 
