@@ -4,6 +4,7 @@ stated rule, the CLI and its JSON."""
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -151,3 +152,19 @@ def test_a_simulate_report_csv_is_diagnosed(tmp_path: Path) -> None:
     assert doc["quality"]["passed"] and doc["quality"]["samples"] == 7200
     # its valve sticks (0.5 % stick-slip, 0.2 % backlash): never called clean
     assert doc["verdict"] in ("stiction", "undetermined"), doc["reason"]
+
+
+def test_a_few_bad_samples_are_held_not_a_crash() -> None:
+    # the gate lets up to 5 % Bad samples through; the tests then see them held at the last
+    # good value (a historian's hold), and the reason says how many
+    t = np.arange(4000) * 1.0
+    tri = 2.0 * np.abs(((t / 100.0) % 1.0) * 2.0 - 1.0) - 1.0
+    pv = 50.0 + np.sign(np.gradient(tri)) + 0.02 * np.random.default_rng(1).standard_normal(4000)
+    op = 50.0 + 2.0 * tri
+    pv[[0, 700, 701]] = np.nan
+    op[1500] = np.inf
+    d = diagnose(_loop(op, pv), recommend=False)
+    assert d.quality.passed
+    assert d.verdict == "stiction", d.reason
+    assert "4 Bad (NaN or infinite) sample(s)" in d.reason
+    assert all(math.isfinite(e.value) or e.vote == "undetermined" for e in d.evidence)

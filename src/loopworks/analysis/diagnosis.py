@@ -55,7 +55,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -291,6 +291,7 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
         return Diagnosis("undetermined", 0.0, lt, data.source, quality, None,
                          reason="the data fails the quality gate: "
                          + "; ".join(quality.reasons))
+    data, held = _hold_bad(data)
     osc = regularity(data.sp - data.pv, data.dt, noise_sigmas=OSCILLATION_NOISE_SIGMAS)
     evidence = _battery(data, lt, osc)
     ctl = fit_controller(data)
@@ -298,6 +299,9 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     fit = fit_valve(data, lt, gain_sign=sign)
     evidence.append(_valve_fit_vote(fit))
     verdict, confidence, score, reason = verdict_of(evidence)
+    if held:
+        reason += (f"; {held} Bad (NaN or infinite) sample(s) of SP, PV or OP held at the "
+                   "last good value before the tests")
     stiction = model = rec = None
     if verdict == "stiction" and fit.ok:
         model = model_pv(data, fit)
@@ -308,6 +312,30 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
             rec = _recommendation(data, fit, ctl, model, samples)
     return Diagnosis(verdict, confidence, lt, data.source, quality, osc, evidence, score,
                      reason, stiction, rec, model)
+
+
+def _hold(x: np.ndarray) -> np.ndarray:
+    """x with each non-finite sample replaced by the last finite one before it (the first
+    finite one for a leading stretch): a historian's hold."""
+    good = np.isfinite(x)
+    if good.all() or not good.any():
+        return x
+    idx = np.where(good, np.arange(len(x)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    first = int(np.argmax(good))
+    idx[:first] = first
+    return np.asarray(x[idx], dtype=np.float64)
+
+
+def _hold_bad(data: LoopData) -> tuple[LoopData, int]:
+    """The record with its Bad samples of SP, PV and OP held (the gate lets through at most
+    :data:`~loopworks.analysis.quality.MAX_NAN_FRACTION` of them; every test below needs
+    finite samples), and how many samples were held."""
+    bad = ~(np.isfinite(data.sp) & np.isfinite(data.pv) & np.isfinite(data.op))
+    count = int(bad.sum())
+    if count == 0:
+        return data, 0
+    return replace(data, sp=_hold(data.sp), pv=_hold(data.pv), op=_hold(data.op)), count
 
 
 def _recommendation(data: LoopData, fit: ValveFit, ctl: ControllerFit, model: np.ndarray,
