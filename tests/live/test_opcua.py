@@ -10,14 +10,18 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import stat
 import threading
 from collections.abc import Awaitable, Callable, Iterator
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, TypeVar
 
 import pytest
 from asyncua import Client, ua
+from asyncua.crypto.cert_gen import setup_self_signed_certificate
 from asyncua.ua.status_codes import StatusCodes
+from cryptography.x509.oid import ExtendedKeyUsageOID
 
 from loopworks.blocks import status as st
 from loopworks.errors import InputError
@@ -26,7 +30,9 @@ from loopworks.live.opcua import (
     LoopServer,
     Variable,
     WriteRefused,
+    _self_signed,
     opcua_status,
+    security_policies,
 )
 from loopworks.live.users import add_user, load_users
 
@@ -458,3 +464,58 @@ def test_without_users_file_anonymous_reads_and_no_login_is_accepted() -> None:
     anonymous_reads, outcome = asyncio.run(scenario())
     assert anonymous_reads
     assert outcome == "BadIdentityTokenRejected"
+
+
+# --- security ---------------------------------------------------------------------------------
+
+def test_security_policies_offer_nosecurity_on_loopback_only() -> None:
+    none = ua.SecurityPolicyType.NoSecurity
+    secure = [ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
+              ua.SecurityPolicyType.Aes256Sha256RsaPss_SignAndEncrypt]
+    assert security_policies(loopback=True, certificate=False) == [none]
+    assert security_policies(loopback=True, certificate=True) == [none, *secure]
+    assert security_policies(loopback=False, certificate=True) == secure
+
+
+def test_signed_and_encrypted_sessions_with_a_self_signed_certificate(tmp_path: Path) -> None:
+    users = tmp_path / "users.toml"
+    add_user(users, "op", "op-pass", "operator")
+    controller = FakeController()
+    server = LoopServer(controller, load_users(users), port=0,
+                        certificate_dir=tmp_path / "pki")
+    client_key, client_cert = tmp_path / "client.pem", tmp_path / "client.der"
+
+    async def scenario() -> list[tuple[str, str]]:
+        url = await server.start()
+        try:
+            assert server.server is not None
+            offered = [(e.SecurityPolicyUri.rsplit("#", 1)[1], e.SecurityMode.name)
+                       for e in await server.server.get_endpoints()]
+            await setup_self_signed_certificate(
+                client_key, client_cert, "urn:loopworks:test-client", "localhost",
+                [ExtendedKeyUsageOID.CLIENT_AUTH], {"commonName": "test client"})
+            for policy, sp in (("Basic256Sha256", 61.0), ("Aes256Sha256RsaPss", 62.0)):
+                client = Client(url, timeout=5)
+                client.application_uri = "urn:loopworks:test-client"
+                await client.set_security_string(
+                    f"{policy},SignAndEncrypt,{client_cert},{client_key}")
+                client.set_user("op")
+                client.set_password("op-pass")
+                async with client:
+                    assert (await read(client, "pid.PV")).Value.Value == 45.0
+                    assert await write_code(client, "pid.SP", double(sp)) == "Good"
+            return offered
+        finally:
+            await server.stop()
+
+    offered = asyncio.run(scenario())
+    assert offered == [("None", "None_"), ("Basic256Sha256", "SignAndEncrypt"),
+                       ("Aes256_Sha256_RsaPss", "SignAndEncrypt")]
+    assert [w[3:] for w in controller.writes] == [("SP", 61.0), ("SP", 62.0)]
+    pki = tmp_path / "pki"
+    files = {p.name: p.read_bytes() for p in pki.iterdir()}
+    assert set(files) == {"loopworks-server.der", "loopworks-server.pem"}
+    assert all(stat.S_IMODE(p.stat().st_mode) == 0o600 for p in pki.iterdir())
+    # the next start reuses the certificate, so clients that trust it keep trusting it
+    asyncio.run(_self_signed(pki, "127.0.0.1"))
+    assert {p.name: p.read_bytes() for p in pki.iterdir()} == files

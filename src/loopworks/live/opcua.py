@@ -42,12 +42,14 @@ asyncua entry point that knows the session's user and returns one status code pe
 Security: the server binds to 127.0.0.1 unless told otherwise. Without a certificate it offers
 only NoSecurity (passwords then travel in clear text), and refuses to start on a host that is
 not a loopback address. With ``certificate_dir`` it generates a self-signed certificate there
-on first start (RSA 2048, ``cryptography``) and offers Basic256Sha256 and
-Aes256_Sha256_RsaPss, Sign & Encrypt; NoSecurity is then offered on loopback only.
+on first start (RSA 2048, ``cryptography``; reused afterwards) and offers Basic256Sha256 and
+Aes256_Sha256_RsaPss, Sign & Encrypt (clients then need a certificate of their own, even to
+log in with a password); NoSecurity is still offered on loopback, never elsewhere.
 """
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
 import hashlib
 import hmac
@@ -137,7 +139,8 @@ class Controller(Protocol):
     def write(self, user: str | None, role: str | None, loop: str, name: str,
               value: float | int) -> None:
         """Apply a client's write (a float for a double, the code for a mode, an int for an
-        int), or raise ``WriteRefused``."""
+        int), or raise ``WriteRefused``. Called on the server's event loop (the one that ran
+        ``start``): it must return at once, not block or wait for a scan."""
         ...
 
 
@@ -318,15 +321,11 @@ class LoopServer:
         await server.set_application_uri(APPLICATION_URI)
         host = f"[{self.host}]" if ":" in self.host else self.host
         server.set_endpoint(f"opc.tcp://{host}:{self.port}/loopworks/")
-        policies = []
-        if self.loopback:
-            policies.append(ua.SecurityPolicyType.NoSecurity)
+        policies = security_policies(self.loopback, self.certificate_dir is not None)
         if self.certificate_dir is not None:
             cert, key = await _self_signed(self.certificate_dir, self.host)
             await server.load_certificate(str(cert))
             await server.load_private_key(str(key))
-            policies += [ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
-                         ua.SecurityPolicyType.Aes256Sha256RsaPss_SignAndEncrypt]
         server.set_security_policy(policies)
         tokens: list[type] = [ua.AnonymousIdentityToken]
         if self.users is not None:
@@ -352,6 +351,7 @@ class LoopServer:
 
     async def publish(self, values: Mapping[str, tuple[float | int | str, int]]) -> None:
         """Set variables from the controller's scan: ``{"pid.PV": (value, status_byte)}``.
+        Call it on the server's event loop; a key may be left out (it keeps its value).
 
         A Bad status is published with its value, which OPC UA clients read as None."""
         server = self.server
@@ -567,25 +567,61 @@ def _client_value(kind: str, variant: ua.Variant | None) -> float | int:
 
 
 async def _self_signed(directory: Path, host: str) -> tuple[Path, Path]:
-    """The server's certificate (DER) and private key (PEM, mode 0600) in ``directory``,
-    generated on first use, and again when missing, expired or made for another host
-    (asyncua's ``setup_self_signed_certificate``, valid one year)."""
-    from asyncua.crypto.cert_gen import setup_self_signed_certificate
+    """The server's certificate (DER) and private key (PEM, mode 0600) in ``directory``:
+    generated on first use (RSA 2048, valid 5 years; subject alternative names: the
+    application URI, this machine's host name, localhost and ``host`` if it is an IP address),
+    and again when missing, expired or unreadable, which clients must then trust anew."""
+    from asyncua.crypto import cert_gen, uacrypto
+    from cryptography import x509
+    from cryptography.hazmat.primitives.serialization import Encoding
     from cryptography.x509.oid import ExtendedKeyUsageOID
 
+    cert_file = directory / "loopworks-server.der"
+    key_file = directory / "loopworks-server.pem"
+    hostname = socket.gethostname()
     try:
         directory.mkdir(parents=True, exist_ok=True, mode=0o700)
+        if cert_file.is_file() and key_file.is_file():
+            try:
+                cert = await uacrypto.load_certificate(cert_file)
+                await uacrypto.load_private_key(key_file)
+                if not uacrypto.check_certificate(cert, APPLICATION_URI, hostname):  # no error
+                    return cert_file, key_file
+            except (ValueError, TypeError) as exc:  # unreadable: made again
+                log.warning("%s: cannot load the certificate (%s): generating a new one",
+                            directory, exc)
+        key = cert_gen.generate_private_key()
+        names: list[x509.GeneralName] = [x509.UniformResourceIdentifier(APPLICATION_URI),
+                                         x509.DNSName(hostname), x509.DNSName("localhost")]
+        with contextlib.suppress(ValueError):
+            address = ipaddress.ip_address(host.strip("[]"))
+            if not address.is_unspecified:
+                names.append(x509.IPAddress(address))
+        cert = cert_gen.generate_self_signed_app_certificate(
+            key, f"loopworks serve {hostname}", {"organizationName": "loopworks"}, names,
+            [ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH], days=5 * 365)
+        _write_private(key_file, cert_gen.dump_private_key_as_pem(key))
+        _write_private(cert_file, cert.public_bytes(Encoding.DER))
     except OSError as exc:
-        raise InputError(f"{directory}: cannot create the certificate directory: "
+        raise InputError(f"{directory}: cannot write the server certificate: "
                          f"{exc.strerror}") from None
-    cert, key = directory / "loopworks-server.der", directory / "loopworks-server.pem"
-    old_umask = os.umask(0o077)  # the key is written 0600
-    try:
-        await setup_self_signed_certificate(
-            key, cert, APPLICATION_URI, socket.gethostname() if host in ("0.0.0.0", "::")
-            else host, [ExtendedKeyUsageOID.CLIENT_AUTH, ExtendedKeyUsageOID.SERVER_AUTH],
-            {"countryName": "XX", "organizationName": "loopworks",
-             "commonName": f"loopworks serve {host}"})
-    finally:
-        os.umask(old_umask)
-    return cert, key
+    log.warning("generated a self-signed OPC UA server certificate %s (clients must trust "
+                "it)", cert_file)
+    return cert_file, key_file
+
+
+def _write_private(path: Path, data: bytes) -> None:
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "wb") as out:
+        out.write(data)
+    os.chmod(path, 0o600)
+
+
+def security_policies(loopback: bool, certificate: bool) -> list[ua.SecurityPolicyType]:
+    """The security policies offered: NoSecurity on a loopback address only; with a
+    certificate, Basic256Sha256 and Aes256_Sha256_RsaPss with Sign & Encrypt."""
+    policies = [ua.SecurityPolicyType.NoSecurity] if loopback else []
+    if certificate:
+        policies += [ua.SecurityPolicyType.Basic256Sha256_SignAndEncrypt,
+                     ua.SecurityPolicyType.Aes256Sha256RsaPss_SignAndEncrypt]
+    return policies
