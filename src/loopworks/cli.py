@@ -681,6 +681,45 @@ def compile_kinds(
                f"({plan.cache_dir()})")
 
 
+users_app = typer.Typer(
+    help="The users file of a live controller's OPC UA server (loopworks serve --users FILE).",
+    no_args_is_help=True,
+)
+app.add_typer(users_app, name="users")
+
+
+def _read_password(name: str) -> str:
+    """One line of standard input, or (on a terminal) a password typed twice."""
+    if sys.stdin is not None and sys.stdin.isatty():
+        import getpass
+
+        first = getpass.getpass(f"password for {name}: ")
+        second = getpass.getpass(f"password for {name} (again): ")
+        if first != second:
+            _fail("the two passwords differ: nothing written")
+        return first
+    line = sys.stdin.readline() if sys.stdin is not None else ""
+    return line.removesuffix("\n").removesuffix("\r")
+
+
+@users_app.command("add")
+@_user_errors
+def users_add(
+    file: Annotated[Path, typer.Argument(help="users file (TOML); created if missing")],
+    name: Annotated[str, typer.Argument(help="user name: letters, digits, _ . -")],
+    role: Annotated[str, typer.Option(
+        "--role", help="viewer (reads) or operator (reads and writes)")] = "viewer",
+) -> None:
+    """Add a user or change a user's password and role. The password is one line of standard
+    input (typed twice at a terminal); other users in the file are kept."""
+    from loopworks.live.users import add_user, check_name, check_role
+
+    check_name(name)  # before asking for a password
+    check_role(role)
+    new = add_user(file, name, _read_password(name), role)
+    typer.echo(f"{'added' if new else 'updated'} user {name} ({role}) in {file}")
+
+
 def _announce(message: str) -> None:
     typer.echo(message, err=True)
 
