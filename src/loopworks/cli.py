@@ -720,6 +720,76 @@ def users_add(
     typer.echo(f"{'added' if new else 'updated'} user {name} ({role}) in {file}")
 
 
+@app.command()
+@_user_errors
+def device(
+    scenario: Annotated[Path | None, typer.Argument(
+        help="scenario TOML file; omit for the built-in scenario")] = None,
+    modbus_port: Annotated[int, typer.Option(
+        "--modbus-port", help="Modbus TCP port to serve on (0: any free port)")] = 5020,
+    host: Annotated[str, typer.Option(
+        "--host", help="address to serve on (127.0.0.1: this machine only)")] = "127.0.0.1",
+    speedup: Annotated[float, typer.Option(
+        "--speedup", help="plant seconds per wall second (1: real time)")] = 1.0,
+    variant: Annotated[str | None, typer.Option(
+        "--variant", help="the [compare] variant whose plant runs (default: the first)")
+    ] = None,
+    duration: Annotated[float | None, typer.Option(
+        "--duration", help="plant seconds to run (default: until Ctrl-C)")] = None,
+    map_file: Annotated[Path, typer.Option(
+        "--map-file", help="where to write the register map (TOML, the [io] table)")] = Path(
+        "device-map.toml"),
+    fstate_time: Annotated[float, typer.Option(
+        "--fstate-time", help="wall seconds without a write before an input's fault "
+        "action (hold) applies")] = 5.0,
+) -> None:
+    """Run a scenario's plant blocks (process, valve, sensors, disturbances) as a simulated
+    field device serving its I/O over Modbus TCP holding registers; the controller side
+    (loopworks serve, or any Modbus client) writes the valve and reads the measurement."""
+    import asyncio
+    import logging
+
+    from loopworks.live.device import Device
+    from loopworks.live.registers import default_map
+    from loopworks.live.split import split_scenario
+    from loopworks.sim.scenario import load_scenario
+
+    sc = load_scenario(scenario)
+    split = split_scenario(sc, variant)
+    regmap = default_map(split)
+    dev = Device(split, regmap, speedup=speedup, fstate_time=fstate_time)
+    typer.echo(f"{sc.title or sc.source}: plant of variant {split.variant} "
+               f"({', '.join(split.plant.order)})")
+    typer.echo(regmap.text(), nl=False)
+    regmap.write(map_file)
+    typer.echo(f"wrote {map_file}")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(message)s"))
+    logger = logging.getLogger("loopworks.device")
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+
+    async def serve() -> None:
+        port = await dev.start(host, modbus_port)
+        until = ("until Ctrl-C" if duration is None else f"for {duration:g} s of plant time")
+        typer.echo(f"serving Modbus TCP on {host}:{port}, device id {regmap.device_id}, "
+                   f"a plant scan of {split.dt:g} s every {dev.period:g} s "
+                   f"(speedup {speedup:g}), {until}")
+        sys.stdout.flush()
+        try:
+            await dev.run(duration)
+        finally:
+            await dev.stop()
+
+    try:
+        asyncio.run(serve())
+    except KeyboardInterrupt:
+        typer.echo(f"stopped at t = {dev.plant_time:g} s of plant time")
+    else:
+        typer.echo(f"done: {dev.scans} scans, t = {dev.plant_time:g} s of plant time, "
+                   f"{dev.overruns} overruns")
+
+
 def _announce(message: str) -> None:
     typer.echo(message, err=True)
 

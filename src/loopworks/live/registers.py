@@ -1,0 +1,362 @@
+"""Modbus register maps: which holding registers carry which plant signal, and how.
+
+Modbus has 16-bit registers and no types: a float32 takes two registers, and devices differ
+in the order of its four bytes A B C D (A the most significant byte of the IEEE-754 single,
+runtime-and-ecosystem 2c):
+
+========  ==================  ===============================================
+order     registers           where it is used
+========  ==================  ===============================================
+abcd      [AB, CD]            the Modbus standard: big-endian, high word first
+cdab      [CD, AB]            "word-swapped" (many PLCs; pymodbus ``little``)
+badc      [BA, DC]            bytes swapped in each word
+dcba      [DC, BA]            both swapped (the little-endian float's bytes)
+========  ==================  ===============================================
+
+123456.0 is 0x47F12000: abcd gives [0x47F1, 0x2000], cdab [0x2000, 0x47F1].
+
+A :class:`RegisterMap` lists the points (``"block.port"``, a 0-based holding-register
+address, a direction, a type, a word order) plus two uint16 registers of the device's own:
+a **heartbeat** (the device's scan counter, wrapping at 65536, so a client sees the device is
+alive and scanning) and the **fault bits** (bit i set while device input i, in map order, is
+in its fault state: see :mod:`loopworks.live.device`). Its TOML form is the ``[io]`` table a
+controller configuration uses::
+
+    [io]
+    device_id = 1
+    heartbeat_address = 4   # uint16, device scan counter
+    fault_bits_address = 5  # uint16, bit i: input i in fault state
+
+    [io.points."sensor.pv"]
+    address = 0
+    direction = "output"    # read by the controller
+    type = "float32"
+    word_order = "abcd"
+
+This module does not import pymodbus.
+"""
+
+from __future__ import annotations
+
+import json
+import struct
+import tomllib
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from loopworks.errors import InputError
+
+if TYPE_CHECKING:
+    from loopworks.live.split import Split
+
+#: the float32 byte orders a point may use (see the module docstring)
+WORD_ORDERS = ("abcd", "cdab", "badc", "dcba")
+#: point directions: "input" is written by the controller to the device, "output" is read
+DIRECTIONS = ("input", "output")
+#: point types (each float32 takes two registers)
+TYPES = ("float32",)
+#: registers per value of each type
+REGISTERS = {"float32": 2}
+#: the highest Modbus register address
+MAX_ADDRESS = 65535
+#: Modbus unit ids a device may answer to (0 is the broadcast address)
+DEVICE_IDS = (1, 247)
+
+
+def _order(word_order: str) -> str:
+    order = word_order.lower() if isinstance(word_order, str) else word_order
+    if order not in WORD_ORDERS:
+        raise InputError(f"word_order = {word_order!r} is not allowed: expected one of "
+                         + ", ".join(WORD_ORDERS))
+    return str(order)
+
+
+def encode_f32(value: float, word_order: str = "abcd") -> list[int]:
+    """``value`` as an IEEE-754 single in two 16-bit registers, in ``word_order``.
+    NaN and infinities encode; a finite value beyond the float32 range (±3.4e38) is an
+    InputError."""
+    order = _order(word_order)
+    try:
+        a, b, c, d = struct.pack(">f", float(value))
+    except (OverflowError, TypeError, ValueError):
+        raise InputError(f"value {value!r} does not fit a float32 (finite values up to "
+                         "±3.4028235e38)") from None
+    pairs = {"abcd": ((a, b), (c, d)), "cdab": ((c, d), (a, b)),
+             "badc": ((b, a), (d, c)), "dcba": ((d, c), (b, a))}[order]
+    return [hi << 8 | lo for hi, lo in pairs]
+
+
+def decode_f32(regs: Sequence[int], word_order: str = "abcd") -> float:
+    """The float32 that two registers hold in ``word_order`` (the inverse of
+    :func:`encode_f32`)."""
+    order = _order(word_order)
+    if len(regs) != 2 or not all(isinstance(r, int) and 0 <= r <= 0xFFFF for r in regs):
+        raise InputError(f"registers {list(regs)!r}: a float32 takes exactly two registers, "
+                         "each an integer 0..65535")
+    (hi0, lo0), (hi1, lo1) = ((regs[0] >> 8, regs[0] & 0xFF), (regs[1] >> 8, regs[1] & 0xFF))
+    raw = {"abcd": (hi0, lo0, hi1, lo1), "cdab": (hi1, lo1, hi0, lo0),
+           "badc": (lo0, hi0, lo1, hi1), "dcba": (lo1, hi1, lo0, hi0)}[order]
+    return float(struct.unpack(">f", bytes(raw))[0])
+
+
+@dataclass(frozen=True)
+class Point:
+    """One plant signal in holding registers.
+
+    ``name`` is ``"block.port"``; ``address`` the first holding register (0-based, as on the
+    wire); ``direction`` "input" (the controller writes it to the device: a valve's ``op``,
+    %) or "output" (the controller reads it: a transmitter's ``pv``, in its own units);
+    ``type`` "float32"; ``word_order`` one of :data:`WORD_ORDERS`."""
+
+    name: str
+    address: int
+    direction: str
+    word_order: str = "abcd"
+    type: str = "float32"
+
+    def __post_init__(self) -> None:
+        where = f"point {self.name!r}"
+        if not isinstance(self.name, str) or self.name.count(".") < 1:
+            raise InputError(f"point name {self.name!r} must be written 'block.port'")
+        if self.direction not in DIRECTIONS:
+            raise InputError(f"{where}: direction = {self.direction!r} is not allowed: "
+                             "expected 'input' (written by the controller) or 'output' "
+                             "(read by the controller)")
+        if self.type not in TYPES:
+            raise InputError(f"{where}: type = {self.type!r} is not allowed: expected "
+                             + ", ".join(TYPES))
+        object.__setattr__(self, "word_order", _order(self.word_order))
+        last = MAX_ADDRESS - self.count + 1
+        if (isinstance(self.address, bool) or not isinstance(self.address, int)
+                or not 0 <= self.address <= last):
+            raise InputError(f"{where}: address = {self.address!r} is not allowed: expected "
+                             f"a whole number 0..{last} (the {self.count} registers of a "
+                             f"{self.type} end at {MAX_ADDRESS} at most)")
+
+    @property
+    def count(self) -> int:
+        """Registers the point takes."""
+        return REGISTERS[self.type]
+
+    @property
+    def registers(self) -> range:
+        """The addresses the point takes."""
+        return range(self.address, self.address + self.count)
+
+    def encode(self, value: float) -> list[int]:
+        """``value`` as this point's registers."""
+        return encode_f32(value, self.word_order)
+
+    def decode(self, regs: Sequence[int]) -> float:
+        """This point's value from its registers."""
+        return decode_f32(regs, self.word_order)
+
+
+@dataclass(frozen=True, init=False)
+class RegisterMap:
+    """The points of a device, its Modbus unit id, and the addresses of its heartbeat and
+    fault-bits registers (uint16 each; None: not served). Addresses may not overlap."""
+
+    points: tuple[Point, ...]
+    device_id: int = 1
+    heartbeat_address: int | None = None
+    fault_bits_address: int | None = None
+    source: str = field(default="<register map>", compare=False)
+
+    def __init__(self, points: Iterable[Point], device_id: int = 1,
+                 heartbeat_address: int | None = None,
+                 fault_bits_address: int | None = None,
+                 source: str = "<register map>") -> None:
+        pts = tuple(points)
+        object.__setattr__(self, "points", pts)
+        object.__setattr__(self, "device_id", device_id)
+        object.__setattr__(self, "heartbeat_address", heartbeat_address)
+        object.__setattr__(self, "fault_bits_address", fault_bits_address)
+        object.__setattr__(self, "source", source)
+        lo, hi = DEVICE_IDS
+        if isinstance(device_id, bool) or not isinstance(device_id, int) or not (
+                lo <= device_id <= hi):
+            raise InputError(f"{source}: device_id = {device_id!r} is not allowed: expected "
+                             f"a Modbus unit id {lo}..{hi}")
+        used: dict[int, str] = {}
+        names: set[str] = set()
+        for p in pts:
+            if p.name in names:
+                raise InputError(f"{source}: point {p.name!r} is listed twice")
+            names.add(p.name)
+            self._claim(used, p.registers, f"point {p.name!r}")
+        for what, address in (("heartbeat_address", heartbeat_address),
+                              ("fault_bits_address", fault_bits_address)):
+            if address is None:
+                continue
+            if isinstance(address, bool) or not isinstance(address, int) or not (
+                    0 <= address <= MAX_ADDRESS):
+                raise InputError(f"{source}: {what} = {address!r} is not allowed: expected "
+                                 f"a whole number 0..{MAX_ADDRESS}")
+            self._claim(used, range(address, address + 1), what)
+        if len(self.inputs) > 16 and fault_bits_address is not None:
+            raise InputError(f"{source}: {len(self.inputs)} input points: the fault bits "
+                             "register shows 16 at most; leave fault_bits_address out")
+
+    def _claim(self, used: dict[int, str], regs: range, what: str) -> None:
+        for r in regs:
+            if r in used:
+                raise InputError(f"{self.source}: {what} takes register {r}, which "
+                                 f"{used[r]} takes already: addresses may not overlap")
+            used[r] = what
+
+    @property
+    def inputs(self) -> list[Point]:
+        """The points the controller writes, in map order (fault bit i is the i-th)."""
+        return [p for p in self.points if p.direction == "input"]
+
+    @property
+    def outputs(self) -> list[Point]:
+        """The points the controller reads, in map order."""
+        return [p for p in self.points if p.direction == "output"]
+
+    def point(self, name: str) -> Point:
+        """The point named ``name``; InputError lists the names."""
+        for p in self.points:
+            if p.name == name:
+                return p
+        raise InputError(f"{self.source}: no point {name!r}; points: "
+                         + ", ".join(p.name for p in self.points))
+
+    def text(self) -> str:
+        """The map as a table for a user: address, registers, name, direction, type, word
+        order; then the device's own registers."""
+        rows = [("address", "regs", "name", "direction", "type", "word order / meaning")]
+        for p in sorted(self.points, key=lambda p: p.address):
+            access = "input (write)" if p.direction == "input" else "output (read)"
+            rows.append((str(p.address), f"{p.address}-{p.address + p.count - 1}", p.name,
+                         access, p.type, p.word_order))
+        if self.heartbeat_address is not None:
+            rows.append((str(self.heartbeat_address), str(self.heartbeat_address),
+                         "heartbeat", "output (read)", "uint16",
+                         "device scan counter, wraps at 65536"))
+        if self.fault_bits_address is not None:
+            names = ", ".join(f"bit {i} {p.name}" for i, p in enumerate(self.inputs))
+            rows.append((str(self.fault_bits_address), str(self.fault_bits_address),
+                         "fault bits", "output (read)", "uint16",
+                         f"input in fault state: {names or 'none'}"))
+        widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]) - 1)]
+        lines = [f"Modbus TCP device id {self.device_id}, holding registers (function codes "
+                 "3 read, 6/16 write), 0-based addresses"]
+        for r in rows:
+            lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=False))
+                         + "  " + r[-1])
+        return "\n".join(line.rstrip() for line in lines) + "\n"
+
+    def to_toml(self) -> str:
+        """The map as the ``[io]`` TOML table (:meth:`from_toml` reads it back)."""
+        out = ["# loopworks device register map: holding registers, 0-based addresses",
+               "[io]", f"device_id = {self.device_id}"]
+        if self.heartbeat_address is not None:
+            out.append(f"heartbeat_address = {self.heartbeat_address}  # uint16, device "
+                       "scan counter (wraps at 65536)")
+        if self.fault_bits_address is not None:
+            out.append(f"fault_bits_address = {self.fault_bits_address}  # uint16, bit i: "
+                       "input point i (in this order) in fault state")
+        for p in self.points:
+            out += ["", f"[io.points.{json.dumps(p.name)}]", f"address = {p.address}",
+                    f"direction = \"{p.direction}\"  # "
+                    + ("written by the controller" if p.direction == "input"
+                       else "read by the controller"),
+                    f"type = \"{p.type}\"", f"word_order = \"{p.word_order}\""]
+        return "\n".join(out) + "\n"
+
+    def write(self, path: str | Path) -> None:
+        """Write :meth:`to_toml` to ``path``; InputError names a path that cannot be
+        written."""
+        try:
+            Path(path).write_text(self.to_toml(), encoding="utf-8")
+        except OSError as exc:
+            raise InputError(f"{path}: cannot write the register map: {exc.strerror}"
+                             ) from None
+
+    @classmethod
+    def from_toml(cls, text: str, source: str = "<register map>") -> RegisterMap:
+        """Read a map from TOML text holding an ``[io]`` table (other tables are left to
+        their readers). InputError names ``source``, the key and what was expected."""
+        try:
+            raw = tomllib.loads(text)
+        except tomllib.TOMLDecodeError as exc:
+            raise InputError(f"{source}: invalid TOML: {exc}") from None
+        io = raw.get("io")
+        if not isinstance(io, dict):
+            raise InputError(f"{source}: expected an [io] table with device_id and "
+                             "[io.points.\"block.port\"] tables")
+        allowed = {"device_id", "heartbeat_address", "fault_bits_address", "points"}
+        for key in io:
+            if key not in allowed:
+                raise InputError(f"{source}: io.{key}: unknown key; keys: "
+                                 + ", ".join(sorted(allowed)))
+        device_id = _int(io.get("device_id", 1), f"{source}: io.device_id",
+                         f"a Modbus unit id {DEVICE_IDS[0]}..{DEVICE_IDS[1]}")
+        extra = {k: None if io.get(k) is None else _int(
+            io[k], f"{source}: io.{k}", f"a register address 0..{MAX_ADDRESS}")
+            for k in ("heartbeat_address", "fault_bits_address")}
+        points_raw = io.get("points", {})
+        if not isinstance(points_raw, dict) or not points_raw:
+            raise InputError(f"{source}: io.points: expected tables "
+                             "[io.points.\"block.port\"] with address and direction")
+        points = []
+        for name, table in points_raw.items():
+            where = f"{source}: io.points.{json.dumps(name)}"
+            if not isinstance(table, dict):
+                raise InputError(f"{where}: expected a table with address, direction, type "
+                                 "and word_order")
+            keys = {"address", "direction", "type", "word_order"}
+            for key in table:
+                if key not in keys:
+                    raise InputError(f"{where}.{key}: unknown key; keys: "
+                                     + ", ".join(sorted(keys)))
+            if "address" not in table or "direction" not in table:
+                missing = "address" if "address" not in table else "direction"
+                raise InputError(f"{where}: {missing} is missing")
+            address = _int(table["address"], f"{where}.address",
+                           f"a register address 0..{MAX_ADDRESS - 1}")
+            fields: dict[str, Any] = {}
+            for key, default in (("direction", None), ("type", "float32"),
+                                 ("word_order", "abcd")):
+                value = table.get(key, default)
+                if not isinstance(value, str):
+                    raise InputError(f"{where}.{key} = {value!r}: expected a string")
+                fields[key] = value
+            try:
+                points.append(Point(name, address, fields["direction"], fields["word_order"],
+                                    fields["type"]))
+            except InputError as exc:
+                raise InputError(f"{where}: {exc}") from None
+        return cls(points, device_id, extra["heartbeat_address"], extra["fault_bits_address"],
+                   source=source)
+
+    @classmethod
+    def read(cls, path: str | Path) -> RegisterMap:
+        """:meth:`from_toml` of the file at ``path``."""
+        try:
+            text = Path(path).read_text(encoding="utf-8")
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"{path}: cannot read the register map: {exc}") from None
+        return cls.from_toml(text, str(path))
+
+
+def _int(value: Any, where: str, expected: str) -> int:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise InputError(f"{where} = {value!r}: expected {expected}")
+    return value
+
+
+def default_map(split: Split, device_id: int = 1, word_order: str = "abcd") -> RegisterMap:
+    """The device's map: its outputs (what the controller reads) from address 0, then its
+    inputs (what the controller writes), two registers each, then the heartbeat and the
+    fault bits."""
+    names = [(n, "output") for n in split.device_outputs()]
+    names += [(n, "input") for n in split.device_inputs()]
+    points = [Point(n, 2 * i, d, word_order) for i, (n, d) in enumerate(names)]
+    end = 2 * len(points)
+    return RegisterMap(points, device_id, heartbeat_address=end,
+                       fault_bits_address=end + 1 if len(split.device_inputs()) <= 16 else None)
