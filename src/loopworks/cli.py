@@ -790,6 +790,85 @@ def device(
                    f"{dev.overruns} overruns")
 
 
+
+@app.command()
+@_user_errors
+def serve(
+    config: Annotated[Path | None, typer.Argument(
+        help="scenario TOML whose controller side runs; omit for the built-in scenario")] = None,
+    device: Annotated[str | None, typer.Option(
+        "--device", help="the field device, modbus://HOST:PORT (default: the scenario's own "
+        "plant started in this process on loopback)")] = None,
+    opcua_port: Annotated[int, typer.Option(
+        "--opcua-port", help="port of the controller's OPC UA server (0: any free port)")
+    ] = 4840,
+    host: Annotated[str, typer.Option(
+        "--host", help="address the OPC UA server binds to (127.0.0.1: this machine only)")
+    ] = "127.0.0.1",
+    users: Annotated[Path | None, typer.Option(
+        "--users", help="users file (loopworks users add); without it nobody can write")
+    ] = None,
+    speedup: Annotated[float, typer.Option(
+        "--speedup", help="plant seconds per wall second (1: real time)")] = 1.0,
+    duration: Annotated[float | None, typer.Option(
+        "--duration", help="plant seconds to run (default: until Ctrl-C)")] = None,
+    variant: Annotated[str | None, typer.Option(
+        "--variant", help="the [compare] variant whose controller runs (default: the first)")
+    ] = None,
+    state_dir: Annotated[Path, typer.Option(
+        "--state-dir", help="where checkpoints and the server certificate are kept")] = Path(
+        "loopworks-state"),
+) -> None:
+    """Run the controller side of a scenario (its controllers and compensators) live: scans
+    on absolute deadlines, the device's I/O over Modbus TCP, every loop on an OPC UA server
+    (opc.tcp://HOST:PORT, namespace urn:loopworks, nodes s=<loop>.PV, .SP, .OUT, .MODE),
+    checkpoints to resume from. Without --device the scenario's plant runs in this process
+    as a device on loopback: a loop, live, in one command."""
+    import asyncio
+    import logging
+
+    from loopworks.live.serve import describe
+    from loopworks.live.serve import serve as run_serve
+
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    for name in ("loopworks.serve", "loopworks.device"):
+        logger = logging.getLogger(name)
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
+
+    def ready(served: Any) -> None:
+        ctl = served.controller
+        until = "until Ctrl-C" if duration is None else f"for {duration:g} s of plant time"
+        typer.echo(f"controlling {served.device}: loops {', '.join(ctl.by_name)}, a scan of "
+                   f"{ctl.dt:g} s every {ctl.dt / speedup:g} s (speedup {speedup:g}), {until}"
+                   + (f"; resumed from {ctl.checkpoint} at scan {ctl.scans}" if ctl.resumed
+                      else ""))
+        if served.endpoint:
+            first = next(iter(ctl.by_name))
+            typer.echo(f"OPC UA server {served.endpoint} (namespace urn:loopworks; e.g. "
+                       f"s={first}.PV, s={first}.SP, s={first}.OUT, s={first}.MODE)"
+                       + ("" if users else "; no --users file: read only"))
+        sys.stdout.flush()
+
+    stop = asyncio.Event()
+
+    async def main() -> Any:
+        import signal
+
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            try:
+                loop.add_signal_handler(sig, stop.set)
+            except (NotImplementedError, RuntimeError):  # Windows
+                pass
+        return await run_serve(config, device=device, host=host, opcua_port=opcua_port,
+                               users=users, speedup=speedup, duration=duration,
+                               variant=variant, state_dir=state_dir, stop=stop, ready=ready)
+
+    served = asyncio.run(main())
+    typer.echo(f"stopped: {describe(served.stats)}; checkpoint {served.controller.checkpoint}")
+
 def _announce(message: str) -> None:
     typer.echo(message, err=True)
 

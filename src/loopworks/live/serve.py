@@ -1,0 +1,451 @@
+"""``loopworks serve``: the controller side of a scenario run live, a small soft DCS controller.
+
+Each scan (absolute deadlines, :mod:`loopworks.live.schedule`):
+
+1. read the device's outputs over Modbus (:mod:`loopworks.live.modbus_io`); a failed read
+   makes them Bad, no communication, holding the last value;
+2. hand them to the controller blocks' inputs with their statuses and run one scan of the
+   controller module (the same blocks, kernels and events as ``loopworks simulate``): the
+   blocks do what their vendor does with a Bad PV (the DeltaV PID's actual mode goes to MAN
+   and OUT is held; it returns to its target mode when the PV is Good again);
+3. write the controller outputs to the device (read back and compared next scan);
+4. publish every loop's PV, SP, OUT, MODE, tuning and scan statistics on the OPC UA server
+   (:mod:`loopworks.live.opcua`), whose operators' writes come back through
+   :meth:`LiveController.write`, validated and logged;
+5. every ``checkpoint_every`` scans, and on shutdown, save the controller state
+   (``Module.state_dict``) to the checkpoint file; a controller started on an existing
+   checkpoint of the same module resumes from it, so OUT continues without a bump.
+
+A loop is a controller block (a kind that declares its roles, :mod:`loopworks.blocks.controller`),
+named after the block.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hashlib
+import json
+import logging
+import math
+import os
+import tempfile
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from loopworks.blocks import status as st
+from loopworks.blocks.block import Block
+from loopworks.blocks.controller import Controller
+from loopworks.errors import InputError, LoopworksError
+from loopworks.live.opcua import Variable, WriteRefused
+from loopworks.live.registers import RegisterMap
+from loopworks.live.schedule import Scheduler, ScanStats
+from loopworks.live.split import Split
+from loopworks.sim.module import Module
+
+log = logging.getLogger("loopworks.serve")
+
+#: modes an operator may not request (FF: IMan and LO are set by the block itself)
+NOT_REQUESTABLE = ("IMAN", "LO")
+#: scans between checkpoints (default)
+CHECKPOINT_EVERY = 10
+
+
+@dataclass
+class Loop:
+    """One controller block seen as a loop: its block and the ports of its roles."""
+
+    name: str
+    block: Block
+    pv: str
+    sp: str
+    out: str
+    mode: str | None
+    man_out: str | None
+    tuning: list[str] = field(default_factory=list)
+
+
+def _loops(module: Module) -> list[Loop]:
+    loops = []
+    for name in module.order:
+        block = module.blocks[name]
+        if not isinstance(block, Controller):
+            continue
+        roles = type(block).ROLES
+        tuning = [p for p in type(block).LAW_PARAMS
+                  if p in block.params and type(block.params[p]) in (int, float)]
+        loops.append(Loop(name, block, roles.pv, roles.sp, roles.out, roles.mode,
+                          roles.man_out, tuning))
+    return loops
+
+
+def _input(block: Block, port: str) -> tuple[float, int]:
+    i = block._in_index[port]
+    return float(block.u[i]), int(block.us[i])
+
+
+def _output(block: Block, port: str) -> tuple[float, int]:
+    i = block._out_index[port]
+    return float(block.y[i]), int(block.ys[i])
+
+
+def layout_key(module: Module) -> str:
+    """A hash of a module's shape (block names, kinds, order, wires): a checkpoint loads only
+    into the module it was saved from."""
+    shape = {"order": module.order, "kinds": {n: b.kind for n, b in module.blocks.items()},
+             "wires": module.wires}
+    return hashlib.sha256(json.dumps(shape, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+class LiveController:
+    """The controller module of ``split`` scanned live (module docstring). ``io`` is the
+    device I/O (:class:`~loopworks.live.modbus_io.ModbusIO` or anything with its ``read``,
+    ``write`` and ``status``)."""
+
+    def __init__(self, split: Split, regmap: RegisterMap, io: Any, *,
+                 checkpoint: Path | None = None,
+                 checkpoint_every: int = CHECKPOINT_EVERY) -> None:
+        self.split = split
+        self.module = split.controller
+        self.dt = split.dt
+        self.regmap = regmap
+        self.io = io
+        self.by_name = {loop.name: loop for loop in _loops(self.module)}
+        if not self.by_name:
+            raise InputError("the controller side has no controller block to serve")
+        # controller input "pid.pv" <- device point "sensor.pv"; device point "valve.op" <-
+        # controller output "compensator.signal_out"
+        self.reads = [(dest, src) for dest, src in split.to_controller]
+        self.writes = [(point, src) for point, src in split.to_plant]
+        names = {p.name for p in regmap.points}
+        missing = [n for n in [s for _, s in self.reads] + [p for p, _ in self.writes]
+                   if n not in names]
+        if missing:
+            raise InputError(f"the register map has no point for {', '.join(missing)}; points: "
+                             + ", ".join(sorted(names)))
+        self.checkpoint = checkpoint
+        self.checkpoint_every = checkpoint_every
+        self.stats = ScanStats(self.dt)
+        self.resumed = False
+        self.scans = 0
+        self.key = layout_key(self.module)
+        if checkpoint is not None and checkpoint.exists():
+            self._resume(checkpoint)
+
+    # -- checkpoints ---------------------------------------------------------------------
+
+    def _resume(self, path: Path) -> None:
+        try:
+            saved = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise InputError(f"{path}: not a loopworks checkpoint ({exc})") from None
+        if saved.get("layout") != self.key:
+            raise InputError(f"{path}: the checkpoint is of another controller module "
+                             f"(layout {saved.get('layout')!r}, this one {self.key!r}); "
+                             "remove it or give another --checkpoint")
+        self.module.load_state(saved["module"])
+        self.scans = int(saved.get("scans", 0))
+        self.resumed = True
+        log.info("resumed from checkpoint %s at scan %d (t = %.3f s)", path, self.scans,
+                 self.module.t)
+
+    def save(self) -> None:
+        """Write the checkpoint now (atomically)."""
+        if self.checkpoint is None:
+            return
+        state = {"layout": self.key, "scans": self.scans, "saved": time.time(),
+                 "module": self.module.state_dict()}
+        _atomic_write(self.checkpoint, json.dumps(state))
+
+    # -- one scan ------------------------------------------------------------------------
+
+    async def scan(self, k: int = 0) -> None:
+        """One live scan (module docstring, 1-5 except publishing)."""
+        values = await self.io.read()
+        for dest, src in self.reads:
+            block, port = dest.split(".", 1)
+            self.module.blocks[block].set_inputs({port: values[src]})
+        self.module.scan(self.dt)
+        out: dict[str, float] = {}
+        for point, src in self.writes:
+            block, port = src.split(".", 1)
+            out[point] = _output(self.module.blocks[block], port)[0]
+        await self.io.write(out)
+        self.scans += 1
+        if self.checkpoint is not None and self.scans % self.checkpoint_every == 0:
+            self.save()
+
+    # -- what the OPC UA server shows ------------------------------------------------------
+
+    def variables(self, loop: Loop) -> list[Variable]:
+        b = loop.block
+        out: list[Variable] = [
+            Variable("PV", _input(b, loop.pv)[0], "double", False, "% of PV span",
+                     "process variable as the controller reads it"),
+            Variable("SP", _input(b, loop.sp)[0], "double", True, "% of PV span",
+                     "setpoint (writable by an operator)"),
+            Variable("OUT", _output(b, loop.out)[0], "double", True, "% of OUT span",
+                     "controller output (writable by an operator in MAN)"),
+        ]
+        if loop.mode is not None:
+            out.append(Variable("MODE", int(_input(b, loop.mode)[0]), "mode", True, "",
+                                "target mode (writable by an operator)"))
+        if "mode_actual" in b._out_index:
+            out.append(Variable("MODE_ACTUAL", int(_output(b, "mode_actual")[0]), "mode", False,
+                                "", "actual mode, as the block computed it"))
+        for name in loop.tuning:
+            out.append(Variable(name.upper(), float(b.params[name]), "double", True, "",
+                                f"tuning parameter {name}"))
+        for name in ("SCANS", "OVERRUNS", "LATE_P99_MS", "LATE_MAX_MS", "COMM_ERRORS",
+                     "READBACK_MISMATCHES"):
+            out.append(Variable(name, 0.0, "double", False, "", "scan statistics"))
+        return out
+
+    def loops(self) -> dict[str, list[Variable]]:
+        """Every loop's variables (the OPC UA server's ``controller.loops()``)."""
+        return {name: self.variables(loop) for name, loop in self.by_name.items()}
+
+    def snapshot(self) -> dict[str, tuple[float, int]]:
+        """Every loop variable's value and Fieldbus status byte, keyed ``loop.NAME``."""
+        stats = self.stats.summary()
+        io = self.io.status()
+        snap: dict[str, tuple[float, int]] = {}
+        for name, loop in self.by_name.items():
+            b = loop.block
+            snap[f"{name}.PV"] = _input(b, loop.pv)
+            snap[f"{name}.SP"] = _input(b, loop.sp)
+            snap[f"{name}.OUT"] = _output(b, loop.out)
+            if loop.mode is not None:
+                snap[f"{name}.MODE"] = (int(_input(b, loop.mode)[0]), st.GOOD_NC)
+            if "mode_actual" in b._out_index:
+                snap[f"{name}.MODE_ACTUAL"] = (int(_output(b, "mode_actual")[0]), st.GOOD_NC)
+            for p in loop.tuning:
+                snap[f"{name}.{p.upper()}"] = (float(b.params[p]), st.GOOD_NC)
+            for key, value in (("SCANS", stats["scans"]), ("OVERRUNS", stats["overruns"]),
+                               ("LATE_P99_MS", stats["late_p99_ms"]),
+                               ("LATE_MAX_MS", stats["late_max_ms"]),
+                               ("COMM_ERRORS", io["read_errors"] + io["write_errors"]),
+                               ("READBACK_MISMATCHES", io["readback_mismatches"])):
+                snap[f"{name}.{key}"] = (float(value), st.GOOD_NC)
+        return snap
+
+    def write(self, user: str | None, role: str | None, loop: str, name: str,
+              value: Any) -> None:
+        """An operator's write, validated by the block's own rules; raises
+        :class:`~loopworks.live.opcua.WriteRefused` with the OPC UA status code when refused.
+        Every write is logged, accepted or not."""
+        try:
+            self._write(role, loop, name, value)
+        except WriteRefused as exc:
+            log.warning("write refused: user %s, %s.%s = %r: %s (%s)", user, loop, name, value,
+                        exc.message, exc.code)
+            raise
+        log.info("write accepted: user %s, %s.%s = %r", user, loop, name, value)
+
+    def _write(self, role: str | None, loop_name: str, name: str, value: Any) -> None:
+        if role != "operator":
+            raise WriteRefused("BadUserAccessDenied",
+                               "writes need a logged-in user with the operator role")
+        loop = self.by_name.get(loop_name)
+        if loop is None:
+            raise WriteRefused("BadNodeIdUnknown", f"no loop {loop_name!r}")
+        b = loop.block
+        name = name.upper()
+        if name == "MODE" and loop.mode is not None:
+            port = b.INPUTS[b._in_index[loop.mode]]
+            try:
+                code = int(port.parse(value))
+            except (TypeError, ValueError) as exc:
+                raise WriteRefused("BadOutOfRange", str(exc)) from None
+            if port.choices[code] in NOT_REQUESTABLE:
+                raise WriteRefused("BadOutOfRange", f"mode {port.choices[code]} cannot be "
+                                   "requested (the block sets it itself)")
+            b.set_inputs({loop.mode: float(code)})
+            return
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise WriteRefused("BadTypeMismatch", f"{name} takes a number, not {value!r}")
+        v = float(value)
+        if not math.isfinite(v):
+            raise WriteRefused("BadOutOfRange", f"{name} = {v!r} is not finite")
+        if name == "SP":
+            lo, hi = self._sp_range(b)
+            if not lo <= v <= hi:
+                raise WriteRefused("BadOutOfRange", f"SP = {v:g} is outside {lo:g}..{hi:g}")
+            b.set_inputs({loop.sp: v})
+        elif name == "OUT":
+            if loop.mode is None or loop.man_out is None:
+                raise WriteRefused("BadNotWritable", "this controller has no manual output")
+            mode = b.INPUTS[b._in_index[loop.mode]].choices[int(_input(b, loop.mode)[0])]
+            manual = str(type(b).MANUAL.get(loop.mode, "MAN")).upper()
+            if mode != manual:
+                raise WriteRefused("BadInvalidState", f"OUT is written in {manual} only; the "
+                                   f"loop's target mode is {mode}")
+            b.set_inputs({loop.man_out: v})
+        elif name.lower() in loop.tuning:
+            try:
+                b.set_params(**{name.lower(): v})
+            except LoopworksError as exc:
+                raise WriteRefused("BadOutOfRange", str(exc)) from None
+        else:
+            raise WriteRefused("BadNotWritable", f"{loop_name}.{name} is not writable")
+
+    @staticmethod
+    def _sp_range(b: Block) -> tuple[float, float]:
+        """The setpoint limits an operator's SP must respect: the block's own SP limits
+        (SP_LO_LIM / SP_HI_LIM where it has them; unset means the PV scale, DeltaV), else
+        its PV scale, else any finite value."""
+        p = b.params
+        lo, hi = p.get("sp_lo_lim"), p.get("sp_hi_lim")
+        scale = (p.get("pv_scale_eu_0"), p.get("pv_scale_eu_100"))
+        if scale[0] is not None and scale[1] is not None:
+            s0, s1 = min(scale), max(scale)
+            lo = s0 if lo is None else lo
+            hi = s1 if hi is None else hi
+        return (-math.inf if lo is None else float(lo), math.inf if hi is None else float(hi))
+
+
+async def run_controller(controller: LiveController, *, speedup: float = 1.0,
+                         duration: float | None = None, stop: asyncio.Event | None = None,
+                         publish: Callable[[dict[str, tuple[float, int]]], Any] | None = None,
+                         watchdog_overruns: int = 3) -> ScanStats:
+    """Scan ``controller`` every dt/speedup wall seconds until ``stop`` is set or
+    ``duration`` seconds of plant time passed; publish each scan's snapshot (``publish`` may
+    be a coroutine function); save the checkpoint at the end."""
+    if not (math.isfinite(speedup) and speedup > 0.0):
+        raise InputError(f"speedup = {speedup!r} is not allowed: it must be > 0 and finite")
+    stop = stop or asyncio.Event()
+
+    def watchdog(stats: ScanStats) -> None:
+        log.error("watchdog: %d consecutive overruns of the %.3g ms scan (trip %d)",
+                  sched.watchdog_overruns, stats.period * 1e3, stats.watchdog_trips)
+
+    sched = Scheduler(controller.dt / speedup, watchdog_overruns=watchdog_overruns,
+                      on_watchdog=watchdog)
+    controller.stats = sched.stats
+    max_scans = None if duration is None else max(1, round(duration / controller.dt))
+
+    async def one(k: int) -> None:
+        await controller.scan(k)
+        if publish is not None:
+            result = publish(controller.snapshot())
+            if asyncio.iscoroutine(result):
+                await result
+
+    try:
+        return await sched.run(one, stop, max_scans=max_scans)
+    finally:
+        with contextlib.suppress(OSError):
+            controller.save()
+
+
+def describe(stats: Mapping[str, float | int]) -> str:
+    """One line of scan statistics for the console."""
+    return (f"{stats['scans']} scans of {stats['period_ms']:.4g} ms, {stats['overruns']} "
+            f"overruns; lateness mean {stats['late_mean_ms']:.3g} ms, p99 "
+            f"{stats['late_p99_ms']:.3g} ms, max {stats['late_max_ms']:.3g} ms")
+
+
+@dataclass
+class Served:
+    """What :func:`serve` ran: the controller, its statistics, the OPC UA endpoint and the
+    device address it controlled."""
+
+    controller: LiveController
+    stats: dict[str, float | int]
+    endpoint: str | None
+    device: str
+
+
+def parse_device(url: str) -> tuple[str, int]:
+    """(host, port) of ``modbus://HOST:PORT`` (port default 502)."""
+    from urllib.parse import urlparse
+
+    parsed = urlparse(url)
+    if parsed.scheme != "modbus" or not parsed.hostname:
+        raise InputError(f"--device {url!r} is not allowed: expected modbus://HOST:PORT "
+                         "(for example modbus://127.0.0.1:5020)")
+    try:
+        port = parsed.port or 502
+    except ValueError:
+        raise InputError(f"--device {url!r}: the port must be a number 1..65535") from None
+    return parsed.hostname, port
+
+
+async def serve(config: str | Path | None = None, *, device: str | None = None,
+                host: str = "127.0.0.1", opcua_port: int | None = 4840,
+                users: Path | None = None, speedup: float = 1.0,
+                duration: float | None = None, variant: str | None = None,
+                state_dir: Path | None = None, stop: asyncio.Event | None = None,
+                ready: Callable[[Served], Any] | None = None) -> Served:
+    """Run the controller side of scenario ``config`` (None: the built-in scenario) live:
+    against the Modbus device at ``device`` (``modbus://HOST:PORT``), or, without one, its
+    own plant side started in this process as a device on loopback. ``opcua_port`` None: no
+    OPC UA server. ``state_dir``: where the checkpoint is kept (default ``loopworks-state``
+    in the current directory). ``ready`` is called once everything listens, before the first
+    scan. Returns when ``duration`` s of plant time passed or ``stop`` is set."""
+    from loopworks.live.modbus_io import ModbusIO
+    from loopworks.live.registers import default_map
+    from loopworks.live.split import split_scenario
+    from loopworks.sim.scenario import load_scenario
+
+    sc = load_scenario(config)
+    split = split_scenario(sc, variant)
+    regmap = default_map(split)
+    local = None
+    if device is None:
+        from loopworks.live.device import Device
+
+        local = Device(split_scenario(sc, variant), regmap, speedup=speedup)
+        dhost, dport = "127.0.0.1", await local.start("127.0.0.1", 0)
+        device_task: asyncio.Task[Any] | None = asyncio.create_task(local.run())
+    else:
+        dhost, dport = parse_device(device)
+        device_task = None
+    state = state_dir if state_dir is not None else Path("loopworks-state")
+    io = ModbusIO(regmap, dhost, dport)
+    controller = LiveController(split, regmap, io, checkpoint=state / "checkpoint.json")
+    server = None
+    endpoint = None
+    publish = None
+    try:
+        if opcua_port is not None:
+            from loopworks.live.opcua import LoopServer
+            from loopworks.live.users import load_users
+
+            server = LoopServer(controller, load_users(users) if users else None, host=host,
+                                port=opcua_port, certificate_dir=state / "pki")
+            endpoint = await server.start()
+            publish = server.publish
+        served = Served(controller, controller.stats.summary(), endpoint,
+                        f"modbus://{dhost}:{dport}")
+        if ready is not None:
+            ready(served)
+        stats = await run_controller(controller, speedup=speedup, duration=duration,
+                                     stop=stop, publish=publish)
+        served.stats = stats.summary()
+        return served
+    finally:
+        if server is not None:
+            await server.stop()
+        io.close()
+        if local is not None:
+            await local.stop()
+        if device_task is not None:
+            device_task.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await device_task

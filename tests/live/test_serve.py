@@ -1,0 +1,132 @@
+"""The live controller without a network: the built-in scenario's controller side scanned
+against its own plant side in memory (:mod:`loopworks.live.loopback`), so the
+vendor rules for a Bad PV, the operator's writes and the checkpoint can be checked scan by
+scan."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from loopworks.blocks import status as st
+from loopworks.live.loopback import LoopbackIO
+from loopworks.live.opcua import WriteRefused
+from loopworks.live.registers import default_map
+from loopworks.live.serve import LiveController
+from loopworks.live.split import split_scenario
+from loopworks.sim.scenario import load_scenario
+
+MAN, AUTO = 3, 4  # deltav.pid mode codes (OOS, IMAN, LO, MAN, AUTO, CAS)
+
+
+def make(checkpoint: Path | None = None) -> tuple[LiveController, LoopbackIO]:
+    split = split_scenario(load_scenario(None), "compensation_off")
+    io = LoopbackIO(split)
+    return LiveController(split, default_map(split), io, checkpoint=checkpoint), io
+
+
+def scans(ctl: LiveController, n: int) -> None:
+    async def go() -> None:
+        for _ in range(n):
+            await ctl.scan()
+
+    asyncio.run(go())
+
+
+def pid_out(ctl: LiveController, port: str) -> float:
+    b = ctl.module.blocks["pid"]
+    return float(b.y[b._out_index[port]])
+
+
+def test_the_loop_runs_and_goes_to_auto_on_the_scenario_event() -> None:
+    ctl, _ = make()
+    assert list(ctl.loops()) == ["pid"]
+    scans(ctl, 40)  # 20 s: the built-in scenario puts the PID in AUTO at t = 5 s
+    assert pid_out(ctl, "mode_actual") == AUTO
+    snap = ctl.snapshot()
+    assert snap["pid.MODE"][0] == AUTO
+    assert math.isfinite(snap["pid.PV"][0]) and snap["pid.PV"][1] == st.GOOD_NC
+
+
+def test_bad_pv_sheds_the_deltav_pid_to_man_holding_out_and_it_returns() -> None:
+    # spec vendor-blocks 4.5: PV Bad -> actual mode Man (target kept); back to the target
+    # mode once the PV is Good again (no "Target to Manual if Bad IN" by default)
+    ctl, io = make()
+    scans(ctl, 40)
+    io.lost = True
+    scans(ctl, 1)
+    held = pid_out(ctl, "out")
+    assert pid_out(ctl, "mode_actual") == MAN
+    assert ctl.snapshot()["pid.PV"][1] == st.BAD_NO_COMM_LUV
+    scans(ctl, 5)
+    assert pid_out(ctl, "out") == held
+    assert pid_out(ctl, "mode_actual") == MAN
+    assert ctl.snapshot()["pid.MODE"][0] == AUTO  # the target stays AUTO
+    io.lost = False
+    scans(ctl, 2)
+    assert pid_out(ctl, "mode_actual") == AUTO
+
+
+def test_operator_writes_are_validated_by_the_block_rules() -> None:
+    ctl, _ = make()
+    scans(ctl, 20)
+
+    def refused(role: str | None, name: str, value: Any) -> str:
+        with pytest.raises(WriteRefused) as info:
+            ctl.write("someone", role, "pid", name, value)
+        return info.value.code
+
+    assert refused(None, "SP", 40.0) == "BadUserAccessDenied"
+    assert refused("viewer", "SP", 40.0) == "BadUserAccessDenied"
+    assert refused("operator", "SP", 1e6) == "BadOutOfRange"  # outside SP_LO_LIM..SP_HI_LIM
+    assert refused("operator", "SP", float("nan")) == "BadOutOfRange"
+    assert refused("operator", "OUT", 30.0) == "BadInvalidState"  # OUT only in MAN
+    assert refused("operator", "MODE", "IMAN") == "BadOutOfRange"  # set by the block only
+    assert refused("operator", "GAIN", -1.0) == "BadOutOfRange"
+    assert refused("operator", "PV", 1.0) == "BadNotWritable"
+    ctl.write("op", "operator", "pid", "SP", 55.0)
+    scans(ctl, 1)
+    assert ctl.snapshot()["pid.SP"][0] == 55.0
+    ctl.write("op", "operator", "pid", "MODE", "MAN")
+    ctl.write("op", "operator", "pid", "OUT", 30.0)
+    scans(ctl, 1)
+    assert pid_out(ctl, "mode_actual") == MAN
+    assert pid_out(ctl, "out") == pytest.approx(30.0)
+    ctl.write("op", "operator", "pid", "GAIN", 1.2)
+    assert ctl.module.blocks["pid"].params["gain"] == 1.2
+    assert ctl.snapshot()["pid.GAIN"][0] == 1.2
+
+
+def test_a_restart_resumes_from_the_checkpoint_without_a_bump(tmp_path: Path) -> None:
+    path = tmp_path / "checkpoint.json"
+    ctl, io = make(path)
+    scans(ctl, 60)  # 30 s, past the AUTO event; checkpoints every 10 scans
+    ctl.save()
+    plant_state = io.plant.state_dict()
+    out_before = pid_out(ctl, "out")
+    # the same controller continuing, against the same plant, gives the reference next OUT
+    scans(ctl, 1)
+    reference = pid_out(ctl, "out")
+    again, io2 = make(path)
+    assert again.resumed and again.scans == 60
+    assert again.module.t == pytest.approx(30.0)
+    assert pid_out(again, "out") == out_before  # restored, before any scan
+    # against the plant as it was at the checkpoint, the resumed controller's next OUT is
+    # the one the uninterrupted controller gave: no bump
+    io2.plant.load_state(plant_state)
+    scans(again, 1)
+    assert pid_out(again, "mode_actual") == AUTO
+    assert pid_out(again, "out") == pytest.approx(reference, abs=1e-9)
+
+
+def test_a_checkpoint_of_another_module_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "checkpoint.json"
+    path.write_text('{"layout": "something else", "module": {}}', encoding="utf-8")
+    from loopworks.errors import InputError
+
+    with pytest.raises(InputError, match="another controller module"):
+        make(path)
