@@ -7,6 +7,7 @@ import asyncio
 import logging
 import math
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -292,6 +293,23 @@ def test_cli_device_runs_for_a_duration_and_writes_the_map(tmp_path: Path) -> No
     assert "serving Modbus TCP on 127.0.0.1:" in proc.stdout
     assert "done: 10 scans, t = 5 s of plant time" in proc.stdout
     assert "stopped after 10 scans" in proc.stderr  # the log, with its wall time
+
+
+def test_cli_device_stops_cleanly_on_ctrl_c(tmp_path: Path) -> None:
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "loopworks", "device", "--modbus-port", "0", "--speedup", "20"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env(), cwd=tmp_path)
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        if line.startswith("serving Modbus TCP"):
+            break
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=20)
+    assert proc.returncode == 0, err
+    assert out.startswith("stopped at t = ")
+    assert "INFO t = " in err and "stopped after" in err  # the server was shut down
+    assert (tmp_path / "device-map.toml").exists()  # the default map file, in the cwd
 
 
 def test_cli_device_user_error_is_one_line(tmp_path: Path) -> None:
