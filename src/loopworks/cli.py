@@ -854,14 +854,13 @@ def serve(
     stop = asyncio.Event()
 
     async def main() -> Any:
+        import contextlib
         import signal
 
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):
-            try:
+            with contextlib.suppress(NotImplementedError, RuntimeError):  # Windows
                 loop.add_signal_handler(sig, stop.set)
-            except (NotImplementedError, RuntimeError):  # Windows
-                pass
         return await run_serve(config, device=device, host=host, opcua_port=opcua_port,
                                users=users, speedup=speedup, duration=duration,
                                variant=variant, state_dir=state_dir, stop=stop, ready=ready)

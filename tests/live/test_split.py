@@ -37,11 +37,16 @@ def test_builtin_scenario_crossing_wires() -> None:
 
 
 def test_crossing_inputs_start_at_the_full_modules_settled_values() -> None:
+    # the PV as the plant publishes it at rest; the valve opening as the controller gives it
+    # after its first scan (before it, the compensator's output is a placeholder 0 that
+    # would shut the valve)
     split = split_scenario(SC)
     full = SC.build("compensation_off")
     pv = full.blocks["sensor"].outputs()["pv"].value
+    full.scan(SC.dt)
     op = full.blocks["compensator"].outputs()["signal_out"].value
     assert pv == pytest.approx(50.0)  # the settled start of the built-in loop
+    assert op == pytest.approx(50.0)  # MAN at MAN_OUT = 50 %
     assert split.controller.constants["pid"]["pv"] == pv
     assert split.plant.constants["valve"]["op"] == op
     # held by the blocks as their inputs (the module applied the constants on reset)

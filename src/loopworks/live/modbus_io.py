@@ -22,6 +22,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -53,7 +54,7 @@ class IOCounters:
     events: list[str] = field(default_factory=list)
 
 
-def _span(points: list[Point]) -> tuple[int, int]:
+def _span(points: Sequence[Point]) -> tuple[int, int]:
     """(first address, register count) covering ``points``."""
     lo = min(p.address for p in points)
     hi = max(p.address + 2 for p in points)

@@ -42,7 +42,7 @@ from loopworks.blocks.controller import Controller
 from loopworks.errors import InputError, LoopworksError
 from loopworks.live.opcua import Variable, WriteRefused
 from loopworks.live.registers import RegisterMap
-from loopworks.live.schedule import Scheduler, ScanStats
+from loopworks.live.schedule import ScanStats, Scheduler
 from loopworks.live.split import Split
 from loopworks.sim.module import Module
 
@@ -291,6 +291,7 @@ class LiveController:
             if loop.mode is None or loop.man_out is None:
                 raise WriteRefused("BadNotWritable", "this controller has no manual output")
             mode = b.INPUTS[b._in_index[loop.mode]].choices[int(_input(b, loop.mode)[0])]
+            assert isinstance(b, Controller)
             manual = str(type(b).MANUAL.get(loop.mode, "MAN")).upper()
             if mode != manual:
                 raise WriteRefused("BadInvalidState", f"OUT is written in {manual} only; the "
@@ -311,9 +312,9 @@ class LiveController:
         its PV scale, else any finite value."""
         p = b.params
         lo, hi = p.get("sp_lo_lim"), p.get("sp_hi_lim")
-        scale = (p.get("pv_scale_eu_0"), p.get("pv_scale_eu_100"))
-        if scale[0] is not None and scale[1] is not None:
-            s0, s1 = min(scale), max(scale)
+        e0, e1 = p.get("pv_scale_eu_0"), p.get("pv_scale_eu_100")
+        if e0 is not None and e1 is not None:
+            s0, s1 = min(float(e0), float(e1)), max(float(e0), float(e1))
             lo = s0 if lo is None else lo
             hi = s1 if hi is None else hi
         return (-math.inf if lo is None else float(lo), math.inf if hi is None else float(hi))

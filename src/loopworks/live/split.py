@@ -10,8 +10,10 @@ blocks against it. :func:`split_scenario` makes the two modules from one scenari
 * a wire inside one side stays a wire; a wire that crosses becomes an unwired input of the
   side that reads it (``to_plant``: ``("valve.op", "compensator.signal_out")``;
   ``to_controller``: ``("pid.pv", "sensor.pv")``), which the live I/O sets every scan. Until
-  then it holds, as a constant, the value its source has in the full module once that has
-  settled (:meth:`loopworks.sim.module.Module.reset`);
+  then it holds, as a constant, the value its source has in the full module: a plant output
+  once the module has settled (:meth:`loopworks.sim.module.Module.reset`), a controller
+  output after the module's first scan (before it, a controller's output is a placeholder:
+  a valve opening of 0 would shut the valve before the controller first writes);
 * each ``[[events]]`` entry goes to the side its target block is on.
 """
 
@@ -103,16 +105,22 @@ def split_scenario(sc: Scenario, variant: str | None = None) -> Split:
         else:
             to_controller.append((dest, src))
 
-    def constants(members: list[str], crossing: list[tuple[str, str]]
+    # the controller's outputs are placeholders until its first scan (a valve opening of 0
+    # would shut the valve before the controller writes): the device's inputs start at what
+    # the controller gives after one scan of the whole loop
+    probe = sc.build(variant)
+    probe.scan(sc.dt)
+
+    def constants(members: list[str], crossing: list[tuple[str, str]], source: Module
                   ) -> dict[str, dict[str, Any]]:
         values = {n: dict(full.constants[n]) for n in members if n in full.constants}
         for dest, src in crossing:
             block, port = dest.rsplit(".", 1)
-            values.setdefault(block, {})[port] = _output(full, src)
+            values.setdefault(block, {})[port] = _output(source, src)
         return values
 
-    plant_inputs = constants(plant_names, to_plant)
-    ctrl_inputs = constants(ctrl_names, to_controller)
+    plant_inputs = constants(plant_names, to_plant, probe)
+    ctrl_inputs = constants(ctrl_names, to_controller, full)
     plant_events = [Event(e.t, e.target, e.value) for e in full.events if side_of(e.target)]
     ctrl_events = [Event(e.t, e.target, e.value) for e in full.events
                    if not side_of(e.target)]
