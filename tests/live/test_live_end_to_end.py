@@ -1,0 +1,241 @@
+"""Issue 16, done-when, against real processes on 127.0.0.1: ``loopworks device`` and
+``loopworks serve`` as subprocesses, an asyncua client as the operator's station.
+
+One run (module fixture) of the device and the controller at speedup 10 (a 0.5 s scan every
+50 ms of wall time); the tests run in order on it: reads, writes and refusals, the device
+killed and restarted, the controller killed and restarted from its checkpoint."""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+asyncua = pytest.importorskip("asyncua")  # an ordinary dependency: always there
+from asyncua import Client, ua  # noqa: E402
+
+SPEEDUP = 10.0
+SCAN_WALL = 0.5 / SPEEDUP  # s of wall time per controller scan
+MAN, AUTO = 3, 4
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def loopworks(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.Popen[str]:
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    return subprocess.Popen([sys.executable, "-m", "loopworks", *args], cwd=cwd, env=env,
+                            stdin=subprocess.PIPE if stdin is not None else None,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def wait_for_line(proc: subprocess.Popen[str], text: str, timeout: float = 60.0) -> list[str]:
+    lines: list[str] = []
+    end = time.monotonic() + timeout
+    assert proc.stdout is not None
+    while time.monotonic() < end:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        lines.append(line)
+        if text in line:
+            return lines
+    raise AssertionError(f"no line with {text!r} within {timeout} s:\n" + "".join(lines))
+
+
+class Live:
+    def __init__(self, tmp: Path) -> None:
+        self.tmp = tmp
+        self.modbus = free_port()
+        self.opcua = free_port()
+        users = tmp / "users.toml"
+        add = loopworks("users", "add", str(users), "op", "--role", "operator", cwd=tmp,
+                        stdin="secret\n")
+        add.communicate("secret\n", timeout=60)
+        assert add.returncode == 0
+        self.users = users
+        self.device: subprocess.Popen[str] | None = None
+        self.serve: subprocess.Popen[str] | None = None
+        self.log: list[str] = []
+
+    def start_device(self) -> None:
+        self.device = loopworks("device", "--modbus-port", str(self.modbus), "--speedup",
+                                str(SPEEDUP), "--fstate-time", "30", "--map-file",
+                                str(self.tmp / "map.toml"), cwd=self.tmp)
+        wait_for_line(self.device, "serving Modbus TCP")
+
+    def start_serve(self) -> list[str]:
+        self.serve = loopworks("serve", "--device", f"modbus://127.0.0.1:{self.modbus}",
+                               "--opcua-port", str(self.opcua), "--users", str(self.users),
+                               "--speedup", str(SPEEDUP), "--state-dir",
+                               str(self.tmp / "state"), cwd=self.tmp)
+        return wait_for_line(self.serve, "namespace urn:loopworks")
+
+    @property
+    def url(self) -> str:
+        return f"opc.tcp://127.0.0.1:{self.opcua}/loopworks/"
+
+    def stop(self) -> None:
+        for proc in (self.serve, self.device):
+            if proc is not None and proc.poll() is None:
+                proc.send_signal(signal.SIGINT)
+                try:
+                    proc.wait(timeout=20)
+                except subprocess.TimeoutExpired:
+                    proc.kill()
+
+
+@pytest.fixture(scope="module")
+def live(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Live]:
+    run = Live(tmp_path_factory.mktemp("live"))
+    run.start_device()
+    run.start_serve()
+    yield run
+    run.stop()
+
+
+async def read(client: Client, idx: int, name: str) -> ua.DataValue:
+    node = client.get_node(ua.NodeId(f"pid.{name}", idx))
+    return await node.read_data_value(raise_on_bad_status=False)
+
+
+async def until(client: Client, idx: int, name: str, ok: Any, timeout: float) -> ua.DataValue:
+    end = time.monotonic() + timeout
+    while True:
+        dv = await read(client, idx, name)
+        if ok(dv) or time.monotonic() > end:
+            return dv
+        await asyncio.sleep(SCAN_WALL / 2)
+
+
+def test_the_loop_runs_and_an_operator_moves_its_setpoint(live: Live) -> None:
+    async def main() -> None:
+        async with Client(live.url) as anon:
+            idx = await anon.get_namespace_index("urn:loopworks")
+            mode = await until(anon, idx, "MODE_ACTUAL", lambda d: d.Value.Value == AUTO, 20)
+            assert mode.Value.Value == AUTO  # the scenario's AUTO event at t = 5 s
+            for name in ("PV", "SP", "OUT"):
+                dv = await read(anon, idx, name)
+                assert dv.StatusCode.is_good(), name
+                assert isinstance(dv.Value.Value, float)
+            # anonymous clients read, never write
+            with pytest.raises(ua.UaStatusCodeError) as info:
+                await anon.get_node(ua.NodeId("pid.SP", idx)).write_value(60.0)
+            assert info.value.code == ua.StatusCodes.BadUserAccessDenied
+        bad = Client(live.url)
+        bad.set_user("op")
+        bad.set_password("wrong")
+        with pytest.raises(ua.UaStatusCodeError) as info:  # refused at session activation
+            await bad.connect()
+        assert info.value.code == ua.StatusCodes.BadUserAccessDenied
+        with contextlib.suppress(Exception):
+            await bad.disconnect()
+        op = Client(live.url)
+        op.set_user("op")
+        op.set_password("secret")
+        async with op:
+            idx = await op.get_namespace_index("urn:loopworks")
+            pv0 = (await read(op, idx, "PV")).Value.Value
+            await op.get_node(ua.NodeId("pid.SP", idx)).write_value(pv0 + 10.0)
+            sp = await until(op, idx, "SP", lambda d: d.Value.Value == pv0 + 10.0, 5)
+            assert sp.Value.Value == pytest.approx(pv0 + 10.0)
+            # the PV follows: within 120 s of plant time (12 s of wall) it is near the new SP
+            pv = await until(op, idx, "PV",
+                             lambda d: abs(d.Value.Value - (pv0 + 10.0)) < 1.5, 30)
+            assert abs(pv.Value.Value - (pv0 + 10.0)) < 1.5
+            with pytest.raises(ua.UaStatusCodeError) as info:
+                await op.get_node(ua.NodeId("pid.SP", idx)).write_value(1000.0)
+            assert info.value.code == ua.StatusCodes.BadOutOfRange
+
+    asyncio.run(main())
+
+
+def test_a_lost_device_makes_the_pv_bad_and_holds_out_then_the_loop_recovers(
+        live: Live) -> None:
+    async def main() -> None:
+        async with Client(live.url) as c:
+            idx = await c.get_namespace_index("urn:loopworks")
+            assert (await read(c, idx, "PV")).StatusCode.is_good()
+            assert live.device is not None
+            live.device.kill()
+            live.device.wait(timeout=10)
+            killed = time.monotonic()
+            pv = await until(c, idx, "PV", lambda d: d.StatusCode.is_bad(), 5)
+            seen = time.monotonic() - killed
+            assert pv.StatusCode.value == ua.StatusCodes.BadNoCommunication
+            # within 2 scans (plus the client's own read round trip and this machine's noise)
+            assert seen < 2 * SCAN_WALL + 0.5
+            mode = await read(c, idx, "MODE_ACTUAL")
+            assert mode.Value.Value == MAN  # DeltaV: actual mode Man on a Bad PV (spec 4.5)
+            out1 = (await read(c, idx, "OUT")).Value.Value
+            await asyncio.sleep(5 * SCAN_WALL)
+            assert (await read(c, idx, "OUT")).Value.Value == out1  # held
+            assert (await read(c, idx, "MODE")).Value.Value == AUTO  # the target is kept
+            live.start_device()
+            restarted = time.monotonic()
+            pv = await until(c, idx, "PV", lambda d: d.StatusCode.is_good(), 10)
+            assert pv.StatusCode.is_good()
+            assert time.monotonic() - restarted < 2.0
+            mode = await until(c, idx, "MODE_ACTUAL", lambda d: d.Value.Value == AUTO, 5)
+            assert mode.Value.Value == AUTO  # back to its target once the PV is Good
+
+    asyncio.run(main())
+    assert live.serve is not None and live.serve.poll() is None  # no crash
+
+
+def test_a_restarted_controller_resumes_from_its_checkpoint_without_a_bump(live: Live) -> None:
+    # the operator puts the loop in MAN at OUT = 37 %; a controller that restarted from
+    # scratch would come back in MAN at the scenario's MAN_OUT of 50 % (then AUTO at 5 s),
+    # one that resumed comes back where it was: MAN, 37 %, its scan count going on
+    def operator() -> Client:
+        c = Client(live.url)
+        c.set_user("op")
+        c.set_password("secret")
+        return c
+
+    async def before() -> float:
+        async with operator() as c:
+            idx = await c.get_namespace_index("urn:loopworks")
+            await c.get_node(ua.NodeId("pid.MODE", idx)).write_value(
+                ua.Variant(MAN, ua.VariantType.Int32))
+            await c.get_node(ua.NodeId("pid.OUT", idx)).write_value(37.0)
+            out = await until(c, idx, "OUT", lambda d: d.Value.Value == 37.0, 5)
+            assert out.Value.Value == 37.0
+            return float((await read(c, idx, "SCANS")).Value.Value)
+
+    scans_before = asyncio.run(before())
+    assert live.serve is not None
+    live.serve.send_signal(signal.SIGTERM)  # stops and writes its checkpoint
+    assert live.serve.wait(timeout=20) == 0
+    lines = live.start_serve()
+    assert any("resumed from" in line for line in lines), "".join(lines)
+
+    async def after() -> None:
+        async with operator() as c:
+            idx = await c.get_namespace_index("urn:loopworks")
+            assert (await read(c, idx, "OUT")).Value.Value == 37.0
+            assert (await read(c, idx, "MODE_ACTUAL")).Value.Value == MAN
+            assert (await read(c, idx, "SCANS")).Value.Value >= 0
+            # back to AUTO: the DeltaV PID's return from MAN is bumpless (spec 4.5), so its
+            # first moves start from 37 %
+            await c.get_node(ua.NodeId("pid.MODE", idx)).write_value(
+                ua.Variant(AUTO, ua.VariantType.Int32))
+            mode = await until(c, idx, "MODE_ACTUAL", lambda d: d.Value.Value == AUTO, 5)
+            assert mode.Value.Value == AUTO
+            assert abs((await read(c, idx, "OUT")).Value.Value - 37.0) < 3.0
+
+    asyncio.run(after())
+    assert scans_before > 0
