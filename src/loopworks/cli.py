@@ -822,13 +822,14 @@ def serve(
     """Run the controller side of a scenario (its controllers and compensators) live: scans
     on absolute deadlines, the device's I/O over Modbus TCP, every loop on an OPC UA server
     (opc.tcp://HOST:PORT, namespace urn:loopworks, nodes s=<loop>.PV, .SP, .OUT, .MODE),
-    checkpoints to resume from. Without --device the scenario's plant runs in this process
-    as a device on loopback: a loop, live, in one command."""
+    checkpoints to resume from. The controller scans in a process of its own (so no client
+    can stall it), restarted from its checkpoint if it dies. Without --device the scenario's
+    plant runs as a device on loopback in another process: a loop, live, in one command."""
     import asyncio
     import logging
 
+    from loopworks.live import supervisor
     from loopworks.live.serve import describe
-    from loopworks.live.serve import serve as run_serve
 
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
@@ -837,18 +838,18 @@ def serve(
         logger.addHandler(handler)
         logger.setLevel(logging.INFO)
 
-    def ready(served: Any) -> None:
-        ctl = served.controller
+    def ready(info: dict[str, Any]) -> None:
+        dt = info["dt"]
         until = "until Ctrl-C" if duration is None else f"for {duration:g} s of plant time"
-        typer.echo(f"controlling {served.device}: loops {', '.join(ctl.by_name)}, a scan of "
-                   f"{ctl.dt:g} s every {ctl.dt / speedup:g} s (speedup {speedup:g}), {until}"
-                   + (f"; resumed from {ctl.checkpoint} at scan {ctl.scans}" if ctl.resumed
-                      else ""))
-        if served.endpoint:
-            first = next(iter(ctl.by_name))
-            typer.echo(f"OPC UA server {served.endpoint} (namespace urn:loopworks; e.g. "
-                       f"s={first}.PV, s={first}.SP, s={first}.OUT, s={first}.MODE)"
-                       + ("" if users else "; no --users file: read only"))
+        typer.echo(f"controlling {info['device']}: loops {', '.join(info['loops'])}, a scan of "
+                   f"{dt:g} s every {dt / speedup:g} s (speedup {speedup:g}), {until}, in "
+                   f"process {info['pid']}"
+                   + (f"; resumed from {info['checkpoint']} at scan {info['scans']}"
+                      if info["resumed"] else ""))
+        first = info["loops"][0]
+        typer.echo(f"OPC UA server {info['endpoint']} (namespace urn:loopworks; e.g. "
+                   f"s={first}.PV, s={first}.SP, s={first}.OUT, s={first}.MODE)"
+                   + ("" if users else "; no --users file: read only"))
         sys.stdout.flush()
 
     stop = asyncio.Event()
@@ -861,12 +862,16 @@ def serve(
         for sig in (signal.SIGINT, signal.SIGTERM):
             with contextlib.suppress(NotImplementedError, RuntimeError):  # Windows
                 loop.add_signal_handler(sig, stop.set)
-        return await run_serve(config, device=device, host=host, opcua_port=opcua_port,
-                               users=users, speedup=speedup, duration=duration,
-                               variant=variant, state_dir=state_dir, stop=stop, ready=ready)
+        return await supervisor.run(config, device=device, host=host, opcua_port=opcua_port,
+                                    users=users, speedup=speedup, duration=duration,
+                                    variant=variant, state_dir=state_dir, stop=stop,
+                                    ready=ready)
 
-    served = asyncio.run(main())
-    typer.echo(f"stopped: {describe(served.stats)}; checkpoint {served.controller.checkpoint}")
+    done = asyncio.run(main())
+    stats = done["stats"]
+    typer.echo(("stopped: " + describe(stats) if stats else "stopped")
+               + f"; checkpoint {done['checkpoint']}")
+
 
 def _announce(message: str) -> None:
     typer.echo(message, err=True)

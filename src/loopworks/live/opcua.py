@@ -53,6 +53,7 @@ import contextlib
 import datetime as dt
 import hashlib
 import hmac
+import inspect
 import ipaddress
 import logging
 import math
@@ -137,10 +138,11 @@ class Controller(Protocol):
         ...
 
     def write(self, user: str | None, role: str | None, loop: str, name: str,
-              value: float | int) -> None:
+              value: float | int) -> Awaitable[None] | None:
         """Apply a client's write (a float for a double, the code for a mode, an int for an
         int), or raise ``WriteRefused``. Called on the server's event loop (the one that ran
-        ``start``): it must return at once, not block or wait for a scan."""
+        ``start``): it must not block. A controller in another process returns an awaitable
+        that raises ``WriteRefused`` or returns once the controller answered."""
         ...
 
 
@@ -435,12 +437,13 @@ class LoopServer:
                     results += await original(ua.WriteParameters(NodesToWrite=[item]),
                                               user=user)
                 else:
-                    results.append(self._client_write(user, node, item.Value))
+                    results.append(await self._client_write(user, node, item.Value))
             return results
 
         service.write = write  # type: ignore[method-assign]
 
-    def _client_write(self, user: UaUser, node: _Node, dv: ua.DataValue) -> ua.StatusCode:
+    async def _client_write(self, user: UaUser, node: _Node,
+                            dv: ua.DataValue) -> ua.StatusCode:
         name = user.name
         role = getattr(user, "loop_role", None)
         key = f"{node.loop}.{node.var.name}"
@@ -460,7 +463,9 @@ class LoopServer:
         except WriteRefused as exc:
             return refuse(exc.code, exc.message)
         try:
-            self.controller.write(name, role, node.loop, node.var.name, value)
+            done = self.controller.write(name, role, node.loop, node.var.name, value)
+            if inspect.isawaitable(done):  # a controller in another process answers later
+                await done
         except WriteRefused as exc:
             return refuse(exc.code, exc.message)
         except Exception:

@@ -323,10 +323,12 @@ class LiveController:
 async def run_controller(controller: LiveController, *, speedup: float = 1.0,
                          duration: float | None = None, stop: asyncio.Event | None = None,
                          publish: Callable[[dict[str, tuple[float, int]]], Any] | None = None,
+                         before: Callable[[], None] | None = None,
                          watchdog_overruns: int = 3) -> ScanStats:
     """Scan ``controller`` every dt/speedup wall seconds until ``stop`` is set or
-    ``duration`` seconds of plant time passed; publish each scan's snapshot (``publish`` may
-    be a coroutine function); save the checkpoint at the end."""
+    ``duration`` seconds of plant time passed; ``before`` runs at the start of each scan
+    (an operator's pending writes); publish each scan's snapshot (``publish`` may be a
+    coroutine function); save the checkpoint at the end."""
     if not (math.isfinite(speedup) and speedup > 0.0):
         raise InputError(f"speedup = {speedup!r} is not allowed: it must be > 0 and finite")
     stop = stop or asyncio.Event()
@@ -341,6 +343,10 @@ async def run_controller(controller: LiveController, *, speedup: float = 1.0,
     max_scans = None if duration is None else max(1, round(duration / controller.dt))
 
     async def one(k: int) -> None:
+        if before is not None:
+            before()
+            if stop.is_set():
+                return
         await controller.scan(k)
         if publish is not None:
             result = publish(controller.snapshot())

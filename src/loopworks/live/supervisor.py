@@ -1,0 +1,364 @@
+"""``loopworks serve`` as processes: the controller scans in a process of its own, so nothing an
+OPC UA client does (a flood of requests, a login's password hashing) can stall its scans.
+
+* the **controller process** runs :class:`~loopworks.live.serve.LiveController` on its
+  scheduler, with its Modbus I/O; at the start of each scan it takes the operators' pending
+  writes from a command queue (validated there, by the blocks' rules, and answered), and after
+  each scan it puts its snapshot on an event queue (dropped, never waited for, when the queue
+  is full: the scans do not wait for the server);
+* this process (the **supervisor**) runs the OPC UA server: it publishes the snapshots, and
+  hands each client's write to the controller process, answering the client with the
+  controller's verdict (``BadTimeout`` when there is none within :data:`REPLY_TIMEOUT`);
+* without ``--device``, the scenario's plant runs in a third process as the device.
+
+The supervisor is the controller's watchdog: a controller process that dies (killed, a crash)
+is started again at once, and resumes from its last checkpoint (at most
+:data:`MAX_RESTARTS` times a minute); a controller process whose supervisor dies stops
+(saving its checkpoint). Processes are *spawned*, not forked, so no event loop or lock of the
+parent is inherited.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import itertools
+import logging
+import multiprocessing as mp
+import os
+import queue
+import signal
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from loopworks.errors import InputError
+from loopworks.live.opcua import Variable, WriteRefused
+
+log = logging.getLogger("loopworks.serve")
+
+#: how long a client's write waits for the controller's answer, s
+REPLY_TIMEOUT = 5.0
+#: how long the controller process may take to start (a fresh machine compiles kernels), s
+START_TIMEOUT = 300.0
+#: restarts of a dying controller allowed within a minute
+MAX_RESTARTS = 5
+#: snapshots the event queue holds before new ones are dropped
+QUEUE_SIZE = 1000
+
+
+@dataclass(frozen=True)
+class Job:
+    """What the controller process runs (picklable)."""
+
+    config: str | None
+    variant: str | None
+    device_host: str
+    device_port: int
+    speedup: float
+    duration: float | None
+    state_dir: str
+
+
+def _log_to_stderr() -> None:
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    for name in ("loopworks.serve", "loopworks.device"):
+        logger = logging.getLogger(name)
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
+
+
+# -- the controller process ------------------------------------------------------------------
+
+def controller_main(job: Job, commands: Any, events: Any) -> None:
+    """Entry point of the controller process."""
+    _log_to_stderr()
+    asyncio.run(_controller(job, commands, events))
+
+
+async def _controller(job: Job, commands: Any, events: Any) -> None:
+    from loopworks.live.modbus_io import ModbusIO
+    from loopworks.live.registers import default_map
+    from loopworks.live.serve import LiveController, run_controller
+    from loopworks.live.split import split_scenario
+    from loopworks.sim.scenario import load_scenario
+
+    split = split_scenario(load_scenario(job.config), job.variant)
+    regmap = default_map(split)
+    io = ModbusIO(regmap, job.device_host, job.device_port)
+    ctl = LiveController(split, regmap, io,
+                         checkpoint=Path(job.state_dir) / "checkpoint.json")
+    events.put(("hello", ctl.loops(), ctl.resumed, ctl.scans, ctl.dt))
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):
+            loop.add_signal_handler(sig, stop.set)
+    parent = os.getppid()
+
+    def before() -> None:
+        if os.getppid() != parent:  # the supervisor is gone: stop, saving the checkpoint
+            log.error("the supervisor process is gone: stopping")
+            stop.set()
+            return
+        while True:
+            try:
+                cmd = commands.get_nowait()
+            except queue.Empty:
+                return
+            if cmd[0] == "stop":
+                stop.set()
+                return
+            _, ident, user, role, name, var, value = cmd
+            try:
+                ctl.write(user, role, name, var, value)
+                reply: tuple[Any, ...] = ("reply", ident, None, "")
+            except WriteRefused as exc:
+                reply = ("reply", ident, exc.code, exc.message)
+            except Exception as exc:  # answered, never a crash of the scans
+                log.exception("write %s.%s = %r failed", name, var, value)
+                reply = ("reply", ident, "BadInternalError", str(exc))
+            with contextlib.suppress(queue.Full):  # never wait for the supervisor
+                events.put_nowait(reply)
+
+    def publish(snapshot: dict[str, tuple[float, int]]) -> None:
+        with contextlib.suppress(queue.Full):
+            events.put_nowait(("snap", snapshot))
+
+    try:
+        stats = await run_controller(ctl, speedup=job.speedup, duration=job.duration,
+                                     stop=stop, publish=publish, before=before)
+        with contextlib.suppress(queue.Full):
+            events.put(("done", stats.summary(), io.status()), timeout=2.0)
+    finally:
+        io.close()
+
+
+# -- the device process ------------------------------------------------------------------------
+
+def device_main(config: str | None, variant: str | None, speedup: float, conn: Any) -> None:
+    """Entry point of the built-in device's process: sends its port on ``conn``."""
+    _log_to_stderr()
+
+    async def run() -> None:
+        from loopworks.live.device import Device
+        from loopworks.live.registers import default_map
+        from loopworks.live.split import split_scenario
+        from loopworks.sim.scenario import load_scenario
+
+        split = split_scenario(load_scenario(config), variant)
+        device = Device(split, default_map(split), speedup=speedup)
+        conn.send(await device.start("127.0.0.1", 0))
+        stop = asyncio.Event()
+        loop = asyncio.get_running_loop()
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            with contextlib.suppress(NotImplementedError, RuntimeError):
+                loop.add_signal_handler(sig, stop.set)
+        task = asyncio.create_task(device.run())
+        await stop.wait()
+        await device.stop()
+        task.cancel()
+        with contextlib.suppress(asyncio.CancelledError):
+            await task
+
+    asyncio.run(run())
+
+
+# -- the supervisor ----------------------------------------------------------------------------
+
+class ControllerProcess:
+    """The supervisor's handle on the controller process: the OPC UA server's controller
+    (``loops``, ``write``), restarted from its checkpoint when it dies."""
+
+    def __init__(self, job: Job) -> None:
+        self.job = job
+        self.ctx = mp.get_context("spawn")
+        self.commands: Any = None
+        self.events: Any = None
+        self.proc: Any = None
+        self._loops: dict[str, list[Variable]] = {}
+        self.resumed = False
+        self.scans = 0
+        self.dt = 0.0
+        self.stats: dict[str, Any] = {}
+        self.io: dict[str, Any] = {}
+        self.restarts: list[float] = []
+        self._ids = itertools.count()
+        self._pending: dict[int, asyncio.Future[tuple[str | None, str]]] = {}
+
+    async def start(self) -> None:
+        """Start the process and wait for its hello (its loops). Each start has new queues:
+        a process killed while writing to one may leave its lock held."""
+        self.commands = self.ctx.Queue()
+        self.events = self.ctx.Queue(QUEUE_SIZE)
+        self.proc = self.ctx.Process(target=controller_main,
+                                     args=(self.job, self.commands, self.events),
+                                     name="loopworks-controller")
+        self.proc.start()
+        end = time.monotonic() + START_TIMEOUT
+        while True:
+            msg = await self._get(0.2)
+            if msg is not None and msg[0] == "hello":
+                _, self._loops, self.resumed, self.scans, self.dt = msg
+                return
+            if not self.proc.is_alive():
+                raise InputError(f"the controller process stopped before it started (exit "
+                                 f"code {self.proc.exitcode}); see its messages above")
+            if time.monotonic() > end:
+                self.proc.terminate()
+                raise InputError(f"the controller process did not start within "
+                                 f"{START_TIMEOUT:g} s")
+
+    async def _get(self, timeout: float) -> Any:
+        def get() -> Any:
+            try:
+                return self.events.get(timeout=timeout)
+            except queue.Empty:
+                return None
+
+        return await asyncio.get_running_loop().run_in_executor(None, get)
+
+    def loops(self) -> dict[str, list[Variable]]:
+        return self._loops
+
+    def write(self, user: str | None, role: str | None, loop: str, name: str,
+              value: float | int) -> Any:
+        ident = next(self._ids)
+        fut: asyncio.Future[tuple[str | None, str]] = (
+            asyncio.get_running_loop().create_future())
+        self._pending[ident] = fut
+        self.commands.put(("write", ident, user, role, loop, name, value))
+        return self._answer(ident, fut)
+
+    async def _answer(self, ident: int, fut: asyncio.Future[tuple[str | None, str]]) -> None:
+        try:
+            code, message = await asyncio.wait_for(fut, REPLY_TIMEOUT)
+        except TimeoutError:
+            raise WriteRefused("BadTimeout", f"the controller did not answer within "
+                               f"{REPLY_TIMEOUT:g} s") from None
+        finally:
+            self._pending.pop(ident, None)
+        if code is not None:
+            raise WriteRefused(code, message)
+
+    async def pump(self, publish: Callable[[dict[str, tuple[float, int]]], Any],
+                   stop: asyncio.Event) -> None:
+        """Publish the controller's snapshots and deliver its answers until it finishes;
+        restart it from its checkpoint when it dies; on ``stop``, stop it."""
+        stopping = False
+        while True:
+            if stop.is_set() and not stopping:
+                stopping = True
+                self.commands.put(("stop",))
+            msg = await self._get(0.1)
+            if msg is not None:
+                kind = msg[0]
+                if kind == "snap":
+                    await publish(msg[1])
+                elif kind == "reply":
+                    fut = self._pending.get(msg[1])
+                    if fut is not None and not fut.done():
+                        fut.set_result((msg[2], msg[3]))
+                elif kind == "done":
+                    self.stats, self.io = msg[1], msg[2]
+                continue
+            if self.proc.is_alive():
+                continue
+            self.proc.join()
+            if self.proc.exitcode == 0 or stopping:
+                return
+            now = time.monotonic()
+            self.restarts = [t for t in self.restarts if now - t < 60.0] + [now]
+            if len(self.restarts) > MAX_RESTARTS:
+                log.error("the controller process died %d times within a minute: giving up",
+                          len(self.restarts))
+                return
+            log.error("the controller process died (exit code %s): restarting it from its "
+                      "checkpoint", self.proc.exitcode)
+            await self.start()
+            log.info("controller restarted%s", f", resumed at scan {self.scans}"
+                     if self.resumed else " from the scenario's start (no checkpoint)")
+
+    def stop_now(self) -> None:
+        if self.proc is not None and self.proc.is_alive():
+            self.proc.terminate()
+            self.proc.join(10)
+
+
+async def start_device(config: str | None, variant: str | None, speedup: float) -> tuple[Any,
+                                                                                        int]:
+    """The built-in device in a process of its own on 127.0.0.1: (process, port)."""
+    ctx = mp.get_context("spawn")
+    here, there = ctx.Pipe()
+    proc = ctx.Process(target=device_main, args=(config, variant, speedup, there),
+                       name="loopworks-device")
+    proc.start()
+
+    def wait() -> int:
+        if not here.poll(START_TIMEOUT):
+            raise InputError("the device process did not start")
+        return int(here.recv())
+
+    try:
+        port = await asyncio.get_running_loop().run_in_executor(None, wait)
+    except (EOFError, OSError):
+        raise InputError(f"the device process stopped before it started (exit code "
+                         f"{proc.exitcode})") from None
+    return proc, port
+
+
+async def run(config: str | Path | None = None, *, device: str | None = None,
+              host: str = "127.0.0.1", opcua_port: int = 4840, users: Path | None = None,
+              speedup: float = 1.0, duration: float | None = None, variant: str | None = None,
+              state_dir: Path = Path("loopworks-state"), stop: asyncio.Event | None = None,
+              ready: Callable[[dict[str, Any]], Any] | None = None) -> dict[str, Any]:
+    """``loopworks serve`` (module docstring): the scenario is checked here first (a located
+    error before any process starts); ``ready`` gets what is listening (``loops``, ``dt``,
+    ``device``, ``endpoint``, ``resumed``, ``scans``, ``checkpoint``, the controller
+    process's ``pid``) before the first
+    scan's snapshot is published. Returns the controller's scan statistics."""
+    from loopworks.live.opcua import LoopServer
+    from loopworks.live.serve import parse_device
+    from loopworks.live.split import split_scenario
+    from loopworks.live.users import load_users
+    from loopworks.sim.scenario import load_scenario
+
+    if not (speedup > 0.0 and speedup < float("inf")):
+        raise InputError(f"speedup = {speedup!r} is not allowed: it must be > 0 and finite")
+    split_scenario(load_scenario(config), variant)  # errors now, not in a child process
+    accounts = load_users(users) if users is not None else None
+    stop = stop or asyncio.Event()
+    dev_proc = None
+    if device is None:
+        dev_proc, port = await start_device(None if config is None else str(config), variant,
+                                            speedup)
+        dhost = "127.0.0.1"
+    else:
+        dhost, port = parse_device(device)
+    job = Job(None if config is None else str(config), variant, dhost, port, speedup,
+              duration, str(state_dir))
+    ctl = ControllerProcess(job)
+    try:
+        await ctl.start()
+        server = LoopServer(ctl, accounts, host=host, port=opcua_port,
+                            certificate_dir=state_dir / "pki")
+        endpoint = await server.start()
+        try:
+            if ready is not None:
+                ready({"loops": list(ctl.loops()), "dt": ctl.dt, "endpoint": endpoint,
+                       "device": f"modbus://{dhost}:{port}", "resumed": ctl.resumed,
+                       "scans": ctl.scans, "checkpoint": state_dir / "checkpoint.json",
+                       "pid": ctl.proc.pid})
+            await ctl.pump(server.publish, stop)
+        finally:
+            await server.stop()
+    finally:
+        ctl.stop_now()
+        if dev_proc is not None and dev_proc.is_alive():
+            dev_proc.terminate()
+            dev_proc.join(10)
+    return {"stats": ctl.stats, "io": ctl.io, "checkpoint": state_dir / "checkpoint.json"}

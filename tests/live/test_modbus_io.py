@@ -1,0 +1,96 @@
+"""The controller's Modbus I/O against a real device on 127.0.0.1: statuses made up for what
+Modbus does not carry (runtime-and-ecosystem.md 2d, 3.2), read-back, reconnection."""
+
+from __future__ import annotations
+
+import asyncio
+import math
+import time
+
+from pymodbus.client import AsyncModbusTcpClient
+
+from loopworks.blocks import status as st
+from loopworks.live.device import Device
+from loopworks.live.modbus_io import ModbusIO
+from loopworks.live.registers import default_map, encode_f32
+from loopworks.live.split import split_scenario
+from loopworks.sim.scenario import load_scenario
+
+SC = load_scenario(None)
+
+
+def test_reads_writes_readback_and_a_lost_device() -> None:
+    split = split_scenario(SC)
+    regmap = default_map(split)
+    pv, op = regmap.point("sensor.pv"), regmap.point("valve.op")
+
+    async def main() -> None:
+        device = Device(split_scenario(SC), regmap, speedup=50.0)
+        port = await device.start("127.0.0.1", 0)
+        scanning = asyncio.create_task(device.run())
+        io = ModbusIO(regmap, "127.0.0.1", port)
+        try:
+            values = await io.read()
+            value, status = values["sensor.pv"]
+            assert status == st.GOOD_NC and abs(value - 50.0) < 2.0
+            assert await io.write({"valve.op": 61.25})
+            await asyncio.sleep(0.05)
+            await io.read()
+            assert io.counters.readback_mismatches == 0
+            assert device.applied("valve.op") == 61.25
+            # someone else overwrites the valve register: the read-back differs, counted
+            other = AsyncModbusTcpClient("127.0.0.1", port=port, timeout=1, retries=0)
+            assert await other.connect()
+            await other.write_registers(op.address, encode_f32(12.0), device_id=1)
+            other.close()
+            await io.read()
+            assert io.counters.readback_mismatches == 1
+            assert any("read-back of valve.op" in e for e in io.counters.events)
+            # the device goes away: Bad, no communication, with the last value
+            last = (await io.read())["sensor.pv"][0]
+            await device.stop()
+            scanning.cancel()
+            values = await io.read()
+            assert values["sensor.pv"] == (last, st.BAD_NO_COMM_LUV)
+            assert io.counters.read_errors >= 1
+            assert not await io.write({"valve.op": 50.0})
+            # it comes back on the same port: reconnected within the backoff (<= 1 s)
+            device2 = Device(split_scenario(SC), regmap, speedup=50.0)
+            await device2.start("127.0.0.1", port)
+            scanning = asyncio.create_task(device2.run())
+            start = time.monotonic()
+            while time.monotonic() - start < 3.0:
+                value, status = (await io.read())["sensor.pv"]
+                if status == st.GOOD_NC:
+                    break
+                await asyncio.sleep(0.02)
+            assert status == st.GOOD_NC and math.isfinite(value)
+            assert time.monotonic() - start < 1.5
+            assert io.counters.reconnects == 1
+            await device2.stop()
+        finally:
+            io.close()
+            scanning.cancel()
+
+    asyncio.run(main())
+    assert pv.address == 0
+
+
+def test_no_device_at_all_is_bad_without_a_usable_value() -> None:
+    split = split_scenario(SC)
+    regmap = default_map(split)
+
+    async def main() -> dict[str, tuple[float, int]]:
+        import socket
+
+        with socket.socket() as s:  # a port nobody listens on
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        io = ModbusIO(regmap, "127.0.0.1", port)
+        try:
+            return await io.read()
+        finally:
+            io.close()
+
+    value, status = asyncio.run(main())["sensor.pv"]
+    assert status == st.BAD_NO_COMM_NO_LUV and math.isnan(value)
