@@ -750,13 +750,13 @@ def device(
     import logging
 
     from loopworks.live.device import Device
-    from loopworks.live.registers import default_map
+    from loopworks.live.registers import map_of
     from loopworks.live.split import split_scenario
     from loopworks.sim.scenario import load_scenario
 
     sc = load_scenario(scenario)
     split = split_scenario(sc, variant)
-    regmap = default_map(split)
+    regmap = map_of(sc, split)
     dev = Device(split, regmap, speedup=speedup, fstate_time=fstate_time)
     typer.echo(f"{sc.title or sc.source}: plant of variant {split.variant} "
                f"({', '.join(split.plant.order)})")

@@ -146,7 +146,7 @@ GOOD = ('[io]\ndevice_id = 1\n[io.points."sensor.pv"]\naddress = 0\ndirection = 
      ['io.points."sensor.pv"', "word_order = 'abdc'", "abcd, cdab, badc, dcba"]),
     (GOOD.replace("address = 0\n", ""), ['io.points."sensor.pv": address is missing']),
     (GOOD.replace("address = 0\n", "adress = 0\n"),
-     ['io.points."sensor.pv".adress: unknown key', "address, direction, type, word_order"]),
+     ['io.points."sensor.pv".adress: unknown key', "address, direction, fault_action, type, word_order"]),
     (GOOD.replace("device_id = 1", "device_id = 300"), ["device_id = 300", "1..247"]),
     (GOOD.replace("device_id = 1", "device_id = 1\nheartbeat = 4"),
      ["io.heartbeat: unknown key", "heartbeat_address"]),

@@ -96,7 +96,8 @@ class Device:
         self.module.scan(self.dt)
         self.module.load_state(saved)
         self._check_points()
-        self.fault_actions: dict[str, str | float] = {p.name: "hold" for p in regmap.inputs}
+        self.fault_actions: dict[str, str | float] = {p.name: p.fault_action
+                                                      for p in regmap.inputs}
         for name, action in (fault_actions or {}).items():
             if name not in self.fault_actions:
                 raise InputError(f"fault_actions: {name!r} is not a device input; inputs: "

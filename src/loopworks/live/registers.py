@@ -39,6 +39,7 @@ This module does not import pymodbus.
 from __future__ import annotations
 
 import json
+import math
 import struct
 import tomllib
 from collections.abc import Iterable, Sequence
@@ -50,6 +51,7 @@ from loopworks.errors import InputError
 
 if TYPE_CHECKING:
     from loopworks.live.split import Split
+    from loopworks.sim.scenario import Scenario
 
 #: the float32 byte orders a point may use (see the module docstring)
 WORD_ORDERS = ("abcd", "cdab", "badc", "dcba")
@@ -108,13 +110,16 @@ class Point:
     ``name`` is ``"block.port"``; ``address`` the first holding register (0-based, as on the
     wire); ``direction`` "input" (the controller writes it to the device: a valve's ``op``,
     %) or "output" (the controller reads it: a transmitter's ``pv``, in its own units);
-    ``type`` "float32"; ``word_order`` one of :data:`WORD_ORDERS`."""
+    ``type`` "float32"; ``word_order`` one of :data:`WORD_ORDERS`; ``fault_action`` (inputs
+    only): what the device gives the plant when the controller stops writing the point
+    (``"hold"`` the last value, the FF default, or a safe value)."""
 
     name: str
     address: int
     direction: str
     word_order: str = "abcd"
     type: str = "float32"
+    fault_action: str | float = "hold"
 
     def __post_init__(self) -> None:
         where = f"point {self.name!r}"
@@ -128,6 +133,18 @@ class Point:
             raise InputError(f"{where}: type = {self.type!r} is not allowed: expected "
                              + ", ".join(TYPES))
         object.__setattr__(self, "word_order", _order(self.word_order))
+        action = self.fault_action
+        if isinstance(action, str) and action.lower() == "hold":
+            object.__setattr__(self, "fault_action", "hold")
+        elif (isinstance(action, bool) or not isinstance(action, int | float)
+              or not math.isfinite(action)):
+            raise InputError(f"{where}: fault_action = {action!r} is not allowed: expected "
+                             "\"hold\" or a finite safe value")
+        elif self.direction != "input":
+            raise InputError(f"{where}: fault_action is for input points (written by the "
+                             "controller) only")
+        else:
+            object.__setattr__(self, "fault_action", float(action))
         last = MAX_ADDRESS - self.count + 1
         if (isinstance(self.address, bool) or not isinstance(self.address, int)
                 or not 0 <= self.address <= last):
@@ -266,6 +283,11 @@ class RegisterMap:
                     + ("written by the controller" if p.direction == "input"
                        else "read by the controller"),
                     f"type = \"{p.type}\"", f"word_order = \"{p.word_order}\""]
+            if p.direction == "input":
+                action = (f"\"{p.fault_action}\"" if p.fault_action == "hold"
+                          else repr(p.fault_action))
+                out.append(f"fault_action = {action}  # \"hold\" or a safe value, after the "
+                           "device's fstate time without a write")
         return "\n".join(out) + "\n"
 
     def write(self, path: str | Path) -> None:
@@ -285,7 +307,12 @@ class RegisterMap:
             raw = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
             raise InputError(f"{source}: invalid TOML: {exc}") from None
-        io = raw.get("io")
+        return cls.from_table(raw.get("io"), source)
+
+    @classmethod
+    def from_table(cls, io: Any, source: str = "<register map>") -> RegisterMap:
+        """Read a map from the parsed ``[io]`` table ``io`` (a scenario's, or a map
+        file's). InputError names ``source``, the key and what was expected."""
         if not isinstance(io, dict):
             raise InputError(f"{source}: expected an [io] table with device_id and "
                              "[io.points.\"block.port\"] tables")
@@ -309,7 +336,7 @@ class RegisterMap:
             if not isinstance(table, dict):
                 raise InputError(f"{where}: expected a table with address, direction, type "
                                  "and word_order")
-            keys = {"address", "direction", "type", "word_order"}
+            keys = {"address", "direction", "type", "word_order", "fault_action"}
             for key in table:
                 if key not in keys:
                     raise InputError(f"{where}.{key}: unknown key; keys: "
@@ -328,7 +355,7 @@ class RegisterMap:
                 fields[key] = value
             try:
                 points.append(Point(name, address, fields["direction"], fields["word_order"],
-                                    fields["type"]))
+                                    fields["type"], table.get("fault_action", "hold")))
             except InputError as exc:
                 raise InputError(f"{where}: {exc}") from None
         return cls(points, device_id, extra["heartbeat_address"], extra["fault_bits_address"],
@@ -360,3 +387,26 @@ def default_map(split: Split, device_id: int = 1, word_order: str = "abcd") -> R
     end = 2 * len(points)
     return RegisterMap(points, device_id, heartbeat_address=end,
                        fault_bits_address=end + 1 if len(split.device_inputs()) <= 16 else None)
+
+
+def map_of(sc: Scenario, split: Split) -> RegisterMap:
+    """The device's map of scenario ``sc``: its ``[io]`` table when it has one, else
+    :func:`default_map`; every signal that crosses the split must have a point, and every
+    point must be one (InputError naming the point or the signal)."""
+    if sc.io is None:
+        return default_map(split)
+    regmap = RegisterMap.from_table(sc.io, f"{sc.source}: [io]")
+    want = {**{n: "output" for n in split.device_outputs()},
+            **{n: "input" for n in split.device_inputs()}}
+    for p in regmap.points:
+        if p.name not in want:
+            raise InputError(f"{sc.source}: [io.points.{json.dumps(p.name)}] is not a signal "
+                             "between the plant and the controller; those are "
+                             + ", ".join(f"{n} ({d})" for n, d in want.items()))
+        if p.direction != want[p.name]:
+            raise InputError(f"{sc.source}: [io.points.{json.dumps(p.name)}] direction = "
+                             f"{p.direction!r}: expected {want[p.name]!r}")
+    missing = [n for n in want if n not in {p.name for p in regmap.points}]
+    if missing:
+        raise InputError(f"{sc.source}: [io] has no point for {', '.join(missing)}")
+    return regmap

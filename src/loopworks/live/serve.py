@@ -406,13 +406,13 @@ async def serve(config: str | Path | None = None, *, device: str | None = None,
     in the current directory). ``ready`` is called once everything listens, before the first
     scan. Returns when ``duration`` s of plant time passed or ``stop`` is set."""
     from loopworks.live.modbus_io import ModbusIO
-    from loopworks.live.registers import default_map
+    from loopworks.live.registers import map_of
     from loopworks.live.split import split_scenario
     from loopworks.sim.scenario import load_scenario
 
     sc = load_scenario(config)
     split = split_scenario(sc, variant)
-    regmap = default_map(split)
+    regmap = map_of(sc, split)
     local = None
     if device is None:
         from loopworks.live.device import Device

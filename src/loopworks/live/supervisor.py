@@ -82,13 +82,14 @@ def controller_main(job: Job, commands: Any, events: Any) -> None:
 
 async def _controller(job: Job, commands: Any, events: Any) -> None:
     from loopworks.live.modbus_io import ModbusIO
-    from loopworks.live.registers import default_map
+    from loopworks.live.registers import map_of
     from loopworks.live.serve import LiveController, run_controller
     from loopworks.live.split import split_scenario
     from loopworks.sim.scenario import load_scenario
 
-    split = split_scenario(load_scenario(job.config), job.variant)
-    regmap = default_map(split)
+    sc = load_scenario(job.config)
+    split = split_scenario(sc, job.variant)
+    regmap = map_of(sc, split)
     io = ModbusIO(regmap, job.device_host, job.device_port)
     ctl = LiveController(split, regmap, io,
                          checkpoint=Path(job.state_dir) / "checkpoint.json")
@@ -146,12 +147,13 @@ def device_main(config: str | None, variant: str | None, speedup: float, conn: A
 
     async def run() -> None:
         from loopworks.live.device import Device
-        from loopworks.live.registers import default_map
+        from loopworks.live.registers import map_of
         from loopworks.live.split import split_scenario
         from loopworks.sim.scenario import load_scenario
 
-        split = split_scenario(load_scenario(config), variant)
-        device = Device(split, default_map(split), speedup=speedup)
+        sc = load_scenario(config)
+        split = split_scenario(sc, variant)
+        device = Device(split, map_of(sc, split), speedup=speedup)
         conn.send(await device.start("127.0.0.1", 0))
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
@@ -329,7 +331,10 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
 
     if not (speedup > 0.0 and speedup < float("inf")):
         raise InputError(f"speedup = {speedup!r} is not allowed: it must be > 0 and finite")
-    split_scenario(load_scenario(config), variant)  # errors now, not in a child process
+    from loopworks.live.registers import map_of
+
+    sc = load_scenario(config)
+    map_of(sc, split_scenario(sc, variant))  # errors now, not in a child process
     accounts = load_users(users) if users is not None else None
     stop = stop or asyncio.Event()
     dev_proc = None

@@ -93,6 +93,8 @@ class _Scenario(BaseModel):
     events: list[_Event] = []
     compare: dict[str, dict[str, float | int | bool | str]] = {}
     autotune: _Autotune | None = None
+    #: the live commands' Modbus register map (loopworks.live.registers); simulate ignores it
+    io: dict[str, Any] | None = None
 
 
 @dataclass
@@ -118,6 +120,12 @@ class Scenario:
     #: every variant's block tables (names and keys lower-cased), as built
     tables: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict, repr=False)
     _model: Any = field(default=None, repr=False)
+
+    @property
+    def io(self) -> dict[str, Any] | None:
+        """The scenario's ``[io]`` table as written (the register map of ``loopworks device``
+        and ``serve``, read by :func:`loopworks.live.registers.map_of`), or None."""
+        return None if self._model is None else self._model.io
 
     def build(self, variant: str, changes: Mapping[str, Any] | None = None,
               seed: int | None = None) -> Module:
