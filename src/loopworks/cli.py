@@ -742,10 +742,15 @@ def device(
     fstate_time: Annotated[float, typer.Option(
         "--fstate-time", help="wall seconds without a write before an input's fault "
         "action (hold) applies")] = 5.0,
+    opcua_port: Annotated[int | None, typer.Option(
+        "--opcua-port", help="serve the same points on an OPC UA server on 127.0.0.1 as well "
+        "(NoSecurity, anonymous writes; 0: any free port; default: Modbus only)")] = None,
 ) -> None:
     """Run a scenario's plant blocks (process, valve, sensors, disturbances) as a simulated
-    field device serving its I/O over Modbus TCP holding registers; the controller side
-    (loopworks serve, or any Modbus client) writes the valve and reads the measurement."""
+    field device serving its I/O over Modbus TCP holding registers, and with --opcua-port on
+    OPC UA as well (namespace urn:loopworks:device, nodes s=<block.port>); the controller side
+    (loopworks serve, or any Modbus or OPC UA client) writes the valve and reads the
+    measurement."""
     import asyncio
     import logging
 
@@ -758,6 +763,11 @@ def device(
     split = split_scenario(sc, variant)
     regmap = map_of(sc, split)
     dev = Device(split, regmap, speedup=speedup, fstate_time=fstate_time)
+    ua_server = None
+    if opcua_port is not None:
+        from loopworks.live.device_opcua import DeviceOpcua
+
+        ua_server = DeviceOpcua(dev, host, opcua_port)  # checks the host and port now
     typer.echo(f"{sc.title or sc.source}: plant of variant {split.variant} "
                f"({', '.join(split.plant.order)})")
     typer.echo(regmap.text(), nl=False)
@@ -771,14 +781,22 @@ def device(
 
     async def serve() -> None:
         port = await dev.start(host, modbus_port)
-        until = ("until Ctrl-C" if duration is None else f"for {duration:g} s of plant time")
-        typer.echo(f"serving Modbus TCP on {host}:{port}, device id {regmap.device_id}, "
-                   f"a plant scan of {split.dt:g} s every {dev.period:g} s "
-                   f"(speedup {speedup:g}), {until}")
-        sys.stdout.flush()
         try:
+            if ua_server is not None:
+                endpoint = await ua_server.start()
+                typer.echo(f"serving OPC UA on {endpoint} (NoSecurity, anonymous; namespace "
+                           f"urn:loopworks:device, nodes s=<point>, e.g. "
+                           f"s={regmap.points[0].name})")
+            until = ("until Ctrl-C" if duration is None else
+                     f"for {duration:g} s of plant time")
+            typer.echo(f"serving Modbus TCP on {host}:{port}, device id {regmap.device_id}, "
+                       f"a plant scan of {split.dt:g} s every {dev.period:g} s "
+                       f"(speedup {speedup:g}), {until}")
+            sys.stdout.flush()
             await dev.run(duration)
         finally:
+            if ua_server is not None:
+                await ua_server.stop()
             await dev.stop()
 
     try:
@@ -797,8 +815,9 @@ def serve(
     config: Annotated[Path | None, typer.Argument(
         help="scenario TOML whose controller side runs; omit for the built-in scenario")] = None,
     device: Annotated[str | None, typer.Option(
-        "--device", help="the field device, modbus://HOST:PORT (default: the scenario's own "
-        "plant started in this process on loopback)")] = None,
+        "--device", help="the field device, modbus://HOST:PORT or opc.tcp://HOST:PORT/PATH "
+        "(default: the url of an [io] table with protocol = \"opcua\", else the scenario's own "
+        "plant started in another process on loopback)")] = None,
     opcua_port: Annotated[int, typer.Option(
         "--opcua-port", help="port of the controller's OPC UA server (0: any free port)")
     ] = 4840,

@@ -22,6 +22,12 @@ value, the refusal is logged, and it does not count as a write for the fault tim
 setpoint is no setpoint). Writes to the device's output registers are answered with the
 Modbus exception "illegal data address".
 
+**Other protocols.** :meth:`Device.write_input` is a write to a device input by another
+protocol than Modbus (the OPC UA server of :mod:`loopworks.live.device_opcua`): it counts for
+the fault timer like a Modbus write (the latest write of either protocol wins, and is copied
+into the input's registers), and :meth:`Device.add_scan_hook` runs a coroutine after each
+scan (to publish the outputs there).
+
 Events go to the logger ``loopworks.device``; each message carries the plant time (the log
 record carries the wall time).
 """
@@ -32,7 +38,7 @@ import asyncio
 import logging
 import math
 import time
-from collections.abc import Mapping
+from collections.abc import Awaitable, Callable, Mapping
 
 from pymodbus.constants import ExcCodes
 from pymodbus.server import ModbusTcpServer
@@ -137,6 +143,30 @@ class Device:
         self._refused_addresses: set[int] = set()
         self._stopping = False
         self._owner = {r: p.name for p in regmap.inputs for r in p.registers}
+        # writes by another protocol since the last scan: (value, wall time)
+        self._external: dict[str, tuple[float, float]] = {}
+        self._scan_hooks: list[Callable[[], Awaitable[None]]] = []
+
+    def write_input(self, name: str, value: float) -> None:
+        """A write of device input ``name`` by another protocol than Modbus, applied at the
+        next scan as a Modbus write is (a non-finite value is refused there)."""
+        if name not in self.fault_actions:
+            raise InputError(f"{name!r} is not a device input; inputs: "
+                             + ", ".join(self.fault_actions))
+        self._external[name] = (float(value), time.monotonic())
+
+    def pending(self, name: str) -> bool:
+        """True while a write of input ``name`` by another protocol awaits the next scan."""
+        return name in self._external
+
+    def add_scan_hook(self, hook: Callable[[], Awaitable[None]]) -> None:
+        """Await ``hook()`` after each scan (after the outputs are written)."""
+        self._scan_hooks.append(hook)
+
+    def output_values(self) -> dict[str, float]:
+        """Every device output now (point name -> value, a double: the registers hold it as
+        a float32)."""
+        return {p.name: float(b.y[i]) for p, b, i in self._outputs}
 
     def _check_points(self) -> None:
         """Each point names a plant port of the right kind; each crossing signal has one."""
@@ -278,9 +308,17 @@ class Device:
         for p in self.regmap.inputs:
             name = p.name
             wrote = self._written.pop(name, None)
+            other = self._external.pop(name, None)
+            value = math.nan
             if wrote is not None:
                 regs = await server.async_getValues(dev_id, _OWN_CODE, p.address, p.count)
                 value = p.decode([int(r) for r in regs])
+            if other is not None and (wrote is None or other[1] >= wrote):
+                value, wrote = other  # the latest write wins, Modbus or not
+                if math.isfinite(value):
+                    await server.async_setValues(dev_id, _OWN_CODE, p.address,
+                                                 p.encode(_f32(value)))
+            if wrote is not None:
                 if math.isfinite(value):
                     self.values[name] = value
                     self._last_write[name] = wrote
@@ -316,6 +354,8 @@ class Device:
                        if p.name in self.faulted)
             await server.async_setValues(dev_id, _OWN_CODE, self.regmap.fault_bits_address,
                                          [bits])
+        for hook in self._scan_hooks:
+            await hook()
 
     def applied(self, name: str) -> float:
         """The value device input ``name`` gives the plant now (its fault value while in a

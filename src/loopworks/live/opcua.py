@@ -230,6 +230,83 @@ def opcua_status(byte: int) -> ua.StatusCode:
     return ua.StatusCode(ua.UInt32(value))
 
 
+#: the inverse of ``opcua_status``: an OPC UA status code (a StatusCodes name) read from a
+#: server -> the Fieldbus status byte a block takes. Every code of ``_STATUS`` maps back to its
+#: byte (BadNoCommunication to 0x14, with the last usable value: a reader without one makes
+#: it 0x18); a few more codes a server may send map to the byte that means the same.
+_FROM_OPCUA: dict[str, int] = {
+    "Good": st.GOOD_NC,
+    "GoodCascade": st.GOOD_C_NON_SPECIFIC,
+    "GoodCascadeInitializationAcknowledged": st.GOOD_C_IA,
+    "GoodCascadeInitializationRequest": st.GOOD_C_IR,
+    "GoodCascadeNotInvited": st.GOOD_C_NI,
+    "GoodCascadeNotSelected": st.GOOD_C_NS,
+    "GoodLocalOverride": st.GOOD_C_LO,
+    "GoodFaultStateActive": st.GOOD_C_FSA,
+    "GoodInitiateFaultState": st.GOOD_C_IFS,
+    "Uncertain": st.UNCERTAIN_NON_SPECIFIC,
+    "UncertainLastUsableValue": st.UNCERTAIN_LAST_USABLE_VALUE,
+    "UncertainSubstituteValue": st.UNCERTAIN_SUBSTITUTE,
+    "UncertainInitialValue": st.UNCERTAIN_INITIAL_VALUE,
+    "UncertainSensorNotAccurate": st.UNCERTAIN_SENSOR_CONVERSION,
+    "UncertainEngineeringUnitsExceeded": st.UNCERTAIN_EU_RANGE_VIOLATION,
+    "UncertainSubNormal": st.UNCERTAIN_SUB_NORMAL,
+    "Bad": st.BAD_NON_SPECIFIC,
+    "BadConfigurationError": st.BAD_CONFIGURATION_ERROR,
+    "BadNodeIdUnknown": st.BAD_CONFIGURATION_ERROR,
+    "BadNodeIdInvalid": st.BAD_CONFIGURATION_ERROR,
+    "BadNotReadable": st.BAD_CONFIGURATION_ERROR,
+    "BadUserAccessDenied": st.BAD_CONFIGURATION_ERROR,
+    "BadNotConnected": st.BAD_NOT_CONNECTED,
+    "BadDeviceFailure": st.BAD_DEVICE_FAILURE,
+    "BadSensorFailure": st.BAD_SENSOR_FAILURE,
+    "BadNoCommunication": st.BAD_NO_COMM_LUV,
+    "BadCommunicationError": st.BAD_NO_COMM_LUV,
+    "BadConnectionClosed": st.BAD_NO_COMM_LUV,
+    "BadServerNotConnected": st.BAD_NO_COMM_LUV,
+    "BadServerHalted": st.BAD_NO_COMM_LUV,
+    "BadShutdown": st.BAD_NO_COMM_LUV,
+    "BadTimeout": st.BAD_NO_COMM_LUV,
+    "BadWaitingForInitialData": st.BAD_NO_COMM_NO_LUV,
+    "BadOutOfService": st.BAD_OUT_OF_SERVICE,
+}
+_FROM_CODE: dict[int, int] = {getattr(StatusCodes, name): byte
+                              for name, byte in _FROM_OPCUA.items()}
+
+
+def fieldbus_status(code: ua.StatusCode | int) -> int:
+    """The Fieldbus status byte of an OPC UA status code read from a server (the inverse of
+    :func:`opcua_status`, table ``_FROM_OPCUA``).
+
+    =================================================  ===================================
+    OPC UA status code                                 byte
+    =================================================  ===================================
+    Good, GoodCascade..., GoodLocalOverride ...        0x80, 0xC0..0xE0 (as opcua_status)
+    Uncertain, UncertainLastUsableValue ...            0x40..0x58 (as opcua_status)
+    Bad, BadConfigurationError, BadNotConnected,       0x00, 0x04, 0x08, 0x0C, 0x10, 0x1C
+    BadDeviceFailure, BadSensorFailure, BadOutOfServ.
+    BadNodeIdUnknown/Invalid, BadNotReadable,          0x04 configuration error
+    BadUserAccessDenied
+    BadNoCommunication, BadCommunicationError,         0x14 no communication (last usable
+    BadConnectionClosed, BadServerNotConnected,        value; 0x18 when the reader has
+    BadServerHalted, BadShutdown, BadTimeout           none)
+    BadWaitingForInitialData                           0x18 no communication, no value
+    any other Good / Uncertain / Bad code              0x80 / 0x40 / 0x0C device failure
+    =================================================  ===================================
+
+    LimitBits (bits 8-9, with InfoType DataValue) become the byte's limit bits."""
+    value = int(code.value if isinstance(code, ua.StatusCode) else code) & 0xFFFFFFFF
+    base = value & 0xFFFF0000
+    byte = _FROM_CODE.get(base)
+    if byte is None:
+        severity = value >> 30  # 0 Good, 1 Uncertain, 2 (3) Bad
+        byte = (st.GOOD_NC if severity == 0 else st.UNCERTAIN_NON_SPECIFIC if severity == 1
+                else st.BAD_DEVICE_FAILURE)
+    if value & _INFO_DATAVALUE:
+        byte |= (value >> 8) & 0x03
+    return byte
+
+
 # --- the server -----------------------------------------------------------------------------
 
 class _Identity(UaUser):  # asyncua's User, plus the loopworks role

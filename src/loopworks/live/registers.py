@@ -33,13 +33,30 @@ controller configuration uses::
     type = "float32"
     word_order = "abcd"
 
-This module does not import pymodbus.
+**OPC UA.** ``protocol = "opcua"`` (default ``"modbus"``) makes the controller reach the
+device's points on an OPC UA server instead (:mod:`loopworks.live.opcua_io`): ``url`` is the
+server's endpoint (``--device opc.tcp://...`` overrides it), and each point may name its
+``node`` (``"ns=2;s=sensor.pv"`` or ``"nsu=urn:loopworks:device;s=sensor.pv"``; default
+``nsu=urn:loopworks:device;s=<point name>``, the nodes ``loopworks device --opcua-port``
+serves). Addresses are then optional (the device still serves every point over Modbus as
+well: a point without one takes the next two free registers from 0)::
+
+    [io]
+    protocol = "opcua"
+    url = "opc.tcp://127.0.0.1:4841/device/"
+
+    [io.points."sensor.pv"]
+    direction = "output"
+    node = "nsu=urn:loopworks:device;s=sensor.pv"
+
+This module does not import pymodbus or asyncua.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 import struct
 import tomllib
 from collections.abc import Iterable, Sequence
@@ -65,6 +82,13 @@ REGISTERS = {"float32": 2}
 MAX_ADDRESS = 65535
 #: Modbus unit ids a device may answer to (0 is the broadcast address)
 DEVICE_IDS = (1, 247)
+#: how the controller reaches the device's points
+PROTOCOLS = ("modbus", "opcua")
+#: the namespace URI of the device's own OPC UA nodes (``loopworks device --opcua-port``)
+DEVICE_NAMESPACE = "urn:loopworks:device"
+#: an OPC UA node as a point names it: ``ns=<index>;`` or ``nsu=<namespace URI>;``, then
+#: ``s=``, ``i=``, ``g=`` or ``b=`` and the identifier
+NODE_FORM = re.compile(r"^(ns=\d+|nsu=[^;]+);(s|i|g|b)=.+$", re.DOTALL)
 
 
 def _order(word_order: str) -> str:
@@ -112,7 +136,9 @@ class Point:
     %) or "output" (the controller reads it: a transmitter's ``pv``, in its own units);
     ``type`` "float32"; ``word_order`` one of :data:`WORD_ORDERS`; ``fault_action`` (inputs
     only): what the device gives the plant when the controller stops writing the point
-    (``"hold"`` the last value, the FF default, or a safe value)."""
+    (``"hold"`` the last value, the FF default, or a safe value); ``node`` (OPC UA maps
+    only): the OPC UA node the controller reads or writes (None: :meth:`RegisterMap.node_of`
+    gives the device's own)."""
 
     name: str
     address: int
@@ -120,11 +146,17 @@ class Point:
     word_order: str = "abcd"
     type: str = "float32"
     fault_action: str | float = "hold"
+    node: str | None = None
 
     def __post_init__(self) -> None:
         where = f"point {self.name!r}"
         if not isinstance(self.name, str) or self.name.count(".") < 1:
             raise InputError(f"point name {self.name!r} must be written 'block.port'")
+        if self.node is not None and (not isinstance(self.node, str)
+                                      or not NODE_FORM.match(self.node)):
+            raise InputError(f"{where}: node = {self.node!r} is not allowed: expected an OPC "
+                             "UA node id such as \"ns=2;s=sensor.pv\" or "
+                             f"\"nsu={DEVICE_NAMESPACE};s=sensor.pv\"")
         if self.direction not in DIRECTIONS:
             raise InputError(f"{where}: direction = {self.direction!r} is not allowed: "
                              "expected 'input' (written by the controller) or 'output' "
@@ -174,24 +206,46 @@ class Point:
 @dataclass(frozen=True, init=False)
 class RegisterMap:
     """The points of a device, its Modbus unit id, and the addresses of its heartbeat and
-    fault-bits registers (uint16 each; None: not served). Addresses may not overlap."""
+    fault-bits registers (uint16 each; None: not served). Addresses may not overlap.
+
+    ``protocol``: how the controller reaches the points, ``"modbus"`` (the registers) or
+    ``"opcua"`` (the nodes on the OPC UA server at ``url``, None: given on the command
+    line, or the built-in device's)."""
 
     points: tuple[Point, ...]
     device_id: int = 1
     heartbeat_address: int | None = None
     fault_bits_address: int | None = None
     source: str = field(default="<register map>", compare=False)
+    protocol: str = "modbus"
+    url: str | None = None
 
     def __init__(self, points: Iterable[Point], device_id: int = 1,
                  heartbeat_address: int | None = None,
                  fault_bits_address: int | None = None,
-                 source: str = "<register map>") -> None:
+                 source: str = "<register map>", *, protocol: str = "modbus",
+                 url: str | None = None) -> None:
         pts = tuple(points)
         object.__setattr__(self, "points", pts)
         object.__setattr__(self, "device_id", device_id)
         object.__setattr__(self, "heartbeat_address", heartbeat_address)
         object.__setattr__(self, "fault_bits_address", fault_bits_address)
         object.__setattr__(self, "source", source)
+        object.__setattr__(self, "protocol", protocol)
+        object.__setattr__(self, "url", url)
+        if protocol not in PROTOCOLS:
+            raise InputError(f"{source}: protocol = {protocol!r} is not allowed: expected "
+                             + " or ".join(f"{p!r}" for p in PROTOCOLS))
+        if url is not None:
+            if protocol != "opcua":
+                raise InputError(f"{source}: url is for protocol = \"opcua\" maps only (a "
+                                 "Modbus device is given with --device modbus://HOST:PORT)")
+            check_opcua_url(url, f"{source}: url")
+        if protocol != "opcua":
+            named = [p.name for p in pts if p.node is not None]
+            if named:
+                raise InputError(f"{source}: point {named[0]!r}: node is for protocol = "
+                                 "\"opcua\" maps only")
         lo, hi = DEVICE_IDS
         if isinstance(device_id, bool) or not isinstance(device_id, int) or not (
                 lo <= device_id <= hi):
@@ -234,6 +288,12 @@ class RegisterMap:
         """The points the controller reads, in map order."""
         return [p for p in self.points if p.direction == "output"]
 
+    def node_of(self, point: Point) -> str:
+        """The OPC UA node of ``point``: its ``node``, else the device's own,
+        ``nsu=urn:loopworks:device;s=<point name>``."""
+        return point.node if point.node is not None else (
+            f"nsu={DEVICE_NAMESPACE};s={point.name}")
+
     def point(self, name: str) -> Point:
         """The point named ``name``; InputError lists the names."""
         for p in self.points:
@@ -271,6 +331,11 @@ class RegisterMap:
         """The map as the ``[io]`` TOML table (:meth:`from_toml` reads it back)."""
         out = ["# loopworks device register map: holding registers, 0-based addresses",
                "[io]", f"device_id = {self.device_id}"]
+        if self.protocol != "modbus":
+            out.append(f"protocol = \"{self.protocol}\"  # how the controller reaches the "
+                       "points")
+        if self.url is not None:
+            out.append(f"url = {json.dumps(self.url)}")
         if self.heartbeat_address is not None:
             out.append(f"heartbeat_address = {self.heartbeat_address}  # uint16, device "
                        "scan counter (wraps at 65536)")
@@ -283,6 +348,8 @@ class RegisterMap:
                     + ("written by the controller" if p.direction == "input"
                        else "read by the controller"),
                     f"type = \"{p.type}\"", f"word_order = \"{p.word_order}\""]
+            if p.node is not None:
+                out.append(f"node = {json.dumps(p.node)}")
             if p.direction == "input":
                 action = (f"\"{p.fault_action}\"" if p.fault_action == "hold"
                           else repr(p.fault_action))
@@ -316,7 +383,8 @@ class RegisterMap:
         if not isinstance(io, dict):
             raise InputError(f"{source}: expected an [io] table with device_id and "
                              "[io.points.\"block.port\"] tables")
-        allowed = {"device_id", "heartbeat_address", "fault_bits_address", "points"}
+        allowed = {"device_id", "heartbeat_address", "fault_bits_address", "points",
+                   "protocol", "url"}
         for key in io:
             if key not in allowed:
                 raise InputError(f"{source}: io.{key}: unknown key; keys: "
@@ -326,26 +394,46 @@ class RegisterMap:
         extra = {k: None if io.get(k) is None else _int(
             io[k], f"{source}: io.{k}", f"a register address 0..{MAX_ADDRESS}")
             for k in ("heartbeat_address", "fault_bits_address")}
+        protocol = io.get("protocol", "modbus")
+        if protocol not in PROTOCOLS:
+            raise InputError(f"{source}: io.protocol = {protocol!r}: expected "
+                             + " or ".join(f"\"{p}\"" for p in PROTOCOLS))
+        url = io.get("url")
+        if url is not None:
+            if protocol != "opcua":
+                raise InputError(f"{source}: io.url: for protocol = \"opcua\" only (a Modbus "
+                                 "device is given with --device modbus://HOST:PORT)")
+            check_opcua_url(url, f"{source}: io.url")
+        opcua = protocol == "opcua"
         points_raw = io.get("points", {})
         if not isinstance(points_raw, dict) or not points_raw:
             raise InputError(f"{source}: io.points: expected tables "
                              "[io.points.\"block.port\"] with address and direction")
-        points = []
+        points: list[Point] = []
+        unplaced: set[str] = set()
         for name, table in points_raw.items():
             where = f"{source}: io.points.{json.dumps(name)}"
             if not isinstance(table, dict):
                 raise InputError(f"{where}: expected a table with address, direction, type "
                                  "and word_order")
             keys = {"address", "direction", "type", "word_order", "fault_action"}
+            if opcua:
+                keys.add("node")
             for key in table:
                 if key not in keys:
-                    raise InputError(f"{where}.{key}: unknown key; keys: "
-                                     + ", ".join(sorted(keys)))
-            if "address" not in table or "direction" not in table:
-                missing = "address" if "address" not in table else "direction"
+                    raise InputError(f"{where}.{key}: unknown key"
+                                     + ("; node is for protocol = \"opcua\" maps only"
+                                        if key == "node" else "")
+                                     + "; keys: " + ", ".join(sorted(keys)))
+            if ("address" not in table and not opcua) or "direction" not in table:
+                missing = "direction" if "direction" not in table else "address"
                 raise InputError(f"{where}: {missing} is missing")
-            address = _int(table["address"], f"{where}.address",
-                           f"a register address 0..{MAX_ADDRESS - 1}")
+            address = None if "address" not in table else _int(
+                table["address"], f"{where}.address", f"a register address 0..{MAX_ADDRESS - 1}")
+            node = table.get("node")
+            if node is not None and not isinstance(node, str):
+                raise InputError(f"{where}.node = {node!r}: expected a string such as "
+                                 "\"ns=2;s=sensor.pv\"")
             fields: dict[str, Any] = {}
             for key, default in (("direction", None), ("type", "float32"),
                                  ("word_order", "abcd")):
@@ -353,13 +441,17 @@ class RegisterMap:
                 if not isinstance(value, str):
                     raise InputError(f"{where}.{key} = {value!r}: expected a string")
                 fields[key] = value
+            if address is None:
+                unplaced.add(name)
             try:
-                points.append(Point(name, address, fields["direction"], fields["word_order"],
-                                    fields["type"], table.get("fault_action", "hold")))
+                points.append(Point(name, 0 if address is None else address,
+                                    fields["direction"], fields["word_order"], fields["type"],
+                                    table.get("fault_action", "hold"), node))
             except InputError as exc:
                 raise InputError(f"{where}: {exc}") from None
-        return cls(points, device_id, extra["heartbeat_address"], extra["fault_bits_address"],
-                   source=source)
+        return cls(_place(points, unplaced, extra.values()), device_id,
+                   extra["heartbeat_address"],
+                   extra["fault_bits_address"], source=source, protocol=protocol, url=url)
 
     @classmethod
     def read(cls, path: str | Path) -> RegisterMap:
@@ -369,6 +461,39 @@ class RegisterMap:
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"{path}: cannot read the register map: {exc}") from None
         return cls.from_toml(text, str(path))
+
+
+def check_opcua_url(url: Any, where: str) -> str:
+    """``url`` if it is an ``opc.tcp://HOST:PORT/...`` URL, else an InputError at ``where``."""
+    from urllib.parse import urlparse
+
+    parsed = urlparse(url) if isinstance(url, str) else None
+    try:
+        ok = parsed is not None and parsed.scheme == "opc.tcp" and bool(parsed.hostname) and (
+            parsed.port is None or parsed.port > 0)
+    except ValueError:
+        ok = False
+    if not ok:
+        raise InputError(f"{where} = {url!r} is not allowed: expected opc.tcp://HOST:PORT/PATH "
+                         "(for example opc.tcp://127.0.0.1:4841/device/)")
+    return str(url)
+
+
+def _place(points: list[Point], unplaced: set[str],
+           taken: Iterable[int | None]) -> list[Point]:
+    """``points`` with the ones named in ``unplaced`` (read without an address: OPC UA maps)
+    placed on the next two free registers from 0, in table order."""
+    used = {r for p in points if p.name not in unplaced for r in p.registers}
+    used |= {a for a in taken if a is not None}
+    out, at = [], 0
+    for p in points:
+        if p.name in unplaced:
+            while at in used or at + 1 in used:
+                at += 1
+            p = Point(p.name, at, p.direction, p.word_order, p.type, p.fault_action, p.node)
+            used |= set(p.registers)
+        out.append(p)
+    return out
 
 
 def _int(value: Any, where: str, expected: str) -> int:

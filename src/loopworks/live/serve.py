@@ -2,8 +2,10 @@
 
 Each scan (absolute deadlines, :mod:`loopworks.live.schedule`):
 
-1. read the device's outputs over Modbus (:mod:`loopworks.live.modbus_io`); a failed read
-   makes them Bad, no communication, holding the last value;
+1. read the device's outputs over Modbus (:mod:`loopworks.live.modbus_io`), or from an
+   OPC UA server (:mod:`loopworks.live.opcua_io`: an ``[io]`` table with
+   ``protocol = "opcua"``, or ``--device opc.tcp://...``); a failed read makes them Bad, no
+   communication, holding the last value;
 2. hand them to the controller blocks' inputs with their statuses and run one scan of the
    controller module (the same blocks, kernels and events as ``loopworks simulate``): the
    blocks do what their vendor does with a Bad PV (the DeltaV PID's actual mode goes to MAN
@@ -378,19 +380,58 @@ class Served:
     device: str
 
 
-def parse_device(url: str) -> tuple[str, int]:
-    """(host, port) of ``modbus://HOST:PORT`` (port default 502)."""
+def parse_device(url: str) -> tuple[str, str, int]:
+    """(protocol, host, port) of ``modbus://HOST:PORT`` ("modbus", port default 502) or
+    ``opc.tcp://HOST:PORT/PATH`` ("opcua", port default 4840)."""
     from urllib.parse import urlparse
 
+    from loopworks.live.registers import check_opcua_url
+
     parsed = urlparse(url)
+    if parsed.scheme == "opc.tcp":
+        check_opcua_url(url, "--device")
+        return "opcua", str(parsed.hostname), parsed.port or 4840
     if parsed.scheme != "modbus" or not parsed.hostname:
         raise InputError(f"--device {url!r} is not allowed: expected modbus://HOST:PORT "
-                         "(for example modbus://127.0.0.1:5020)")
+                         "(for example modbus://127.0.0.1:5020) or opc.tcp://HOST:PORT/PATH")
     try:
         port = parsed.port or 502
     except ValueError:
         raise InputError(f"--device {url!r}: the port must be a number 1..65535") from None
-    return parsed.hostname, port
+    return "modbus", parsed.hostname, port
+
+
+def device_of(regmap: RegisterMap, device: str | None) -> str | None:
+    """The device URL the controller talks to: ``device`` (``--device``: its scheme picks
+    the protocol), else the map's ``url`` (an ``[io]`` table with ``protocol = "opcua"``),
+    else None (the scenario's own plant is started as the device)."""
+    if device is not None:
+        parse_device(device)  # an InputError now
+        return device
+    return regmap.url
+
+
+def make_io(regmap: RegisterMap, device: str) -> Any:
+    """The controller's I/O to the device at URL ``device``: an
+    :class:`~loopworks.live.opcua_io.OpcuaIO` for ``opc.tcp://``, else a
+    :class:`~loopworks.live.modbus_io.ModbusIO`."""
+    protocol, host, port = parse_device(device)
+    if protocol == "opcua":
+        from loopworks.live.opcua_io import OpcuaIO
+
+        return OpcuaIO(regmap, device)
+    from loopworks.live.modbus_io import ModbusIO
+
+    return ModbusIO(regmap, host, port)
+
+
+async def close_io(io: Any) -> None:
+    """Close ``io``: ``await io.aclose()`` when it has one (OPC UA), else ``io.close()``."""
+    aclose = getattr(io, "aclose", None)
+    if aclose is not None:
+        await aclose()
+    else:
+        io.close()
 
 
 async def serve(config: str | Path | None = None, *, device: str | None = None,
@@ -402,10 +443,13 @@ async def serve(config: str | Path | None = None, *, device: str | None = None,
     """Run the controller side of scenario ``config`` (None: the built-in scenario) live:
     against the Modbus device at ``device`` (``modbus://HOST:PORT``), or, without one, its
     own plant side started in this process as a device on loopback. ``opcua_port`` None: no
-    OPC UA server. ``state_dir``: where the checkpoint is kept (default ``loopworks-state``
-    in the current directory). ``ready`` is called once everything listens, before the first
-    scan. Returns when ``duration`` s of plant time passed or ``stop`` is set."""
-    from loopworks.live.modbus_io import ModbusIO
+    OPC UA server. The device may also be ``opc.tcp://...`` (or come from an ``[io]`` table
+    with ``protocol = "opcua"`` and a ``url``); a table with ``protocol = "opcua"`` and no
+    url, without ``device``, serves the built-in device's points on OPC UA as well and
+    controls it through them. ``state_dir``: where the checkpoint is kept (default
+    ``loopworks-state`` in the current directory). ``ready`` is called once everything
+    listens, before the first scan. Returns when ``duration`` s of plant time passed or
+    ``stop`` is set."""
     from loopworks.live.registers import map_of
     from loopworks.live.split import split_scenario
     from loopworks.sim.scenario import load_scenario
@@ -414,17 +458,27 @@ async def serve(config: str | Path | None = None, *, device: str | None = None,
     split = split_scenario(sc, variant)
     regmap = map_of(sc, split)
     local = None
-    if device is None:
+    local_ua = None
+    target = device_of(regmap, device)
+    device_task: asyncio.Task[Any] | None = None
+    if target is None:
         from loopworks.live.device import Device
 
         local = Device(split_scenario(sc, variant), regmap, speedup=speedup)
-        dhost, dport = "127.0.0.1", await local.start("127.0.0.1", 0)
-        device_task: asyncio.Task[Any] | None = asyncio.create_task(local.run())
-    else:
-        dhost, dport = parse_device(device)
-        device_task = None
+        dport = await local.start("127.0.0.1", 0)
+        target = f"modbus://127.0.0.1:{dport}"
+        if regmap.protocol == "opcua":
+            from loopworks.live.device_opcua import DeviceOpcua
+
+            local_ua = DeviceOpcua(local, "127.0.0.1", 0)
+            try:
+                target = await local_ua.start()
+            except BaseException:
+                await local.stop()
+                raise
+        device_task = asyncio.create_task(local.run())
     state = state_dir if state_dir is not None else Path("loopworks-state")
-    io = ModbusIO(regmap, dhost, dport)
+    io = make_io(regmap, target)
     controller = LiveController(split, regmap, io, checkpoint=state / "checkpoint.json")
     server = None
     endpoint = None
@@ -438,8 +492,7 @@ async def serve(config: str | Path | None = None, *, device: str | None = None,
                                 port=opcua_port, certificate_dir=state / "pki")
             endpoint = await server.start()
             publish = server.publish
-        served = Served(controller, controller.stats.summary(), endpoint,
-                        f"modbus://{dhost}:{dport}")
+        served = Served(controller, controller.stats.summary(), endpoint, target)
         if ready is not None:
             ready(served)
         stats = await run_controller(controller, speedup=speedup, duration=duration,
@@ -449,7 +502,9 @@ async def serve(config: str | Path | None = None, *, device: str | None = None,
     finally:
         if server is not None:
             await server.stop()
-        io.close()
+        await close_io(io)
+        if local_ua is not None:
+            await local_ua.stop()
         if local is not None:
             await local.stop()
         if device_task is not None:

@@ -9,7 +9,9 @@ OPC UA client does (a flood of requests, a login's password hashing) can stall i
 * this process (the **supervisor**) runs the OPC UA server: it publishes the snapshots, and
   hands each client's write to the controller process, answering the client with the
   controller's verdict (``BadTimeout`` when there is none within :data:`REPLY_TIMEOUT`);
-* without ``--device``, the scenario's plant runs in a third process as the device.
+* without ``--device`` (and without a ``url`` in an OPC UA ``[io]`` table), the scenario's
+  plant runs in a third process as the device (serving OPC UA as well when the table says
+  ``protocol = "opcua"``).
 
 The supervisor is the controller's watchdog: a controller process that dies (killed, a crash)
 is started again at once, and resumes from its last checkpoint (at most
@@ -56,8 +58,7 @@ class Job:
 
     config: str | None
     variant: str | None
-    device_host: str
-    device_port: int
+    device: str  # modbus://HOST:PORT or opc.tcp://HOST:PORT/PATH
     speedup: float
     duration: float | None
     state_dir: str
@@ -81,16 +82,15 @@ def controller_main(job: Job, commands: Any, events: Any) -> None:
 
 
 async def _controller(job: Job, commands: Any, events: Any) -> None:
-    from loopworks.live.modbus_io import ModbusIO
     from loopworks.live.registers import map_of
-    from loopworks.live.serve import LiveController, run_controller
+    from loopworks.live.serve import LiveController, close_io, make_io, run_controller
     from loopworks.live.split import split_scenario
     from loopworks.sim.scenario import load_scenario
 
     sc = load_scenario(job.config)
     split = split_scenario(sc, job.variant)
     regmap = map_of(sc, split)
-    io = ModbusIO(regmap, job.device_host, job.device_port)
+    io = make_io(regmap, job.device)
     ctl = LiveController(split, regmap, io,
                          checkpoint=Path(job.state_dir) / "checkpoint.json")
     events.put(("hello", ctl.loops(), ctl.resumed, ctl.scans, ctl.dt))
@@ -136,13 +136,15 @@ async def _controller(job: Job, commands: Any, events: Any) -> None:
         with contextlib.suppress(queue.Full):
             events.put(("done", stats.summary(), io.status()), timeout=2.0)
     finally:
-        io.close()
+        await close_io(io)
 
 
 # -- the device process ------------------------------------------------------------------------
 
-def device_main(config: str | None, variant: str | None, speedup: float, conn: Any) -> None:
-    """Entry point of the built-in device's process: sends its port on ``conn``."""
+def device_main(config: str | None, variant: str | None, speedup: float, conn: Any,
+                opcua: bool = False) -> None:
+    """Entry point of the built-in device's process: sends its URL on ``conn`` (its OPC UA
+    endpoint when ``opcua``, else modbus://127.0.0.1:PORT)."""
     _log_to_stderr()
 
     async def run() -> None:
@@ -154,7 +156,14 @@ def device_main(config: str | None, variant: str | None, speedup: float, conn: A
         sc = load_scenario(config)
         split = split_scenario(sc, variant)
         device = Device(split, map_of(sc, split), speedup=speedup)
-        conn.send(await device.start("127.0.0.1", 0))
+        url = f"modbus://127.0.0.1:{await device.start('127.0.0.1', 0)}"
+        ua_server = None
+        if opcua:
+            from loopworks.live.device_opcua import DeviceOpcua
+
+            ua_server = DeviceOpcua(device, "127.0.0.1", 0)
+            url = await ua_server.start()
+        conn.send(url)
         stop = asyncio.Event()
         loop = asyncio.get_running_loop()
         for sig in (signal.SIGINT, signal.SIGTERM):
@@ -162,6 +171,8 @@ def device_main(config: str | None, variant: str | None, speedup: float, conn: A
                 loop.add_signal_handler(sig, stop.set)
         task = asyncio.create_task(device.run())
         await stop.wait()
+        if ua_server is not None:
+            await ua_server.stop()
         await device.stop()
         task.cancel()
         with contextlib.suppress(asyncio.CancelledError):
@@ -291,26 +302,27 @@ class ControllerProcess:
             self.proc.join(10)
 
 
-async def start_device(config: str | None, variant: str | None, speedup: float) -> tuple[Any,
-                                                                                        int]:
-    """The built-in device in a process of its own on 127.0.0.1: (process, port)."""
+async def start_device(config: str | None, variant: str | None, speedup: float,
+                       opcua: bool = False) -> tuple[Any, str]:
+    """The built-in device in a process of its own on 127.0.0.1: (process, its URL: the
+    OPC UA endpoint when ``opcua``, else modbus://127.0.0.1:PORT)."""
     ctx = mp.get_context("spawn")
     here, there = ctx.Pipe()
-    proc = ctx.Process(target=device_main, args=(config, variant, speedup, there),
+    proc = ctx.Process(target=device_main, args=(config, variant, speedup, there, opcua),
                        name="loopworks-device")
     proc.start()
 
-    def wait() -> int:
+    def wait() -> str:
         if not here.poll(START_TIMEOUT):
             raise InputError("the device process did not start")
-        return int(here.recv())
+        return str(here.recv())
 
     try:
-        port = await asyncio.get_running_loop().run_in_executor(None, wait)
+        url = await asyncio.get_running_loop().run_in_executor(None, wait)
     except (EOFError, OSError):
         raise InputError(f"the device process stopped before it started (exit code "
                          f"{proc.exitcode})") from None
-    return proc, port
+    return proc, url
 
 
 async def run(config: str | Path | None = None, *, device: str | None = None,
@@ -324,7 +336,7 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
     process's ``pid``) before the first
     scan's snapshot is published. Returns the controller's scan statistics."""
     from loopworks.live.opcua import LoopServer
-    from loopworks.live.serve import parse_device
+    from loopworks.live.serve import device_of
     from loopworks.live.split import split_scenario
     from loopworks.live.users import load_users
     from loopworks.sim.scenario import load_scenario
@@ -334,18 +346,16 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
     from loopworks.live.registers import map_of
 
     sc = load_scenario(config)
-    map_of(sc, split_scenario(sc, variant))  # errors now, not in a child process
+    regmap = map_of(sc, split_scenario(sc, variant))  # errors now, not in a child process
+    target = device_of(regmap, device)
     accounts = load_users(users) if users is not None else None
     stop = stop or asyncio.Event()
     dev_proc = None
-    if device is None:
-        dev_proc, port = await start_device(None if config is None else str(config), variant,
-                                            speedup)
-        dhost = "127.0.0.1"
-    else:
-        dhost, port = parse_device(device)
-    job = Job(None if config is None else str(config), variant, dhost, port, speedup,
-              duration, str(state_dir))
+    if target is None:
+        dev_proc, target = await start_device(None if config is None else str(config),
+                                              variant, speedup, regmap.protocol == "opcua")
+    job = Job(None if config is None else str(config), variant, target, speedup, duration,
+              str(state_dir))
     ctl = ControllerProcess(job)
     try:
         await ctl.start()
@@ -355,7 +365,7 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
         try:
             if ready is not None:
                 ready({"loops": list(ctl.loops()), "dt": ctl.dt, "endpoint": endpoint,
-                       "device": f"modbus://{dhost}:{port}", "resumed": ctl.resumed,
+                       "device": target, "resumed": ctl.resumed,
                        "scans": ctl.scans, "checkpoint": state_dir / "checkpoint.json",
                        "pid": ctl.proc.pid})
             await ctl.pump(server.publish, stop)
