@@ -338,8 +338,8 @@
     if (comp.length) {
       const m = /^compensator (\S+) \(([^)]+)\)/.exec(p[comp[0]].description || "");
       compBox = el("section", { class: "panel", id: "comp" },
-        el("div", { class: "panel-head" }, el("h2", { text: "Compensator" }),
-          el("span", { class: "u", text: m ? `${m[1]} · ${m[2]}` : "" })),
+        el("h2", { text: "Compensator" }),
+        el("p", { class: "u comp-kind", text: m ? `block ${m[1]}, ${m[2]}` : "" }),
         el("p", { class: "comp-state", id: "comp-state" }),
         el("table", { class: "grid" }, el("tbody", {}, ...comp.filter((n) => n !== "COMP_START").map((n) =>
           el("tr", { title: p[n].description }, el("th", { text: n.slice(5).replace(/_/g, " ") }),
@@ -351,7 +351,7 @@
       el("table", { class: "grid" }, el("tbody", {}, ...tuning.map((n) => {
         const input = el("input", { type: "number", step: "any", id: `in-${n}`, "aria-label": `new ${n}` });
         return el("tr", { title: p[n].description },
-          el("th", { text: n }), el("td", { class: "v", id: `v-${n}` }),
+          el("th", { text: n.replace(/_/g, "_\u200b") }), el("td", { class: "v", id: `v-${n}` }),
           el("td", {}, el("form", { class: "entry small", onsubmit: async (ev) => {
             ev.preventDefault();
             if (input.value !== "" && await change(n, Number(input.value))) input.value = "";
