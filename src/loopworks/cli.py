@@ -837,6 +837,11 @@ def serve(
     state_dir: Annotated[Path, typer.Option(
         "--state-dir", help="where checkpoints and the server certificate are kept")] = Path(
         "loopworks-state"),
+    faceplate: Annotated[bool, typer.Option(
+        "--faceplate", help="also start the operator's web faceplate (loopworks faceplate) "
+        "on 127.0.0.1")] = False,
+    faceplate_port: Annotated[int, typer.Option(
+        "--faceplate-port", help="port of the web faceplate")] = 8080,
 ) -> None:
     """Run the controller side of a scenario (its controllers and compensators) live: scans
     on absolute deadlines, the device's I/O over Modbus TCP, every loop on an OPC UA server
@@ -884,12 +889,51 @@ def serve(
         return await supervisor.run(config, device=device, host=host, opcua_port=opcua_port,
                                     users=users, speedup=speedup, duration=duration,
                                     variant=variant, state_dir=state_dir, stop=stop,
-                                    ready=ready)
+                                    ready=ready,
+                                    faceplate_port=faceplate_port if faceplate else None)
 
     done = asyncio.run(main())
     stats = done["stats"]
     typer.echo(("stopped: " + describe(stats) if stats else "stopped")
                + f"; checkpoint {done['checkpoint']}")
+
+
+@app.command()
+@_user_errors
+def faceplate(
+    opcua_url: Annotated[str, typer.Argument(
+        help="the controller's OPC UA endpoint (loopworks serve)")] =
+        "opc.tcp://127.0.0.1:4840/loopworks/",
+    port: Annotated[int, typer.Option("--port", help="HTTP port of the faceplate")] = 8080,
+    host: Annotated[str, typer.Option(
+        "--host", help="address to serve on (127.0.0.1: this machine only)")] = "127.0.0.1",
+) -> None:
+    """The operator's faceplate in the browser for a running loopworks serve: an overview of
+    every loop, a faceplate per loop (bars, mode, alarms, compensator, a live trend), and
+    changes (SP, mode, OUT in MAN, tuning) made as the logged-in user's OPC UA writes."""
+    import logging
+
+    if not opcua_url.startswith("opc.tcp://"):
+        _fail(f"OPCUA_URL {opcua_url!r}: expected opc.tcp://HOST:PORT/PATH")
+    try:
+        from loopworks.live.faceplate import run
+    except ImportError as exc:
+        _fail(f"the faceplate needs fastapi and uvicorn ({exc}); pip install loopworks")
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
+    logger = logging.getLogger("loopworks.faceplate")
+    logger.addHandler(handler)
+    logger.setLevel(logging.INFO)
+
+    def ready(url: str) -> None:
+        typer.echo(f"faceplate on {url} for {opcua_url}")
+        sys.stdout.flush()
+
+    try:
+        run(opcua_url, host=host, port=port, ready=ready)
+    except OSError as exc:
+        _fail(str(exc))
+    typer.echo("faceplate stopped")
 
 
 def _announce(message: str) -> None:

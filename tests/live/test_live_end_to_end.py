@@ -61,7 +61,9 @@ OUTPUT: dict[int, Output] = {}
 
 def wait_for_line(proc: subprocess.Popen[str], text: str, timeout: float = 60.0) -> list[str]:
     """The process's new lines up to the first that holds ``text``."""
-    out = OUTPUT.setdefault(proc.pid, Output(proc))
+    out = OUTPUT.get(proc.pid)
+    if out is None:  # one reader per process (a second thread would take lines from it)
+        out = OUTPUT[proc.pid] = Output(proc)
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         for i in range(out.seen, len(out.lines)):

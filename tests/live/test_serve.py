@@ -130,3 +130,16 @@ def test_a_checkpoint_of_another_module_is_refused(tmp_path: Path) -> None:
 
     with pytest.raises(InputError, match="another controller module"):
         make(path)
+
+
+def test_the_compensator_fed_by_the_loop_shows_as_comp_variables() -> None:
+    ctl, _ = make()
+    names = {v.name: v for v in ctl.loops()["pid"]}
+    for name in ("COMP_SIGNAL_OUT", "COMP_DITHER_DELT", "COMP_KICKER_DELT", "COMP_START"):
+        assert name in names and not names[name].writable, name
+    assert "deltav.stick_slip" in names["COMP_DITHER_DELT"].description
+    assert "COMP_SIGNAL_IN" not in names  # a wired input is the PID's OUT: not repeated
+    scans(ctl, 4)
+    snap = ctl.snapshot()
+    assert snap["pid.COMP_START"][0] == 0.0  # the built-in first variant: compensation off
+    assert snap["pid.COMP_SIGNAL_OUT"][0] == pytest.approx(snap["pid.OUT"][0], abs=1e-3)

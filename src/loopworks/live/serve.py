@@ -19,7 +19,10 @@ Each scan (absolute deadlines, :mod:`loopworks.live.schedule`):
    checkpoint of the same module resumes from it, so OUT continues without a bump.
 
 A loop is a controller block (a kind that declares its roles, :mod:`loopworks.blocks.controller`),
-named after the block.
+named after the block. A loop whose output feeds a block of the controller side that is not
+a controller (a stiction compensator, ``compensator.signal_in = pid.out``) shows that block's
+state as read-only ``COMP_<PORT>`` variables: its outputs (COMP_SIGNAL_OUT,
+COMP_DITHER_DELT, COMP_KICKER_DELT ...) and its unwired inputs (COMP_START ...), for the faceplate.
 """
 
 from __future__ import annotations
@@ -68,6 +71,32 @@ class Loop:
     mode: str | None
     man_out: str | None
     tuning: list[str] = field(default_factory=list)
+    #: the block fed by the loop's output (a compensator), and its ports shown as COMP_<PORT>
+    compensator: str | None = None
+    comp_ports: list[tuple[str, bool]] = field(default_factory=list)  # (port, is an output)
+
+
+def _compensator(module: Module, loop: str, out: str) -> tuple[str | None,
+                                                             list[tuple[str, bool]]]:
+    """The first block (in scan order) wired from ``loop.out`` that is not a controller, and
+    its ports to show: every output, then every input no wire feeds."""
+    fed = {dest.split(".", 1)[0] for dest, src in module.wires.items()
+           if src == f"{loop}.{out}"}
+    for name in module.order:
+        block = module.blocks[name]
+        if name not in fed or isinstance(block, Controller):
+            continue
+        ports = [(p.name, True) for p in block.OUTPUTS]
+        seen = {p for p, _ in ports}
+        ports += [(p.name, False) for p in block.INPUTS
+                  if f"{name}.{p.name}" not in module.wires and p.name not in seen]
+        return name, ports
+    return None, []
+
+
+def _comp_name(port: str) -> str:
+    """The variable of a compensator's port: COMP_SIGNAL_OUT, COMP_START (comp_start)."""
+    return "COMP_" + port.upper().removeprefix("COMP_")
 
 
 def _loops(module: Module) -> list[Loop]:
@@ -79,8 +108,9 @@ def _loops(module: Module) -> list[Loop]:
         roles = type(block).ROLES
         tuning = [p for p in type(block).LAW_PARAMS
                   if p in block.params and type(block.params[p]) in (int, float)]
+        comp, ports = _compensator(module, name, roles.out)
         loops.append(Loop(name, block, roles.pv, roles.sp, roles.out, roles.mode,
-                          roles.man_out, tuning))
+                          roles.man_out, tuning, comp, ports))
     return loops
 
 
@@ -216,6 +246,16 @@ class LiveController:
         for name in ("SCANS", "OVERRUNS", "LATE_P99_MS", "LATE_MAX_MS", "COMM_ERRORS",
                      "READBACK_MISMATCHES"):
             out.append(Variable(name, 0.0, "double", False, "", "scan statistics"))
+        if loop.compensator is not None:
+            cb = self.module.blocks[loop.compensator]
+            for port, output in loop.comp_ports:
+                spec = (cb.OUTPUTS[cb._out_index[port]] if output
+                        else cb.INPUTS[cb._in_index[port]])
+                value = (_output(cb, port) if output else _input(cb, port))[0]
+                out.append(Variable(_comp_name(port), value, "double", False,
+                                    spec.unit, f"compensator {loop.compensator} "
+                                    f"({cb.kind}) {'output' if output else 'input'} {port}: "
+                                    f"{spec.meaning}"))
         return out
 
     def loops(self) -> dict[str, list[Variable]]:
@@ -244,6 +284,13 @@ class LiveController:
                                ("COMM_ERRORS", io["read_errors"] + io["write_errors"]),
                                ("READBACK_MISMATCHES", io["readback_mismatches"])):
                 snap[f"{name}.{key}"] = (float(value), st.GOOD_NC)
+            if loop.compensator is not None:
+                cb = self.module.blocks[loop.compensator]
+                for port, output in loop.comp_ports:
+                    spec = (cb.OUTPUTS[cb._out_index[port]] if output
+                            else cb.INPUTS[cb._in_index[port]])
+                    v, s = _output(cb, port) if output else _input(cb, port)
+                    snap[f"{name}.{_comp_name(port)}"] = (v, s if spec.status else st.GOOD_NC)
         return snap
 
     def write(self, user: str | None, role: str | None, loop: str, name: str,

@@ -11,7 +11,9 @@ OPC UA client does (a flood of requests, a login's password hashing) can stall i
   controller's verdict (``BadTimeout`` when there is none within :data:`REPLY_TIMEOUT`);
 * without ``--device`` (and without a ``url`` in an OPC UA ``[io]`` table), the scenario's
   plant runs in a third process as the device (serving OPC UA as well when the table says
-  ``protocol = "opcua"``).
+  ``protocol = "opcua"``);
+* with ``--faceplate``, the operator's web faceplate (``loopworks faceplate``) runs in a
+  process of its own as an OPC UA client of this one, so a browser cannot stall either.
 
 The supervisor is the controller's watchdog: a controller process that dies (killed, a crash)
 is started again at once, and resumes from its last checkpoint (at most
@@ -30,6 +32,7 @@ import multiprocessing as mp
 import os
 import queue
 import signal
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -325,16 +328,38 @@ async def start_device(config: str | None, variant: str | None, speedup: float,
     return proc, url
 
 
+def start_faceplate(endpoint: str, port: int) -> subprocess.Popen[bytes]:
+    """``loopworks faceplate ENDPOINT --port PORT`` in a process of its own (its output goes
+    to this process's)."""
+    log.info("starting the faceplate on http://127.0.0.1:%d/", port)
+    return subprocess.Popen([sys.executable, "-m", "loopworks", "faceplate", endpoint,
+                             "--port", str(port)])
+
+
+def stop_faceplate(proc: subprocess.Popen[bytes]) -> None:
+    """Stop the faceplate process (SIGTERM, then SIGKILL after 5 s)."""
+    if proc.poll() is None:
+        proc.terminate()
+        try:
+            proc.wait(5)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(5)
+
+
 async def run(config: str | Path | None = None, *, device: str | None = None,
               host: str = "127.0.0.1", opcua_port: int = 4840, users: Path | None = None,
               speedup: float = 1.0, duration: float | None = None, variant: str | None = None,
               state_dir: Path = Path("loopworks-state"), stop: asyncio.Event | None = None,
-              ready: Callable[[dict[str, Any]], Any] | None = None) -> dict[str, Any]:
+              ready: Callable[[dict[str, Any]], Any] | None = None,
+              faceplate_port: int | None = None) -> dict[str, Any]:
     """``loopworks serve`` (module docstring): the scenario is checked here first (a located
     error before any process starts); ``ready`` gets what is listening (``loops``, ``dt``,
     ``device``, ``endpoint``, ``resumed``, ``scans``, ``checkpoint``, the controller
     process's ``pid``) before the first
-    scan's snapshot is published. Returns the controller's scan statistics."""
+    scan's snapshot is published. ``faceplate_port``: start ``loopworks faceplate`` on
+    127.0.0.1 at that port beside the controller (stopped with it). Returns the controller's
+    scan statistics."""
     from loopworks.live.opcua import LoopServer
     from loopworks.live.serve import device_of
     from loopworks.live.split import split_scenario
@@ -345,6 +370,13 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
         raise InputError(f"speedup = {speedup!r} is not allowed: it must be > 0 and finite")
     from loopworks.live.registers import map_of
 
+    if faceplate_port is not None:
+        from loopworks.live.opcua import _is_loopback
+
+        if not _is_loopback(host):
+            raise InputError(f"--faceplate: the faceplate connects to the OPC UA server "
+                             f"without security, which is offered on a loopback address only; "
+                             f"--host {host} is not one (run loopworks faceplate yourself)")
     sc = load_scenario(config)
     regmap = map_of(sc, split_scenario(sc, variant))  # errors now, not in a child process
     target = device_of(regmap, device)
@@ -362,6 +394,7 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
         server = LoopServer(ctl, accounts, host=host, port=opcua_port,
                             certificate_dir=state_dir / "pki")
         endpoint = await server.start()
+        face = None if faceplate_port is None else start_faceplate(endpoint, faceplate_port)
         try:
             if ready is not None:
                 ready({"loops": list(ctl.loops()), "dt": ctl.dt, "endpoint": endpoint,
@@ -370,6 +403,8 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
                        "pid": ctl.proc.pid})
             await ctl.pump(server.publish, stop)
         finally:
+            if face is not None:
+                stop_faceplate(face)
             await server.stop()
     finally:
         ctl.stop_now()
