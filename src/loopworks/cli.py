@@ -850,17 +850,11 @@ def serve(
     can stall it), restarted from its checkpoint if it dies. Without --device the scenario's
     plant runs as a device on loopback in another process: a loop, live, in one command."""
     import asyncio
-    import logging
 
     from loopworks.live import supervisor
     from loopworks.live.serve import describe
 
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
-    for name in ("loopworks.serve", "loopworks.device"):
-        logger = logging.getLogger(name)
-        logger.addHandler(handler)
-        logger.setLevel(logging.INFO)
+    supervisor.log_to_stderr()
 
     def ready(info: dict[str, Any]) -> None:
         dt = info["dt"]

@@ -67,7 +67,8 @@ class Job:
     state_dir: str
 
 
-def _log_to_stderr() -> None:
+def log_to_stderr() -> None:
+    """The live loggers' events on stderr, each with its time (every process of serve)."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
     for name in ("loopworks.serve", "loopworks.device"):
@@ -80,7 +81,7 @@ def _log_to_stderr() -> None:
 
 def controller_main(job: Job, commands: Any, events: Any) -> None:
     """Entry point of the controller process."""
-    _log_to_stderr()
+    log_to_stderr()
     asyncio.run(_controller(job, commands, events))
 
 
@@ -148,7 +149,7 @@ def device_main(config: str | None, variant: str | None, speedup: float, conn: A
                 opcua: bool = False) -> None:
     """Entry point of the built-in device's process: sends its URL on ``conn`` (its OPC UA
     endpoint when ``opcua``, else modbus://127.0.0.1:PORT)."""
-    _log_to_stderr()
+    log_to_stderr()
 
     async def run() -> None:
         from loopworks.live.device import Device
