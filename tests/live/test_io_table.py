@@ -46,6 +46,11 @@ def test_the_io_table_is_the_map_of_both_sides() -> None:
     assert (pv.address, pv.word_order, op.address, op.fault_action) == (10, "cdab", 20, 25.0)
     # the table is read back from the map file the device writes
     assert type(regmap).from_toml(regmap.to_toml()).point("valve.op").fault_action == 25.0
+    # a poll period (s between the controller's reads) is part of the table
+    polled = scenario(IO.replace("device_id = 3", "device_id = 3\npoll_period = 2.0"))
+    pmap = map_of(polled, split_scenario(polled))
+    assert pmap.poll_period == 2.0
+    assert type(pmap).from_toml(pmap.to_toml()).poll_period == 2.0
     # simulate ignores it: the same modules as without it
     assert sc.build("compensation_off").order == BUILT_IN.build("compensation_off").order
 
@@ -88,6 +93,7 @@ def test_a_device_serves_the_io_table_and_applies_its_fault_action() -> None:
     (IO.split('[io.points."valve.op"]')[0], r"\[io\] has no point for valve\.op"),
     (IO.replace("fault_action = 25.0", 'fault_action = "open"'), r"fault_action = 'open'"),
     (IO.replace("address = 20", "address = 11"), r"overlap|registers"),
+    (IO.replace("device_id = 3", "device_id = 3\npoll_period = 0"), r"poll_period = 0"),
 ])
 def test_a_wrong_io_table_is_located(io: str, message: str) -> None:
     sc = scenario(io)

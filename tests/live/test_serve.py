@@ -143,3 +143,42 @@ def test_the_compensator_fed_by_the_loop_shows_as_comp_variables() -> None:
     snap = ctl.snapshot()
     assert snap["pid.COMP_START"][0] == 0.0  # the built-in first variant: compensation off
     assert snap["pid.COMP_SIGNAL_OUT"][0] == pytest.approx(snap["pid.OUT"][0], abs=1e-3)
+
+
+def test_a_poll_period_reads_the_device_every_so_many_scans() -> None:
+    # [io] poll_period = 2 s with 0.5 s scans: the device is read every 4th scan, and the
+    # controller holds the value read in between
+    split = split_scenario(load_scenario(None), "compensation_off")
+    io = LoopbackIO(split)
+    reads = 0
+    read = io.read
+
+    async def counted() -> dict[str, tuple[float, int]]:
+        nonlocal reads
+        reads += 1
+        return await read()
+
+    io.read = counted  # type: ignore[method-assign]
+    regmap = default_map(split)
+    polled = type(regmap)(regmap.points, regmap.device_id, regmap.heartbeat_address,
+                          regmap.fault_bits_address, poll_period=2.0)
+    ctl = LiveController(split, polled, io)
+    assert ctl.poll_every == 4
+    seen = []
+    for _ in range(12):
+        scans(ctl, 1)
+        seen.append(ctl.snapshot()["pid.PV"][0])
+    assert reads == 3  # scans 0, 4, 8
+    assert seen[0] == seen[1] == seen[2] == seen[3]
+    assert seen[4] == seen[5] == seen[6] == seen[7]
+    assert seen[4] != seen[3]  # a new read (the transmitter's noise alone moves it)
+
+
+@pytest.mark.parametrize("period", [0.0, -1.0, float("inf"), "2"])
+def test_a_wrong_poll_period_is_named(period: object) -> None:
+    from loopworks.errors import InputError
+
+    split = split_scenario(load_scenario(None), "compensation_off")
+    regmap = default_map(split)
+    with pytest.raises(InputError, match="poll_period"):
+        type(regmap)(regmap.points, poll_period=period)  # type: ignore[arg-type]

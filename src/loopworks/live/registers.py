@@ -210,7 +210,9 @@ class RegisterMap:
 
     ``protocol``: how the controller reaches the points, ``"modbus"`` (the registers) or
     ``"opcua"`` (the nodes on the OPC UA server at ``url``, None: given on the command
-    line, or the built-in device's)."""
+    line, or the built-in device's). ``poll_period``: seconds of plant time between the
+    controller's reads of the device (rounded to whole scans, at least one; None: every
+    scan); between reads the controller holds the last values and statuses read."""
 
     points: tuple[Point, ...]
     device_id: int = 1
@@ -219,12 +221,13 @@ class RegisterMap:
     source: str = field(default="<register map>", compare=False)
     protocol: str = "modbus"
     url: str | None = None
+    poll_period: float | None = None
 
     def __init__(self, points: Iterable[Point], device_id: int = 1,
                  heartbeat_address: int | None = None,
                  fault_bits_address: int | None = None,
                  source: str = "<register map>", *, protocol: str = "modbus",
-                 url: str | None = None) -> None:
+                 url: str | None = None, poll_period: float | None = None) -> None:
         pts = tuple(points)
         object.__setattr__(self, "points", pts)
         object.__setattr__(self, "device_id", device_id)
@@ -233,6 +236,13 @@ class RegisterMap:
         object.__setattr__(self, "source", source)
         object.__setattr__(self, "protocol", protocol)
         object.__setattr__(self, "url", url)
+        if poll_period is not None:
+            if (isinstance(poll_period, bool) or not isinstance(poll_period, int | float)
+                    or not (0.0 < poll_period < math.inf)):
+                raise InputError(f"{source}: poll_period = {poll_period!r} is not allowed: "
+                                 "expected seconds > 0 (finite)")
+            poll_period = float(poll_period)
+        object.__setattr__(self, "poll_period", poll_period)
         if protocol not in PROTOCOLS:
             raise InputError(f"{source}: protocol = {protocol!r} is not allowed: expected "
                              + " or ".join(f"{p!r}" for p in PROTOCOLS))
@@ -336,6 +346,8 @@ class RegisterMap:
                        "points")
         if self.url is not None:
             out.append(f"url = {json.dumps(self.url)}")
+        if self.poll_period is not None:
+            out.append(f"poll_period = {self.poll_period!r}  # s between the controller's reads")
         if self.heartbeat_address is not None:
             out.append(f"heartbeat_address = {self.heartbeat_address}  # uint16, device "
                        "scan counter (wraps at 65536)")
@@ -384,7 +396,7 @@ class RegisterMap:
             raise InputError(f"{source}: expected an [io] table with device_id and "
                              "[io.points.\"block.port\"] tables")
         allowed = {"device_id", "heartbeat_address", "fault_bits_address", "points",
-                   "protocol", "url"}
+                   "protocol", "url", "poll_period"}
         for key in io:
             if key not in allowed:
                 raise InputError(f"{source}: io.{key}: unknown key; keys: "
@@ -451,7 +463,8 @@ class RegisterMap:
                 raise InputError(f"{where}: {exc}") from None
         return cls(_place(points, unplaced, extra.values()), device_id,
                    extra["heartbeat_address"],
-                   extra["fault_bits_address"], source=source, protocol=protocol, url=url)
+                   extra["fault_bits_address"], source=source, protocol=protocol, url=url,
+                   poll_period=io.get("poll_period"))
 
     @classmethod
     def read(cls, path: str | Path) -> RegisterMap:

@@ -5,7 +5,8 @@ Each scan (absolute deadlines, :mod:`loopworks.live.schedule`):
 1. read the device's outputs over Modbus (:mod:`loopworks.live.modbus_io`), or from an
    OPC UA server (:mod:`loopworks.live.opcua_io`: an ``[io]`` table with
    ``protocol = "opcua"``, or ``--device opc.tcp://...``); a failed read makes them Bad, no
-   communication, holding the last value;
+   communication, holding the last value; with a ``poll_period`` in the map, the device is
+   read every that many seconds only and the last values (and statuses) held in between;
 2. hand them to the controller blocks' inputs with their statuses and run one scan of the
    controller module (the same blocks, kernels and events as ``loopworks simulate``): the
    blocks do what their vendor does with a Bad PV (the DeltaV PID's actual mode goes to MAN
@@ -172,6 +173,10 @@ class LiveController:
                              + ", ".join(sorted(names)))
         self.checkpoint = checkpoint
         self.checkpoint_every = checkpoint_every
+        #: scans between reads of the device (the map's poll_period, 1: every scan)
+        self.poll_every = (1 if regmap.poll_period is None
+                           else max(1, round(regmap.poll_period / self.dt)))
+        self._values: dict[str, tuple[float, int]] | None = None
         self.stats = ScanStats(self.dt)
         self.resumed = False
         self.scans = 0
@@ -208,7 +213,9 @@ class LiveController:
 
     async def scan(self, k: int = 0) -> None:
         """One live scan (module docstring, 1-5 except publishing)."""
-        values = await self.io.read()
+        if self._values is None or self.scans % self.poll_every == 0:
+            self._values = await self.io.read()
+        values = self._values
         for dest, src in self.reads:
             block, port = dest.split(".", 1)
             self.module.blocks[block].set_inputs({port: values[src]})
