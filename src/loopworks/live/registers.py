@@ -533,6 +533,10 @@ def map_of(sc: Scenario, split: Split) -> RegisterMap:
     point must be one (InputError naming the point or the signal)."""
     if sc.io is None:
         return default_map(split)
+    if "devices" in sc.io:
+        raise InputError(f"{sc.source}: [io] names several devices ([io.devices]): a "
+                         "simulated device serves a one-device map; give it a scenario whose "
+                         "[io] is one device's (loopworks.live.devices)")
     regmap = RegisterMap.from_table(sc.io, f"{sc.source}: [io]")
     want = {**{n: "output" for n in split.device_outputs()},
             **{n: "input" for n in split.device_inputs()}}

@@ -37,7 +37,7 @@ import math
 import os
 import tempfile
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -150,13 +150,14 @@ class LiveController:
     device I/O (:class:`~loopworks.live.modbus_io.ModbusIO` or anything with its ``read``,
     ``write`` and ``status``)."""
 
-    def __init__(self, split: Split, regmap: RegisterMap, io: Any, *,
+    def __init__(self, split: Split, regmap: RegisterMap | Sequence[RegisterMap], io: Any, *,
                  checkpoint: Path | None = None,
                  checkpoint_every: int = CHECKPOINT_EVERY) -> None:
+        maps = [regmap] if isinstance(regmap, RegisterMap) else list(regmap)
         self.split = split
         self.module = split.controller
         self.dt = split.dt
-        self.regmap = regmap
+        self.regmaps = maps
         self.io = io
         self.by_name = {loop.name: loop for loop in _loops(self.module)}
         if not self.by_name:
@@ -165,7 +166,7 @@ class LiveController:
         # controller output "compensator.signal_out"
         self.reads = [(dest, src) for dest, src in split.to_controller]
         self.writes = [(point, src) for point, src in split.to_plant]
-        names = {p.name for p in regmap.points}
+        names = {p.name for m in maps for p in m.points}
         missing = [n for n in [s for _, s in self.reads] + [p for p, _ in self.writes]
                    if n not in names]
         if missing:
@@ -173,9 +174,10 @@ class LiveController:
                              + ", ".join(sorted(names)))
         self.checkpoint = checkpoint
         self.checkpoint_every = checkpoint_every
-        #: scans between reads of the device (the map's poll_period, 1: every scan)
-        self.poll_every = (1 if regmap.poll_period is None
-                           else max(1, round(regmap.poll_period / self.dt)))
+        #: scans between reads of the device (the map's poll_period, 1: every scan; several
+        #: devices are polled each at its own period by their I/O, loopworks.live.devices)
+        self.poll_every = (1 if len(maps) != 1 or maps[0].poll_period is None
+                           else max(1, round(maps[0].poll_period / self.dt)))
         self._values: dict[str, tuple[float, int]] | None = None
         self.stats = ScanStats(self.dt)
         self.resumed = False

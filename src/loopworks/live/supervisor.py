@@ -86,6 +86,7 @@ def controller_main(job: Job, commands: Any, events: Any) -> None:
 
 
 async def _controller(job: Job, commands: Any, events: Any) -> None:
+    from loopworks.live.devices import MultiIO, has_devices, links_of
     from loopworks.live.registers import map_of
     from loopworks.live.serve import LiveController, close_io, make_io, run_controller
     from loopworks.live.split import split_scenario
@@ -93,9 +94,15 @@ async def _controller(job: Job, commands: Any, events: Any) -> None:
 
     sc = load_scenario(job.config)
     split = split_scenario(sc, job.variant)
-    regmap = map_of(sc, split)
-    io = make_io(regmap, job.device)
-    ctl = LiveController(split, regmap, io,
+    io: Any
+    if has_devices(sc):  # several devices, each at the url of its table
+        links = links_of(sc, split)
+        io = MultiIO(links, split.dt)
+        maps: Any = [link.regmap for link in links]
+    else:
+        maps = map_of(sc, split)
+        io = make_io(maps, job.device)
+    ctl = LiveController(split, maps, io,
                          checkpoint=Path(job.state_dir) / "checkpoint.json")
     events.put(("hello", ctl.loops(), ctl.resumed, ctl.scans, ctl.dt))
     stop = asyncio.Event()
@@ -378,12 +385,22 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
             raise InputError(f"--faceplate: the faceplate connects to the OPC UA server "
                              f"without security, which is offered on a loopback address only; "
                              f"--host {host} is not one (run loopworks faceplate yourself)")
+    from loopworks.live.devices import has_devices, links_of
+
     sc = load_scenario(config)
-    regmap = map_of(sc, split_scenario(sc, variant))  # errors now, not in a child process
-    target = device_of(regmap, device)
+    dev_proc = None
+    if has_devices(sc):  # several devices: each at the url of its [io.devices.NAME] table
+        if device is not None:
+            raise InputError("--device is for a scenario with one device; this one's [io] "
+                             "table names several ([io.devices.NAME], each with its url)")
+        links = links_of(sc, split_scenario(sc, variant))  # errors now, not in a child
+        target: str | None = ", ".join(link.url for link in links)
+        regmap = links[0].regmap
+    else:
+        regmap = map_of(sc, split_scenario(sc, variant))  # errors now, not in a child process
+        target = device_of(regmap, device)
     accounts = load_users(users) if users is not None else None
     stop = stop or asyncio.Event()
-    dev_proc = None
     if target is None:
         dev_proc, target = await start_device(None if config is None else str(config),
                                               variant, speedup, regmap.protocol == "opcua")
