@@ -13,6 +13,7 @@ sensitivity) and calls ``on_watchdog`` once per trip; a scan on time re-arms it.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import time
 from collections import deque
@@ -98,11 +99,9 @@ class Scheduler:
             deadline = t0 + k * period
             delay = deadline - clock()
             if delay > 0.0:
-                try:  # wake at the deadline, or at once when stopped
+                with contextlib.suppress(TimeoutError):  # wake at the deadline ...
                     await asyncio.wait_for(stop.wait(), delay)
-                    break
-                except TimeoutError:
-                    pass
+                    break  # ... or at once when stopped
             start = clock()
             await scan(k)
             end = clock()
