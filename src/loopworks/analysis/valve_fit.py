@@ -78,8 +78,27 @@ FloatArray = npt.NDArray[np.float64]
 HP_FRACTION = 0.05
 HP_MIN_SAMPLES = 25
 #: Below this output-error R² of the best fit the record does not support an estimate [ours:
-#: half the PV variance unexplained means the model, and S and J with it, are not trusted].
-MIN_R2 = 0.5
+#: on the simulated set (docs/diagnose.md) the sticky flow loops whose stiction the fit finds
+#: explain 0.40-0.97 of the PV; 0.5, the first choice, refused three of them, and no clean loop
+#: whose fit explains more than 0.35 gains from stiction].
+MIN_R2 = 0.35
+#: The same for an integrating loop, whose fit is of the PV's increments: the record and the
+#: valve position are differenced after the high-pass, y_k - y_{k-1} = b·x_{k-d} (the level's
+#: flow balance), which also whitens the load, a slow walk that the process integrates.
+#: Regressing on increments is the prediction-error method with the noise model 1/(1 - q⁻¹)
+#: (Ljung 1999, sec. 7.2 and 13.4: consistent in closed loop when the noise model is right,
+#: where an output-error fit is biased by the load the controller answers). Increments are
+#: noisier than levels, so less of their variance is explained [ours: on the simulated set
+#: (docs/diagnose.md) the sticky level loops whose stiction the fit finds explain 0.2-0.95].
+MIN_R2_INTEGRATING = 0.2
+#: The largest c of the integrating loop's whitening prefilter (:func:`_level_whitening`);
+#: above it the measurement noise dominates the PV's increments, the load walks little from
+#: one sample to the next, and the level itself is fitted (high-passed, one tap, at least
+#: :data:`MIN_R2`), as for a fast-scanned level loop [ours: with c = 0.81, a level loop
+#: sampled at 0.5 s (tests/analysis/test_valve_fit.py) gets its process gain twice too high
+#: from the whitened fit and right from the level; at a historian's 5 s most of the simulated
+#: set's level loops have c < 0.5]
+MAX_WHITENING = 0.5
 #: Fewest samples of a usable record (the longest run where OP and PV are finite) [ours].
 MIN_SAMPLES = 50
 #: Fewest OP swings (direction changes by at least a quarter of the OP range) [ours: the valve
@@ -150,12 +169,14 @@ class ControllerFit:
 
 @dataclass(frozen=True)
 class _Process:
-    """The best process for one valve output: output-error SSE, a, b, d (samples)."""
+    """The best process for one valve output: output-error SSE, a, b, d (samples) and the
+    extra lag of a two-tap fit (a fraction of a sample, :func:`_sse_all_d`)."""
 
     sse: float
     a: float
     b: float
     d: int
+    lag: float = 0.0
 
 
 # ----------------------------------------------------------------------------- valve
@@ -198,11 +219,17 @@ def _high_pass(x: FloatArray, width: int) -> FloatArray:
 
 
 def _sse_all_d(x: FloatArray, y: FloatArray, a: float, dmax: int, yy: float,
-               only: int | None = None) -> tuple[FloatArray, FloatArray]:
-    """Output-error SSE and b of ŷ = b·r_d + c' + e0·p for every dead time d = 0..dmax (or
-    the one d ``only``) at this a (a = 1: integrating). x is centred; ``yy`` = y·y."""
+               only: int | None = None,
+               taps: int = 1) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Output-error SSE, gain b and extra lag of ŷ = b₀·r_d (+ b₁·r_{d+1}) + c' + e0·p for every
+    dead time d = 0..dmax (or the one d ``only``) at this a (a = 1: integrating). x is centred;
+    ``yy`` = y·y. ``taps`` = 2 adds the second delayed regressor r_{d+1}: a dead time between
+    d and d + 1 samples (a fractional delay under the zero-order hold: Åström & Wittenmark,
+    *Computer-Controlled Systems*, 3rd ed. 1997, sec. 2.3), the gain is b = b₀ + b₁ and the
+    extra lag b₁/b (a fraction of a sample); with one tap the lag is 0."""
     n = len(y)
-    xp = np.concatenate([np.full(dmax, x[0]), x])  # at rest before the record
+    pad = dmax + taps - 1
+    xp = np.concatenate([np.full(pad, x[0]), x])  # at rest before the record
     if a == 1.0:
         f = np.cumsum(xp)
         p = np.arange(n, dtype=np.float64)
@@ -213,37 +240,48 @@ def _sse_all_d(x: FloatArray, y: FloatArray, a: float, dmax: int, yy: float,
     else:
         f = lfilter([1.0], [1.0, -a], xp)
         p = a ** np.arange(n, dtype=np.float64)
-    if only is not None:
-        r = f[dmax - only:dmax - only + n]
-        rr = np.array([r @ r])
-        r1, rp, ry = np.array([r.sum()]), np.array([r @ p]), np.array([r @ y])
-    else:
-        # row d of the regressor is f[dmax - d : dmax - d + n]: its products with 1, p, y and
-        # itself for every d at once, as correlations and sliding sums, in d order
+    # r_k (k = 0..pad) is f[pad - k : pad - k + n]: its products with 1, p, y and itself for
+    # every k at once, as sliding sums and correlations, in k order
+    if only is None:
         c1 = np.concatenate([[0.0], np.cumsum(f)])
         c2 = np.concatenate([[0.0], np.cumsum(f * f)])
         r1 = (c1[n:] - c1[:-n])[::-1]
         rr = (c2[n:] - c2[:-n])[::-1]
         rp = np.correlate(f, p, "valid")[::-1]
         ry = np.correlate(f, y, "valid")[::-1]
-    D = len(rr)
-    G = np.empty((D, 3, 3))
-    G[:, 0, 0] = rr
-    G[:, 0, 1] = G[:, 1, 0] = r1
-    G[:, 0, 2] = G[:, 2, 0] = rp
-    G[:, 1, 1] = n
-    G[:, 1, 2] = G[:, 2, 1] = p.sum()
-    G[:, 2, 2] = p @ p
-    h = np.empty((D, 3))
-    h[:, 0] = ry
-    h[:, 1] = y.sum()
-    h[:, 2] = p @ y
+        ds = np.arange(dmax + 1)
+    else:  # the one d: its taps' products directly
+        r1, rr, rp, ry = (np.zeros(pad + 1) for _ in range(4))
+        for k in range(only, only + taps):
+            r = f[pad - k:pad - k + n]
+            r1[k], rr[k], rp[k], ry[k] = r.sum(), r @ r, r @ p, r @ y
+        ds = np.array([only])
+    m = taps + 2  # columns: the taps, the constant, the initial state
+    G = np.zeros((len(ds), m, m))
+    h = np.empty((len(ds), m))
+    for i in range(taps):
+        G[:, i, i] = rr[ds + i]
+        G[:, i, taps] = G[:, taps, i] = r1[ds + i]
+        G[:, i, taps + 1] = G[:, taps + 1, i] = rp[ds + i]
+        h[:, i] = ry[ds + i]
+    if taps == 2:
+        # r_d · r_{d+1} = Σ_i f[s + i]·f[s - 1 + i], s = pad - d: a sliding sum of f[k]·f[k-1]
+        cg = np.concatenate([[0.0], np.cumsum(f[1:] * f[:-1])])
+        starts = pad - ds - 1
+        G[:, 0, 1] = G[:, 1, 0] = cg[starts + n] - cg[starts]
+    G[:, taps, taps] = n
+    G[:, taps, taps + 1] = G[:, taps + 1, taps] = p.sum()
+    G[:, taps + 1, taps + 1] = p @ p
+    h[:, taps] = y.sum()
+    h[:, taps + 1] = p @ y
     # scale to unit diagonal, with a tiny ridge, so that a constant r or p is harmless
     sc = 1.0 / np.sqrt(np.maximum(np.einsum("kii->ki", G), 1e-300))
-    Gs = G * sc[:, :, None] * sc[:, None, :] + 1e-10 * np.eye(3)
+    Gs = G * sc[:, :, None] * sc[:, None, :] + 1e-10 * np.eye(m)
     theta = np.linalg.solve(Gs, (h * sc)[:, :, None])[:, :, 0] * sc
     sse = np.maximum(yy - np.einsum("ij,ij->i", theta, h), 0.0)
-    return sse, theta[:, 0]
+    b = theta[:, :taps].sum(axis=1)
+    lag = (theta[:, 1] / np.where(b != 0.0, b, 1.0) if taps == 2 else np.zeros(len(ds)))
+    return sse, b, lag
 
 
 def _admissible(sse: FloatArray, b: FloatArray, sign: float) -> FloatArray:
@@ -260,26 +298,27 @@ def _admissible(sse: FloatArray, b: FloatArray, sign: float) -> FloatArray:
 
 
 def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int,
-                 sign: float = 0.0) -> _Process:
+                 sign: float = 0.0, taps: int = 1) -> _Process:
     """The output-error best process for valve position ``x`` (module docstring): every d,
-    a on a log grid of time constants, then a bounded scalar search of ln T at the best d."""
+    a on a log grid of time constants, then a bounded scalar search of ln T at the best d
+    (``taps``: :func:`_sse_all_d`)."""
     xc = x - x.mean()
     yy = float(y @ y)
     if integrating:
-        sse, b = _sse_all_d(xc, y, 1.0, dmax, yy)
+        sse, b, lag = _sse_all_d(xc, y, 1.0, dmax, yy, taps=taps)
         sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
-        return _Process(float(sse[d]), 1.0, float(b[d]), d)
+        return _Process(float(sse[d]), 1.0, float(b[d]), d, float(lag[d]))
     n = len(y)
     taus = np.geomspace(0.25, float(n), T_GRID)  # in samples
     best = _Process(math.inf, 0.0, 0.0, 0)
     best_i = -1
     for i, a in enumerate([0.0, *np.exp(-1.0 / taus)]):
-        sse, b = _sse_all_d(xc, y, float(a), dmax, yy)
+        sse, b, lag = _sse_all_d(xc, y, float(a), dmax, yy, taps=taps)
         sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
         if sse[d] < best.sse:
-            best, best_i = _Process(float(sse[d]), float(a), float(b[d]), d), i
+            best, best_i = _Process(float(sse[d]), float(a), float(b[d]), d, float(lag[d])), i
     # a and d trade against each other along a valley: coordinate descent from the grid's
     # best, ln T refined at the current d (bounded, between the grid's second neighbours of the
     # best a), then every d at that a, until d stays
@@ -288,20 +327,21 @@ def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int,
     hi = lt[-1] + 1.0 if best_i >= len(taus) - 1 else lt[best_i + 1]
 
     def cost(log_tau: float, d: int) -> float:
-        s, _ = _sse_all_d(xc, y, math.exp(-math.exp(-log_tau)), dmax, yy, only=d)
+        s, _, _ = _sse_all_d(xc, y, math.exp(-math.exp(-log_tau)), dmax, yy, only=d,
+                             taps=taps)
         return float(s[0])
 
     for _ in range(D_ROUNDS):
         res = minimize_scalar(cost, bounds=(lo, hi), args=(best.d,), method="bounded",
                               options={"xatol": 0.005})
         a = math.exp(-math.exp(-float(res.x)))
-        sse, b = _sse_all_d(xc, y, a, dmax, yy)
+        sse, b, lag = _sse_all_d(xc, y, a, dmax, yy, taps=taps)
         sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
         if not sse[d] < best.sse:
             break
         moved = d != best.d
-        best = _Process(float(sse[d]), a, float(b[d]), d)
+        best = _Process(float(sse[d]), a, float(b[d]), d, float(lag[d]))
         if not moved:
             break
     return best
@@ -340,6 +380,33 @@ def _fit_increments(x: FloatArray, y: FloatArray, m: int, dmax: int,
     return _Process(float(sse[d]), 1.0, float(cov[d] / var_r[d]), d)
 
 
+def _level_whitening(x: FloatArray, y: FloatArray, dmax: int, sign: float) -> float:
+    """The c of the prefilter (1 - q⁻¹)/(1 - c·q⁻¹) that whitens what an integrating loop's
+    linear-valve fit leaves unexplained (``x``, ``y``: the high-passed OP and PV). That
+    residual is modelled as a level that walks (the load, integrated by the process) plus
+    white measurement noise, the local-level model, whose increments are the MA(1) process
+    e_k - c·e_{k-1} with lag-1 autocorrelation ρ = -c/(1 + c²) (Harvey, *Forecasting,
+    Structural Time Series Models and the Kalman Filter*, 1989, sec. 2.3.2), so
+    c = (-1 + √(1 - 4ρ²))/(2ρ) from the residual increments' ρ ∈ [-0.5, 0]: c = 0 (a plain
+    difference) when the walk dominates, as it does at a historian's period; c → 1 (little
+    filtering) when the noise does, as at a fast scan (:data:`MAX_WHITENING`)."""
+    proc = _fit_process(x, y, True, dmax, sign)
+    xc = x - x.mean()
+    n = len(y)
+    xp = np.concatenate([np.full(proc.d, xc[0]), xc])[:n]
+    A = np.column_stack([np.cumsum(xp), np.ones(n), np.arange(n, dtype=np.float64)])
+    theta, *_ = np.linalg.lstsq(A, y, rcond=None)
+    dr = np.diff(y - A @ theta)
+    dr = dr - dr.mean()
+    denom = float(dr @ dr)
+    rho = float(dr[1:] @ dr[:-1]) / denom if denom > 0.0 else 0.0
+    rho = min(max(rho, -0.5), 0.0)
+    if rho == 0.0:
+        return 0.0
+    c = (-1.0 + math.sqrt(max(1.0 - 4.0 * rho * rho, 0.0))) / (2.0 * rho)
+    return float(min(max(c, 0.0), 1.0))
+
+
 def _process_dict(proc: _Process | None, integrating: bool, dt: float) -> dict[str, Any]:
     """The identified process in physical units (module docstring)."""
     model = "integrating" if integrating else "fopdt"
@@ -347,7 +414,7 @@ def _process_dict(proc: _Process | None, integrating: bool, dt: float) -> dict[s
         return {"model": model, "gain": math.nan,
                 "time_constant_s": None if integrating else math.nan,
                 "dead_time_s": math.nan}
-    dead = max(proc.d - 1, 0) * dt
+    dead = max(proc.d - 1 + min(max(proc.lag, 0.0), 1.0), 0.0) * dt
     if integrating:
         return {"model": model, "gain": proc.b / dt, "time_constant_s": None,
                 "dead_time_s": dead}
@@ -391,8 +458,14 @@ def count_swings(x: FloatArray, hysteresis: float) -> int:
 # ----------------------------------------------------------------------------- valve fit
 
 def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
-              max_dead_time: float | None = None, gain_sign: float = 0.0) -> ValveFit:
+              max_dead_time: float | None = None, gain_sign: float = 0.0,
+              whiten: bool | None = None) -> ValveFit:
     """Fit Choudhury's S and J jointly with the process (module docstring).
+
+    An integrating loop's record is whitened (``whiten``, default: when the residual walks,
+    :data:`MAX_WHITENING`) and its increments fitted (:data:`MIN_R2_INTEGRATING`); when that
+    fit explains too little of them to support an estimate, the level itself is fitted
+    instead, as for a fast-scanned level loop.
 
     ``loop_type``: ``"self-regulating"`` (FOPDT process) or ``"integrating"``.
     ``max_dead_time``: the longest dead time searched, s (default :data:`DEAD_FRACTION` of the
@@ -421,7 +494,9 @@ def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
                       f"the valve and the process.")
     op_range = float(op.max() - op.min())
     width = max(HP_MIN_SAMPLES, round(HP_FRACTION * n))
+
     y = _high_pass(pv, width)
+    min_r2 = MIN_R2_INTEGRATING if integrating else MIN_R2
     sst = float((y ** 2).sum())
     if op_range < MIN_OP_RANGE:
         return refuse(f"OP moves over {op_range:.3g} % only{cut} (below {MIN_OP_RANGE:g} %): "
@@ -436,19 +511,37 @@ def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
     dmax = (round(max_dead_time / dt) + 1 if max_dead_time is not None
             else int(min(MAX_DEAD_SAMPLES, max(1, round(DEAD_FRACTION * n)))))
     dmax = max(1, min(dmax, n // 2))
+    c = (_level_whitening(_high_pass(op, width), y, dmax, gain_sign)
+         if integrating and whiten is not False else math.inf)
+    auto = whiten is None
+    whiten = c <= MAX_WHITENING if whiten is None else whiten and integrating
+    taps = 2 if whiten else 1
+
+    def prefilter(v: FloatArray) -> FloatArray:
+        """High-pass (:func:`_high_pass`); for an integrating loop whose residual walks, then
+        the whitening filter (1 - q⁻¹)/(1 - c·q⁻¹) of :func:`_level_whitening`."""
+        z = _high_pass(v, width)
+        return np.asarray(lfilter([1.0, -1.0], [1.0, -c], z, zi=[-c * z[0]])[0]
+                          if whiten else z, dtype=np.float64)
+
+    if whiten:
+        y = prefilter(pv)
+        sst = float((y ** 2).sum())
+    else:
+        min_r2 = MIN_R2
     cache: dict[tuple[float, float], _Process] = {}
 
     def evaluate(s: float, j: float) -> _Process:
         key = (round(s, 9), round(j, 9))
         if key not in cache:
-            x = _high_pass(valve_position(op, s, j), width)
+            x = prefilter(valve_position(op, s, j))
             cache[key] = (_fit_increments(x, y, INCREMENT_SAMPLES, dmax, gain_sign)
                           if integrating else _fit_process(x, y, False, dmax, gain_sign))
         return cache[key]
 
     def output_error(s: float, j: float) -> _Process:
-        return (_fit_process(_high_pass(valve_position(op, s, j), width), y, True, dmax,
-                             gain_sign)
+        return (_fit_process(prefilter(valve_position(op, s, j)), y, True, dmax, gain_sign,
+                             taps=taps)
                 if integrating
                 else evaluate(s, j))
 
@@ -480,9 +573,13 @@ def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
     best = output_error(s, j)
     r2 = 1.0 - best.sse / sst
     process = _process_dict(best, integrating, dt)
-    if r2 < MIN_R2:
-        return refuse(f"the best valve-and-process fit explains R² = {r2:.2f} of the PV "
-                      f"variance{cut}, below {MIN_R2:g}: the record does not support an "
+    if r2 < min_r2 and whiten and auto:
+        return fit_valve(data, loop_type, max_dead_time=max_dead_time, gain_sign=gain_sign,
+                         whiten=False)
+    if r2 < min_r2:
+        what = "the PV increments' variance" if whiten else "the PV variance"
+        return refuse(f"the best valve-and-process fit explains R² = {r2:.2f} of {what}"
+                      f"{cut}, below {min_r2:g}: the record does not support an "
                       f"estimate of S and J (is the PV driven by the OP at all?).",
                       r2, r2_lin, best)
     reason = (f"S = {s:.3g} %, J = {j:.3g} % (deadband {s - j:.3g} %, resolution {j:.3g} %) "
