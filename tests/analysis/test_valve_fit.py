@@ -238,3 +238,28 @@ def test_a_sticky_level_loop_that_does_not_cycle_is_found_at_a_historians_period
         assert abs(verdict.stiction["s"] - s) <= 0.4 * s
         assert not (level.ok and level.s >= 0.3
                     and level.r2 - level.r2_linear >= 0.05 * (1.0 - level.r2_linear))
+
+
+@pytest.mark.parametrize("whitening", [0.0, math.nan])
+def test_a_level_model_is_predicted_from_the_record(whitening: float) -> None:
+    # a noise-free level: PV_k = PV_{k-1} + K·dt·x_{k-d}, x the Choudhury stem (S 2 %, J 1 %)
+    # for a random OP, d = 3 samples (dead time 2 samples after the hold). The model's PV, m
+    # samples ahead of the record (m = 1 for a whitened fit, INCREMENT_SAMPLES otherwise),
+    # is that level exactly where it is defined, and NaN for the first m samples.
+    from loopworks.analysis.valve_fit import INCREMENT_SAMPLES, model_pv
+
+    rng = np.random.default_rng(5)
+    n, dt, gain, d = 600, 2.0, 0.01, 3
+    op = 50.0 + np.cumsum(rng.normal(0.0, 0.4, n))
+    x = valve_position(op, 2.0, 1.0)
+    pv = np.full(n, 40.0)
+    for k in range(1, n):
+        pv[k] = pv[k - 1] + gain * dt * x[max(k - d, 0)]
+    data = LoopData(t=np.arange(n) * dt, sp=pv.copy(), pv=pv, op=op)
+    fit = ValveFit(2.0, 1.0, 1.0, 1.0, {"model": "integrating", "gain": gain,
+                                        "time_constant_s": None, "dead_time_s": (d - 1) * dt},
+                   1.0, 0.0, "", True, whitening)
+    model = model_pv(data, fit)
+    m = 1 if whitening == 0.0 else INCREMENT_SAMPLES
+    assert np.isnan(model[:m]).all()
+    assert np.allclose(model[m + d:], pv[m + d:], rtol=0.0, atol=1e-9)

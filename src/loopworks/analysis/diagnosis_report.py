@@ -49,15 +49,19 @@ def trends(data: LoopData, path: Path) -> Path:
 def pv_op(result: Diagnosis, data: LoopData, path: Path) -> Path:
     """PV against OP: the loop's phase plot. A sticky valve draws parallelograms (flat
     stretches of PV while OP moves through the stick band, then a jump); with a stiction
-    estimate, the fitted model's PV for the same OP is drawn over the data."""
+    estimate, the fitted model's PV for the same OP is drawn over the data (for a level loop,
+    predicted from the record a few samples back: :func:`~loopworks.analysis.valve_fit.
+    model_pv`)."""
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
     ax.plot(data.op, data.pv, lw=0.6, color="0.6", label="data")
     ax.plot(data.op, data.pv, ".", ms=2, color="tab:blue")
     fit = result.stiction
     if fit is not None and result.model_pv is not None:
+        what = ("fitted model's PV, predicted from the record"
+                if fit["process"]["model"] == "integrating" else "fitted model's PV")
         ax.plot(data.op, result.model_pv, lw=0.9, color="tab:red", alpha=0.8,
-                label=f"fitted model's PV (S = {fit['s']:.3g} %, J = {fit['j']:.3g} %)")
+                label=f"{what} (S = {fit['s']:.3g} %, J = {fit['j']:.3g} %)")
     ax.set_xlabel("OP (%)")
     ax.set_ylabel("PV")
     ax.set_title(f"PV against OP: {result.verdict} (confidence {result.confidence:.2f})")

@@ -151,6 +151,9 @@ class ValveFit:
     r2_linear: float
     reason: str
     ok: bool
+    #: c of an integrating loop's whitening prefilter (:func:`_level_whitening`) when its
+    #: increments were fitted (``r2`` is then of the whitened increments), else NaN
+    whitening: float = math.nan
 
 
 @dataclass(frozen=True)
@@ -582,11 +585,13 @@ def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
                       f"{cut}, below {min_r2:g}: the record does not support an "
                       f"estimate of S and J (is the PV driven by the OP at all?).",
                       r2, r2_lin, best)
+    of = f" of the PV's increments whitened with c = {c:.2f}" if whiten else ""
     reason = (f"S = {s:.3g} %, J = {j:.3g} % (deadband {s - j:.3g} %, resolution {j:.3g} %) "
               f"with {'an integrating' if integrating else 'a FOPDT'} process of gain "
-              f"{process['gain']:.3g}; output-error R² {r2:.3f} against {r2_lin:.3f} for a "
-              f"linear valve{cut}.")
-    return ValveFit(s, j, j, s - j, process, r2, r2_lin, reason, True)
+              f"{process['gain']:.3g}; output-error R² {r2:.3f}{of} against {r2_lin:.3f} for "
+              f"a linear valve{cut}.")
+    return ValveFit(s, j, j, s - j, process, r2, r2_lin, reason, True,
+                    c if whiten else math.nan)
 
 
 def model_pv(data: LoopData, fit: ValveFit) -> FloatArray:
@@ -594,7 +599,12 @@ def model_pv(data: LoopData, fit: ValveFit) -> FloatArray:
     OP, over the whole record: the process's dead time and time constant as fitted, its gain,
     offset and initial state by least squares against the recorded PV (module docstring's
     separable form); NaN where OP or PV is not finite, or everywhere when ``fit.ok`` is
-    False."""
+    False. An integrating process also integrates the load, which the record does not show,
+    so a model level run free drifts away from any record: there the model predicts the
+    level m samples ahead of the record, PV̂_k = PV_{k-m} + K·dt·(x_{k-d} + ... +
+    x_{k-d-m+1}) + c, with c the mean increment the valve does not explain (the first m
+    samples NaN): m = 1 when the fit was of the whitened increments, else
+    :data:`INCREMENT_SAMPLES`, as its search cost (:func:`_fit_increments`)."""
     out = np.full(len(data), math.nan)
     if not fit.ok:
         return out
@@ -607,12 +617,18 @@ def model_pv(data: LoopData, fit: ValveFit) -> FloatArray:
     d = round(float(proc["dead_time_s"]) / dt) + 1 if proc["dead_time_s"] > 0 else 0
     xp = np.concatenate([np.full(d, x[0]), x])[:n]
     if proc["model"] == "integrating":
-        r, p = np.cumsum(xp), np.arange(n, dtype=np.float64)
-    else:
-        tau = float(proc["time_constant_s"] or 0.0)
-        a = math.exp(-dt / tau) if tau > 0.0 else 0.0
-        r = lfilter([1.0], [1.0, -a], xp)
-        p = a ** np.arange(n, dtype=np.float64)
+        m = min(1 if math.isfinite(fit.whitening) else INCREMENT_SAMPLES, n - 1)
+        level = float(proc["gain"]) * dt * np.cumsum(xp)
+        ahead = level[m:] - level[:-m]
+        offset = float(np.mean(pv[m:] - pv[:-m] - ahead))
+        model = np.full(n, math.nan)
+        model[m:] = pv[:-m] + ahead + offset
+        out[span] = model
+        return out
+    tau = float(proc["time_constant_s"] or 0.0)
+    a = math.exp(-dt / tau) if tau > 0.0 else 0.0
+    r = lfilter([1.0], [1.0, -a], xp)
+    p = a ** np.arange(n, dtype=np.float64)
     A = np.column_stack([r, np.ones(n), p])
     theta, *_ = np.linalg.lstsq(A, pv, rcond=None)
     out[span] = A @ theta
