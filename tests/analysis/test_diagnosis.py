@@ -11,8 +11,18 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from loopworks.analysis.diagnosis import DECIDE, Evidence, diagnose, verdict_of
+from loopworks.analysis.diagnosis import (
+    DECIDE,
+    MAX_S,
+    MIN_R2_GAIN,
+    MIN_S,
+    Evidence,
+    _valve_fit_vote,
+    diagnose,
+    verdict_of,
+)
 from loopworks.analysis.loopdata import LoopData
+from loopworks.analysis.valve_fit import ValveFit
 from loopworks.cli import app
 
 PLANT = Path(__file__).resolve().parents[1] / "data" / "plant-loops"
@@ -168,3 +178,16 @@ def test_a_few_bad_samples_are_held_not_a_crash() -> None:
     assert d.verdict == "stiction", d.reason
     assert "4 Bad (NaN or infinite) sample(s)" in d.reason
     assert all(math.isfinite(e.value) or e.vote == "undetermined" for e in d.evidence)
+
+
+@pytest.mark.parametrize(("s", "gain", "vote"), [
+    (3.0, 0.2, "stiction"), (MIN_S / 2.0, 0.2, "no_stiction"), (3.0, 0.001, "no_stiction"),
+    (3.0, MIN_R2_GAIN / 2.0, "undetermined"), (1.5 * MAX_S, 0.2, "undetermined")])
+def test_the_valve_fit_vote(s: float, gain: float, vote: str) -> None:
+    # stiction from S >= MIN_S explaining >= MIN_R2_GAIN of what a linear valve leaves; no
+    # stiction below MIN_S or below NO_R2_GAIN; abstains between, and above MAX_S (a band no
+    # loop runs with: the fit has found something else)
+    r2_lin = 0.5
+    fit = ValveFit(s, 0.0, 0.0, s, {"model": "fopdt"}, r2_lin + gain * (1.0 - r2_lin), r2_lin,
+                   "", True)
+    assert _valve_fit_vote(fit).vote == vote
