@@ -3,6 +3,11 @@
 
 The rules, in order:
 
+0. **A valve that does not move** (:mod:`loopworks.analysis.seized`): the PV holds one value
+   while, in automatic, the OP walks across a large part of its span and the error keeps its
+   sign. ``stiction`` (a seized valve, or a closed block valve or dead transmitter: the
+   reason says to check them) at confidence 0.5, whatever the quality gate says of the
+   record, since the frozen PV is the finding.
 1. **Data quality first** (:func:`loopworks.analysis.quality.check_quality`): a record that
    fails the gate (too short, frozen or compressed, saturated, in manual, too many Bad values)
    gets ``undetermined`` with the gate's reasons, confidence 0, and no index is computed.
@@ -70,6 +75,8 @@ from loopworks.analysis.horch import horch_test
 from loopworks.analysis.loopdata import LoopData, read_csv
 from loopworks.analysis.oscillation import Oscillation, regularity
 from loopworks.analysis.quality import Quality, check_quality
+from loopworks.analysis.seized import CONFIDENCE as SEIZED_CONFIDENCE
+from loopworks.analysis.seized import Seized, seized_valve
 from loopworks.analysis.valve_fit import (
     ControllerFit,
     ValveFit,
@@ -297,6 +304,9 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     if not isinstance(data, LoopData):
         data = read_csv(data, columns, duplicates="last")
     quality = check_quality(data)
+    seized = seized_valve(data)
+    if seized is not None:
+        return _seized_diagnosis(data, lt, quality, seized)
     if not quality.passed:
         return Diagnosis("undetermined", 0.0, lt, data.source, quality, None,
                          reason="the data fails the quality gate: "
@@ -322,6 +332,24 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
             rec = _recommendation(data, fit, ctl, model, samples)
     return Diagnosis(verdict, confidence, lt, data.source, quality, osc, evidence, score,
                      reason, stiction, rec, model)
+
+
+def _seized_diagnosis(data: LoopData, loop_type: LoopType, quality: Quality,
+                      seized: Seized) -> Diagnosis:
+    """The diagnosis of a valve that does not move (rule 0, :mod:`loopworks.analysis.seized`):
+    ``stiction`` at :data:`~loopworks.analysis.seized.CONFIDENCE`, its one piece of evidence,
+    no S and J estimate (a valve that never moved shows only that S exceeds the OP's travel)
+    and the one thing to do."""
+    evidence = [Evidence("seized", "valve that does not move while the OP travels",
+                         "stiction", 1.0, seized.op_travel, seized.reason)]
+    gate = ("" if quality.passed else " (the record fails the quality gate, "
+            + "; ".join(quality.reasons) + ", and that is the finding)")
+    rec: dict[str, Any] = {"recommended": None, "options": [], "summary": (
+        f"no compensator moves a valve that has not moved over {seized.op_travel:.3g} % of OP "
+        "travel: put the loop in manual, check the block valves and the transmitter, then "
+        "stroke the valve and repair or replace it.")}
+    return Diagnosis("stiction", SEIZED_CONFIDENCE, loop_type, data.source, quality, None,
+                     evidence, 1.0, seized.reason + gate, None, rec)
 
 
 def _hold(x: np.ndarray) -> np.ndarray:
