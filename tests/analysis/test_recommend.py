@@ -55,3 +55,28 @@ def test_nonsense_is_refused() -> None:
         recommend(0.0, 0.0, FOPDT, 1.0, 10.0, 0.05, 1.0)
     with pytest.raises(InputError, match="Kc"):
         recommend(3.0, 1.0, FOPDT, -1.0, 10.0, 0.05, 1.0)
+
+
+def test_a_fitted_loop_that_does_not_reproduce_the_record_predicts_nothing() -> None:
+    # the record: plant-and-tuning 5.1's sticky flow loop (FOPDT K 1, T 10 s, L 2 s; PI Kc 1,
+    # Ti 10 s; S 3 %, J 1 %). With the controller it was recorded under, the options are
+    # predicted; with a controller of 20 times that gain (past the fitted loop's stability
+    # limit), the simulated loop varies far more than the record, and nothing is predicted
+    import numpy as np
+
+    from loopworks.analysis.diagnosis import REPRODUCE_FACTOR, _recommendation
+    from loopworks.analysis.valve_fit import ControllerFit, fit_valve, model_pv
+
+    from .test_valve_fit import closed_loop
+
+    data = closed_loop(3.0, 1.0)
+    fit = fit_valve(data)
+    model = model_pv(data, fit)
+    right = _recommendation(data, fit, ControllerFit(1.0, 10.0, 1.0, True, ""), model, 4)
+    assert right is not None and [o["name"] for o in right["options"]] == list(OPTIONS)
+    wrong = _recommendation(data, fit, ControllerFit(20.0, 10.0, 1.0, True, ""), model, 4)
+    assert wrong is not None and wrong["options"] == [] and wrong["recommended"] is None
+    assert "does not reproduce the record" in wrong["summary"]
+    recorded = float(np.std(data.sp - data.pv))
+    assert f"{REPRODUCE_FACTOR:g} times" in wrong["summary"] and f"{recorded:.3g}" in \
+        wrong["summary"]

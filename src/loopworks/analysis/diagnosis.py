@@ -110,6 +110,11 @@ NO_R2_GAIN = 0.005
 #: sticky, a level loop driven by an external sine, got S = 17.8 %, a backlash that fits
 #: the sine's phase, not a valve a loop could run with]
 MAX_S = 10.0
+#: the recommendation is withheld when the fitted loop, simulated without compensation, varies
+#: more than this many times the record's SP - PV (standard deviations) [ours: the simulated
+#: loop has its own load and a 1 % SP step, so only a gross mismatch, an unstable fitted loop,
+#: is read as one]
+REPRODUCE_FACTOR = 10.0
 #: the score a verdict needs (rule 4): one full vote's worth of net evidence
 DECIDE = 1.0
 #: the bicoherence abstains below this many segments: its noise level on Gaussian data is
@@ -396,4 +401,16 @@ def _recommendation(data: LoopData, fit: ValveFit, ctl: ControllerFit, model: np
                 f"simulated ({exc}). Repair or replace the valve at the next opportunity."}
     out["controller"] = {"kc": ctl.kc, "ti_s": ctl.ti_s, "r2": ctl.r2, "action": ctl.action}
     out.pop("scenario", None)
+    base = next((o for o in out.get("options", []) if o["name"] == "none"), None)
+    recorded = float(np.nanstd(data.sp - data.pv))
+    if base is not None and not base["pv_std"] <= REPRODUCE_FACTOR * recorded:
+        return {"recommended": None, "options": [], "controller": out["controller"],
+                "summary": (
+                    f"the fitted loop does not reproduce the record: run as it is, its PV "
+                    f"varies {base['pv_std']:.3g} (std) against {recorded:.3g} in the record, "
+                    f"more than {REPRODUCE_FACTOR:g} times as much (the identified PI, Kc = "
+                    f"{ctl.kc:.3g} and Ti = {ctl.ti_s:.3g} s, or the process does not match "
+                    "the plant: a derivative action, a filter, a cascade or a gain off), so "
+                    "no option is predicted from it. Repair or replace the valve at the next "
+                    "opportunity.")}
     return out
