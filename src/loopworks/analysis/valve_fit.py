@@ -40,6 +40,16 @@ grid of time constants refined by a bounded scalar search; (S, J) on a coarse gr
 0 ≤ J ≤ S ≤ 1.25·(OP peak-to-peak), refined by a compass (pattern) search that halves its
 step (Hooke & Jeeves 1961) down to :data:`S_STEP_FLOOR` of the OP range.
 
+Level loops. A level integrates its load, and in closed loop the valve answers that load, so
+the output error of a level is biased by it (closed-loop identification: the valve position
+is correlated with the disturbance). An integrating loop's record (both PV and valve
+position, after the high-pass) is first whitened by (1 - q⁻¹)/(1 - c·q⁻¹), c from the
+linear fit's residual (:func:`_level_whitening`), and its increments are fitted with a dead
+time between two samples (two taps), the prediction-error method with the noise model of a
+walking level under white noise (Ljung 1999, sec. 7.2 and 13.4); when the noise dominates
+(c > :data:`MAX_WHITENING`) or that fit explains too little (:data:`MIN_R2_INTEGRATING`),
+the level itself is fitted as above.
+
 Fit quality: R² = 1 - SSE/SST of the PV (SST about its mean). ``r2_linear`` is the same fit
 with S = J = 0 (a linear valve): the gain r2 - r2_linear says how much the valve nonlinearity
 explains. Practitioner terms (plant-and-tuning 1.7): resolution (stick-slip) = J, deadband
@@ -82,12 +92,13 @@ HP_MIN_SAMPLES = 25
 #: explain 0.40-0.97 of the PV; 0.5, the first choice, refused three of them, and no clean loop
 #: whose fit explains more than 0.35 gains from stiction].
 MIN_R2 = 0.35
-#: The same for an integrating loop, whose fit is of the PV's increments: the record and the
-#: valve position are differenced after the high-pass, y_k - y_{k-1} = b·x_{k-d} (the level's
-#: flow balance), which also whitens the load, a slow walk that the process integrates.
-#: Regressing on increments is the prediction-error method with the noise model 1/(1 - q⁻¹)
-#: (Ljung 1999, sec. 7.2 and 13.4: consistent in closed loop when the noise model is right,
-#: where an output-error fit is biased by the load the controller answers). Increments are
+#: The same for an integrating loop whose fit is of the PV's whitened increments (module
+#: docstring, "Level loops"): with c = 0 the record and the valve position are differenced,
+#: y_k - y_{k-1} = b·x_{k-d} (the level's flow balance), which whitens the load, a slow walk
+#: that the process integrates: the prediction-error method with the noise model
+#: (1 - c·q⁻¹)/(1 - q⁻¹) (Ljung 1999, sec. 7.2 and 13.4: consistent in closed loop when the
+#: noise model is right, where an output-error fit is biased by the load the controller
+#: answers). Increments are
 #: noisier than levels, so less of their variance is explained [ours: on the simulated set
 #: (docs/diagnose.md) the sticky level loops whose stiction the fit finds explain 0.2-0.95].
 MIN_R2_INTEGRATING = 0.2
