@@ -159,15 +159,23 @@ def _nan_check(data: LoopData, reasons: list[str], notes: list[str]) -> float:
     return fraction
 
 
+def longest_run_span(x: FloatArray) -> tuple[int, int]:
+    """(start, stop) of the longest run of consecutive equal values in ``x`` (NaN ends a
+    run); (0, 0) for an empty ``x``."""
+    if len(x) == 0:
+        return 0, 0
+    change = np.flatnonzero(x[1:] != x[:-1]) + 1
+    bounds = np.concatenate(([0], change, [len(x)]))
+    k = int(np.argmax(np.diff(bounds)))
+    return int(bounds[k]), int(bounds[k + 1])
+
+
 def longest_run(x: FloatArray) -> tuple[int, float]:
     """The longest run of consecutive equal values in ``x`` (NaN ends a run) and its value."""
     if len(x) == 0:
         return 0, float("nan")
-    change = np.flatnonzero(x[1:] != x[:-1]) + 1
-    bounds = np.concatenate(([0], change, [len(x)]))
-    lengths = np.diff(bounds)
-    k = int(np.argmax(lengths))
-    return int(lengths[k]), float(x[bounds[k]])
+    start, stop = longest_run_span(x)
+    return stop - start, float(x[start])
 
 
 def _frozen_check(name: str, x: FloatArray, reasons: list[str]) -> float:

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from loopworks.analysis.loopdata import LoopData
+from loopworks.analysis.quality import longest_run_span
 
 #: least OP travel (max - min over the frozen run), % of span
 MIN_OP_TRAVEL = 10.0
@@ -55,23 +56,12 @@ class Seized:
     reason: str
 
 
-def _longest_hold(x: np.ndarray) -> tuple[int, int]:
-    """(start, stop) of the longest run of exactly equal consecutive values of ``x``."""
-    n = len(x)
-    if n == 0:
-        return 0, 0
-    change = np.flatnonzero(x[1:] != x[:-1]) + 1
-    edges = np.concatenate([[0], change, [n]])
-    k = int(np.argmax(np.diff(edges)))
-    return int(edges[k]), int(edges[k + 1])
-
-
 def seized_valve(data: LoopData) -> Seized | None:
     """The seized valve in ``data`` by the module's rule, or None."""
     n = len(data)
     if n == 0:
         return None
-    start, stop = _longest_hold(np.asarray(data.pv, dtype=np.float64))
+    start, stop = longest_run_span(np.asarray(data.pv, dtype=np.float64))
     length = stop - start
     if length < MIN_RUN_FRACTION * n or length < 2:
         return None
