@@ -10,6 +10,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import os
+import random
 import signal
 import socket
 import subprocess
@@ -30,10 +31,29 @@ SCAN_WALL = 0.5 / SPEEDUP  # s of wall time per controller scan
 MAN, AUTO = 3, 4
 
 
+_ISSUED: set[int] = set()
+
+
 def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
+    """A port on 127.0.0.1 that binds now and that this test process has not handed out before.
+
+    Drawn below the kernel's ephemeral range (32768-60999 on Linux), so that no client's outgoing
+    connection takes it between this check and the server's bind; and never the same twice (two
+    calls that each bind port 0 and close can get the same port back: CI once started the device
+    and the OPC UA server both on 42913)."""
+    rng = random.Random(os.getpid() ^ time.monotonic_ns())
+    for _ in range(1000):
+        port = rng.randrange(20000, 32768)
+        if port in _ISSUED:
+            continue
+        with socket.socket() as s:
+            try:
+                s.bind(("127.0.0.1", port))
+            except OSError:
+                continue
+        _ISSUED.add(port)
+        return port
+    raise RuntimeError("no free port in 20000-32767 on 127.0.0.1")
 
 
 def loopworks(*args: str, cwd: Path, stdin: str | None = None) -> subprocess.Popen[str]:
