@@ -10,7 +10,7 @@ both blocks every scan. Both are warmed up (compiled or loaded from the cache) f
 figure is the ratio of scans per second, median of R rounds.
 
 A third line times that record alone: arrays of the same shape as ``Module.run`` returns (a
-float64 value and an int64 status per input and output of each block per scan), allocated
+float64 value and a status byte per input and output of each block per scan), allocated
 and written scan by scan with no block run. No ``Module.run`` that returns every signal can
 be faster, so its ratio is the ceiling of the figure on the machine that runs it.
 """
@@ -69,7 +69,7 @@ def record_loop(n: int, dt: float, t: np.ndarray, rf: np.ndarray, rs: np.ndarray
 def record_only(n: int, signals: int, dt: float) -> None:
     """Allocate and fill a record like ``Module.run``'s (see ``record_loop``)."""
     record_loop(n, dt, np.empty(n), np.empty((signals, n)),
-                np.empty((signals, n), dtype=np.int64))
+                np.empty((signals, n), dtype=np.uint8))
 
 
 def module() -> Module:

@@ -190,6 +190,56 @@ def test_a_split_compiled_run_equals_one_run() -> None:
         np.testing.assert_array_equal(joined, whole.values[name], err_msg=name)
 
 
+def test_the_fused_plan_equals_the_interpreted_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A long run takes the ``fused`` plan (every kernel inlined): the same numbers as the
+    Python loop, on pid + fopdt with events split over two runs, and on the default example's
+    variants (DeltaV PID, valves with stiction, compensators, sensors, a Karnopp valve)."""
+    from loopworks.sim import module as module_mod
+
+    monkeypatch.setattr(module_mod, "PLAN_FUSE_BLOCK_SCANS", 0)  # every run is "long"
+
+    def make() -> Module:
+        return Module({"pid": loopworks.create_block("pid", k=2.0, ti=5.0),
+                       "process": loopworks.create_block("process.fopdt", dead_time=1.0)},
+                      wires={"process.u": "pid.out", "pid.pv": "process.y"},
+                      inputs={"pid": {"sp": 1.0}},
+                      events=[Event(3.3, "pid.k", 1.0), Event(7.0, "pid.sp", 2.0)])
+    split = make()
+    first = split.run(5.0, 0.1, plan="compiled")
+    assert split._scans[0] == "fused"
+    second = split.run(15.0, 0.1, plan="compiled", reset=False)
+    reference = make().run(20.0, 0.1, plan="python")
+    for name in reference.values:
+        np.testing.assert_array_equal(np.concatenate([first.values[name], second.values[name]]),
+                                      reference.values[name], err_msg=name)
+        np.testing.assert_array_equal(np.concatenate([first.status[name], second.status[name]]),
+                                      reference.status[name], err_msg=name)
+    path = Path(__file__).parents[2] / "examples" / "default.toml"
+    compiled = load_scenario(path)
+    monkeypatch.setenv("LOOPWORKS_JIT", "0")
+    interpreted = load_scenario(path)
+    for name, module in compiled.variants.items():
+        a = module.run(600 * compiled.dt, compiled.dt, plan="compiled")
+        assert module._scans[0] == "fused"
+        b = interpreted.variants[name].run(600 * compiled.dt, compiled.dt, plan="python")
+        assert_same(a, b, where=f"default.toml [{name}]")
+
+
+def test_the_record_holds_status_bytes() -> None:
+    """A status is one byte (spec architecture: the Foundation Fieldbus status byte): the
+    record keeps it as uint8, compiled and interpreted alike."""
+    m = Module({"pid": loopworks.create_block("pid", k=2.0, ti=5.0),
+                "process": loopworks.create_block("process.fopdt", dead_time=1.0)},
+               wires={"process.u": "pid.out", "pid.pv": "process.y"},
+               inputs={"pid": {"sp": 1.0}}, events=[Event(1.0, "pid.sp", float("nan"))])
+    for how in ("compiled", "python"):
+        r = m.run(3.0, 0.1, plan=how)
+        assert all(s.dtype == np.uint8 for s in r.status.values())
+        out = r.status["pid.out"]
+        assert out[0] == 0x80 and out[-1] < 0x80  # Good, then not Good from the NaN SP on
+        assert out[-1] == m._S[m._rec_s[list(m.signals()).index("pid.out")]]
+
+
 def test_plan_choice_is_checked() -> None:
     m = Module({"p": loopworks.create_block("pid", jit=False)})
     with pytest.raises(InputError, match="plan = 'fast' is not allowed"):

@@ -38,14 +38,20 @@ from loopworks.blocks.plan import SCANS_SIGNATURE, Slot, entry, is_cached, layou
 from loopworks.errors import InputError, LoopworksError
 from loopworks.sim.result import SimResult
 
-#: bytes a run records per signal per scan: a float64 value and an int64 status
-RECORD_BYTES = 16
+#: bytes a run records per signal per scan: a float64 value and a status byte
+RECORD_BYTES = 9
 #: the most a run may record when the available memory cannot be read (bytes)
 RECORD_CAP = 8 * 1024**3
 #: a run of at least this many block-scans (scans × blocks) compiles the module's plan when
 #: it is not cached yet; a shorter one runs block by block from Python (each block's own
 #: compiled step), which costs less than compiling the module would
 PLAN_MIN_BLOCK_SCANS = 20_000
+#: a run of at least this many block-scans takes the module's ``fused`` plan (every kernel
+#: inlined: about half the time per scan of ``scans``, which reaches each kernel through its
+#: kind's cached entry), compiling it once for this module's shape when it is not cached yet
+#: (about a second per kind of block); a shorter run takes ``scans`` (only its glue to
+#: compile) unless the fused plan is already cached
+PLAN_FUSE_BLOCK_SCANS = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -290,7 +296,7 @@ class Module:
 
     def record_bytes(self, n: int) -> int:
         """Memory a run of ``n`` scans records: every input and output of every block, a
-        float64 value and an int64 status each (16 bytes per signal per scan)."""
+        float64 value and a status byte each (9 bytes per signal per scan)."""
         signals = sum(len(b.INPUTS) + len(b.OUTPUTS) for b in self.blocks.values())
         return n * signals * RECORD_BYTES
 
@@ -399,7 +405,7 @@ class Module:
         rec_f, rec_s = self._rec_f[chosen], self._rec_s[chosen]
         # one row per signal: each signal's record is a contiguous array, handed out as is
         RF = np.empty((len(chosen), n))
-        RS = np.empty((len(chosen), n), dtype=np.int64)
+        RS = np.empty((len(chosen), n), dtype=np.uint8)
         if plan not in ("auto", "compiled", "python"):
             raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or python")
         if plan == "compiled" and not self.compiled:
@@ -408,7 +414,7 @@ class Module:
                              + " are interpreted")
         if plan == "compiled" or (plan == "auto" and self.compiled and (
                 n * len(self.blocks) >= PLAN_MIN_BLOCK_SCANS
-                or is_cached(self._slots, "scans"))):
+                or is_cached(self._slots, "scans") or is_cached(self._slots, "fused"))):
             self._run_compiled(n, dt, t, RF, RS, rec_f, rec_s, progress)
         else:
             self._run_python(n, dt, t, RF, RS, rec_f, rec_s, progress)
@@ -449,8 +455,11 @@ class Module:
                       progress: Callable[[int, int], None] | None) -> None:
         """The compiled plan, in chunks: events are applied between chunks (a parameter
         change recomputes the coefficients once), and progress is reported per chunk."""
-        if self._scans is None:
-            self._scans = entry(self._slots, "scans", SCANS_SIGNATURE)
+        what = "fused" if (n * len(self.blocks) >= PLAN_FUSE_BLOCK_SCANS
+                           or is_cached(self._slots, "fused")) else "scans"
+        if self._scans is None or self._scans[0] != what:
+            self._scans = (what, entry(self._slots, what, SCANS_SIGNATURE))
+        scans = self._scans[1]
         every = max(1, n // 100) if progress is not None else n
         done = 0
         while done < n:
@@ -460,7 +469,7 @@ class Module:
             if k_event is not None:
                 stop = min(stop, done + max(1, k_event - self.k))
             m = stop - done
-            self._scans(self._F, self._S, dt, self.t, self.k, m, t, RF, RS, rec_f, rec_s,
+            scans(self._F, self._S, dt, self.t, self.k, m, t, RF, RS, rec_f, rec_s,
                         done)
             self.k += m
             self.t = self.k * dt
