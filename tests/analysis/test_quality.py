@@ -192,3 +192,47 @@ def test_plant07_constant_pv_fails() -> None:
     q = check_quality(read_csv(PLANT / "plant07.csv", duplicates="last"))
     assert not q.passed
     assert any("PV is constant at 3.50325e-44 over all 751" in r for r in q.reasons)
+
+
+def archive_gaps(data: LoopData, every: int, hold: int) -> LoopData:
+    """``data`` with a historian's gaps: every ``every`` samples, the row before the gap is
+    repeated for ``hold`` samples (SP, PV and OP together), as a zero-order hold replays
+    lost samples (the pattern of several StictionGPT records, 13 of every 30 samples)."""
+    sp, pv, op = data.sp.copy(), data.pv.copy(), data.op.copy()
+    for start in range(every - hold, len(pv) - hold, every):
+        for a in (sp, pv, op):
+            a[start:start + hold] = a[start - 1]
+    return LoopData(t=data.t, sp=sp, pv=pv, op=op, mode=data.mode, source="synthetic")
+
+
+def test_held_stretches_fail_the_gate() -> None:
+    # 13 of every 30 samples held: 43 % of the record in held stretches, above 20 %
+    q = check_quality(archive_gaps(loop(), every=30, hold=13))
+    assert not q.passed and len(q.reasons) == 1
+    assert "SP, PV and OP all repeat their previous values in 33 stretches" in q.reasons[0]
+    assert "at most 20 % is allowed" in q.reasons[0]
+    assert q.held_fraction == pytest.approx(33 * 13 / 1000)
+
+
+def test_a_few_held_stretches_are_a_note() -> None:
+    # 4 of every 100 samples held (from sample 96 on: 9 stretches), 3.6 %: a note only
+    q = check_quality(archive_gaps(loop(), every=100, hold=4))
+    assert q.passed and q.held_fraction == pytest.approx(9 * 4 / 1000)
+    assert any("in 9 stretches of 3 or more samples" in n for n in q.notes)
+
+
+def test_two_repeats_are_not_a_held_stretch() -> None:
+    # a row repeated twice in a row can happen by chance in a coarsely archived record
+    q = check_quality(archive_gaps(loop(), every=10, hold=2))
+    assert q.held_fraction == 0.0
+    assert not any("repeat their previous values" in r for r in q.reasons + q.notes)
+
+
+def test_a_pv_that_moves_while_op_holds_is_not_held() -> None:
+    # only SP, PV and OP held together count: an OP held by itself is the frozen-signal rule's
+    base = loop()
+    op = base.op.copy()
+    op[100:400] = op[99]
+    q = check_quality(LoopData(t=base.t, sp=base.sp, pv=base.pv, op=op, mode=base.mode,
+                               source="synthetic"))
+    assert q.held_fraction == 0.0

@@ -14,6 +14,17 @@ Rules, their thresholds (module constants) and their sources:
   tag (swinging door or exception deadband) replayed by zero-order hold, which repeats the last
   stored value until the next. Engineering judgement: when most of the record is one held value,
   most of it carries no information about the valve.
+* **Held records** — stretches where SP, PV and OP *all* repeat their previous values exactly
+  for at least :data:`HELD_RUN` consecutive samples, covering more than
+  :data:`MAX_HELD_FRACTION` (20 %) of the record, fail: in automatic a PI controller's output
+  does not stand still while a live measurement moves, so such stretches are gaps in the
+  archive replayed by zero-order hold (a historian that lost or compressed the samples
+  repeats the last stored row), or a PV quantised to its set point; either way they hold no
+  OP → PV dynamics, and a model fitted across them fits the holds (a plateau, then a jump,
+  the shape of stick-slip). Fewer is a note. The same idea as the frozen-signal rule, on the
+  three signals together; the thresholds are engineering judgement: two repeats in a row
+  happen by chance in a slowly moving, coarsely archived record, three across all three
+  signals do not.
 * **Compressed or quantised PV** — fewer than :data:`MIN_UNIQUE_FRACTION` (20 %) distinct PV
   values (after rounding to :data:`UNIQUE_DECIMALS` = 6 decimals) fails. This is the rule of
   maulanaiskak/valve-stiction-ml (``src/valve_stiction_ml/classic.py``,
@@ -62,6 +73,11 @@ MIN_SAMPLES = 200
 #: a run of one held value longer than this fraction of the record is a frozen signal
 #: (engineering judgement)
 FROZEN_RUN_FRACTION = 0.5
+#: a stretch of at least this many consecutive samples that repeat the previous SP, PV and OP
+#: exactly is a held stretch (engineering judgement)
+HELD_RUN = 3
+#: more of the samples than this fraction in held stretches fails (engineering judgement)
+MAX_HELD_FRACTION = 0.2
 #: fewer distinct PV values than this fraction of the samples is a compressed or quantised PV
 #: (maulanaiskak/valve-stiction-ml, classic.py, is_likely_quantized)
 MIN_UNIQUE_FRACTION = 0.2
@@ -93,7 +109,8 @@ class Quality:
     ``notes`` are warnings that do not fail it. The figures: ``n`` samples, the fraction of
     distinct PV values, of samples with the OP at a limit, out of automatic mode, with a NaN;
     the number of SP moves; the estimated PV quantisation step (0 when none is found); the
-    longest held run of the PV or OP as a fraction of the record."""
+    longest held run of the PV or OP as a fraction of the record; the fraction of the record in
+    stretches where SP, PV and OP are all held."""
 
     passed: bool
     reasons: list[str] = field(default_factory=list)
@@ -106,6 +123,7 @@ class Quality:
     nan_fraction: float = 0.0
     pv_quantum: float = 0.0
     frozen_fraction: float = 0.0
+    held_fraction: float = 0.0
 
     def summary(self) -> str:
         """The verdict, the reasons and the notes, one to a line."""
@@ -126,6 +144,7 @@ def check_quality(data: LoopData, *,
         reasons.append(f"the record has {n} samples: at least {MIN_SAMPLES} are needed")
     nan_fraction = _nan_check(data, reasons, notes)
     frozen = max(_frozen_check("PV", data.pv, reasons), _frozen_check("OP", data.op, reasons))
+    held = _held_check(data, reasons, notes)
     unique, quantum = _quantisation_check(data.pv, reasons, notes)
     saturated = _saturation_check(data.op, op_limits, reasons)
     manual = _manual_check(data.mode, reasons, notes)
@@ -133,7 +152,7 @@ def check_quality(data: LoopData, *,
     return Quality(passed=not reasons, reasons=reasons, notes=notes, n=n,
                    unique_pv_fraction=unique, saturated_fraction=saturated,
                    manual_fraction=manual, sp_changes=sp_changes, nan_fraction=nan_fraction,
-                   pv_quantum=quantum, frozen_fraction=frozen)
+                   pv_quantum=quantum, frozen_fraction=frozen, held_fraction=held)
 
 
 def _pct(x: float) -> str:
@@ -195,6 +214,38 @@ def _frozen_check(name: str, x: FloatArray, reasons: list[str]) -> float:
         reasons.append(f"the {name} holds {value:.6g} for {run} consecutive samples "
                        f"({_pct(fraction)} of the record; a frozen or compressed signal): at "
                        f"most {_pct(FROZEN_RUN_FRACTION)} is allowed")
+    return fraction
+
+
+def held_stretches(data: LoopData, min_run: int = HELD_RUN) -> list[tuple[int, int]]:
+    """(start, stop) of each stretch of at least ``min_run`` consecutive samples that repeat
+    the previous sample's SP, PV and OP exactly (the sample before the stretch is not in it:
+    it is the value being held)."""
+    same = ((data.sp[1:] == data.sp[:-1]) & (data.pv[1:] == data.pv[:-1])
+            & (data.op[1:] == data.op[:-1]))
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], same.astype(np.int8), [0]))))
+    return [(int(a) + 1, int(b) + 1) for a, b in zip(edges[::2], edges[1::2], strict=True)
+            if b - a >= min_run]
+
+
+def _held_check(data: LoopData, reasons: list[str], notes: list[str]) -> float:
+    """The fraction of the record in held stretches (:func:`held_stretches`); a failure above
+    :data:`MAX_HELD_FRACTION`, a note when there are any."""
+    stretches = held_stretches(data)
+    if not stretches or len(data) == 0:
+        return 0.0
+    count = sum(b - a for a, b in stretches)
+    fraction = count / len(data)
+    text = (f"SP, PV and OP all repeat their previous values in {len(stretches)} stretch"
+            f"{'es' * (len(stretches) != 1)} of {HELD_RUN} or more samples, {count} of "
+            f"{len(data)} samples ({_pct(fraction)}, the longest "
+            f"{max(b - a for a, b in stretches)}): gaps in the archive replayed as holds, or a "
+            f"PV quantised at its set point")
+    if fraction > MAX_HELD_FRACTION:
+        reasons.append(f"{text}: at most {_pct(MAX_HELD_FRACTION)} is allowed (the holds carry "
+                       f"no OP to PV dynamics, and their plateaus look like stick-slip)")
+    else:
+        notes.append(text)
     return fraction
 
 
