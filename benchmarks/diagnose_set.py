@@ -52,10 +52,10 @@ def composition(loops: list[SimulatedLoop]) -> str:
     lines += [f"  {g:<11} {lt:<16} {c:<11} {n:3d}" for (g, lt, c), n in sorted(rows.items())]
     sticky = [x for x in loops if x.label == "stiction"]
     if sticky:
-        s = np.array([x.s for x in sticky])
+        s = np.array([x.s_nominal for x in sticky])
         j = np.array([x.j for x in sticky])
-        lines.append(f"sticky: S {s.min():.2f}..{s.max():.2f} %, J {j.min():.2f}..{j.max():.2f} %,"
-                     f" J = 0 in {int((j == 0).sum())}")
+        lines.append(f"sticky: nominal S {s.min():.2f}..{s.max():.2f} %, "
+                     f"J {j.min():.2f}..{j.max():.2f} %, J = 0 in {int((j == 0).sum())}")
     return "\n".join(lines)
 
 
@@ -63,7 +63,8 @@ def evaluate(loops: list[SimulatedLoop], diagnose: Diagnose) -> str:
     """Score ``diagnose`` on ``loops``: sensitivity (sticky loops called sticky), specificity
     (clean loops called clean) and balanced accuracy, overall and per group and loop type;
     the median and 90th-percentile relative errors of S and J on the sticky loops the
-    detector called sticky and gave an estimate for (J's only where the true J > 0)."""
+    detector called sticky and gave an estimate for (J's only where the true J > 0), and the
+    share of those S estimates within 30 % of the truth."""
     verdicts: list[tuple[SimulatedLoop, Mapping[str, Any]]] = [
         (x, diagnose(x.data, x.loop_type)) for x in loops]
 
@@ -81,6 +82,9 @@ def evaluate(loops: list[SimulatedLoop], diagnose: Diagnose) -> str:
             if errs:
                 text += (f"  {name.upper()} rel.err median {np.median(errs):.2f} "
                          f"p90 {np.percentile(errs, 90):.2f}")
+                if name == "s":
+                    text += (f" within 30 % {np.mean(np.array(errs) <= 0.3):.2f} "
+                             f"(n {len(errs)})")
         return text
 
     lines = [f"{'all':<34} {rates(verdicts)}"]

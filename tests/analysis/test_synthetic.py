@@ -14,8 +14,10 @@ import pytest
 from loopworks.analysis.loopdata import read_csv
 from loopworks.analysis.synthetic import (
     CONTROLLERS,
+    KARNOPP_PARAMS,
     SimulatedLoop,
     _counts,
+    karnopp_reversal_band,
     make_set,
     simc,
     simulate_loop,
@@ -54,9 +56,12 @@ def test_make_set_is_deterministic_and_labelled_by_its_valve() -> None:
         sticky = loop.valve in ("choudhury", "karnopp")
         assert loop.label == ("stiction" if sticky else "no_stiction"), loop.case
         if sticky:
-            assert 0.5 <= loop.s <= 5.0 and 0.0 <= loop.j <= loop.s, loop.case
+            nominal = loop.s_nominal
+            assert 0.5 <= nominal <= 5.0 and 0.0 <= loop.j <= nominal, loop.case
+            # a Karnopp valve's S is the band it shows on reversal, S + J (see below)
+            assert loop.s == (nominal + loop.j if loop.valve == "karnopp" else nominal)
         else:
-            assert loop.s == loop.j == 0.0
+            assert loop.s == loop.j == loop.s_nominal == 0.0
             assert loop.data.position is not None
             assert np.allclose(loop.data.position, loop.data.op, atol=1e-9), loop.case
         assert loop.loop_type in ("self-regulating", "integrating")
@@ -143,3 +148,27 @@ def test_write_csv_round_trip(tmp_path: Path) -> None:
     assert with_position.position is not None and loop.data.position is not None
     assert np.array_equal(with_position.position, loop.data.position)
     assert math.isclose(back.dt, SHORT["sample_period"])
+
+
+@pytest.mark.parametrize(("s", "j"), [(1.0, 0.5), (3.0, 0.0), (4.0, 3.0)])
+def test_a_karnopp_valve_shows_s_plus_j_on_reversal(s: float, j: float) -> None:
+    """The set's Karnopp valve, made from nominal S and J, driven by a slow triangle
+    (0.01 %/s, as a loop's integral action drives it) waits for S + J of OP travel after each
+    reversal (2·Fs/U with Fs = U·(S + J)/2, spec 1.1, the Stribeck creep of spec 1.6): the S
+    the set records (karnopp_reversal_band), not the nominal S."""
+    from loopworks import create_block
+    from loopworks.plant.valve import resolution_deadband_from_sj
+
+    resolution, deadband = resolution_deadband_from_sj(s, j)
+    valve = create_block("valve.karnopp", resolution=resolution, deadband=deadband, y0=50.0,
+                         **KARNOPP_PARAMS)
+    ramp = np.linspace(45.0, 55.0, 2001)
+    op = np.concatenate([ramp, ramp[::-1], ramp, ramp[::-1]])
+    pos = np.array([valve.step(0.5, op=float(u))["position"].value for u in op])
+    for k0 in (4002, 6003):  # the reversals at the bottom (45 %) and at the top (55 %)
+        moved = np.flatnonzero(np.abs(pos[k0:] - pos[k0 - 1]) > 0.01)[0]
+        travel = abs(op[k0 + moved] - op[k0 - 1])
+        assert travel == pytest.approx(karnopp_reversal_band(s, j), abs=0.05)
+        assert karnopp_reversal_band(s, j) == s + j
+        if j > 0.0:
+            assert travel > s + 0.4 * j  # distinguishable from the nominal S

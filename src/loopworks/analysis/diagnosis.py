@@ -106,7 +106,8 @@ MIN_R2_GAIN = 0.05
 #: the valve fit votes no stiction below this share (a good fit that needs no stiction)
 NO_R2_GAIN = 0.005
 #: the valve fit abstains when its S (% of span) is above this [ours: the simulated set's
-#: valves go to 5 % and the fit puts them at 7.2 % at most; the one clean loop it called
+#: valves go to 5 % nominal (a Karnopp valve shows up to S + J, 9.9 %, on reversal) and the
+#: fit puts them at 7.2 % at most; the one clean loop it called
 #: sticky, a level loop driven by an external sine, got S = 17.8 %, a backlash that fits
 #: the sine's phase, not a valve a loop could run with]
 MAX_S = 10.0

@@ -14,9 +14,14 @@ every ``sample_period / dt``-th scan is kept, as a historian would record it.
 
 What is recorded (:class:`SimulatedLoop`): ``data`` (t, SP, measured PV with noise, OP, the
 true stem position, mode all AUTO), the label (``"stiction"`` when the valve has S > 0,
-``"no_stiction"`` otherwise), the loop type, the true Choudhury S and J (for a Karnopp valve
-the nominal ones it was made from: resolution = J, deadband = S - J, spec plant-and-tuning 1.7)
-and a one-line description of the case.
+``"no_stiction"`` otherwise), the loop type, the true Choudhury S and J and a one-line
+description of the case. A Karnopp valve is made from a nominal S and J (resolution = J,
+deadband = S - J, spec plant-and-tuning 1.7, forces by the block's default force balance,
+Fs = U·(S + J)/2 and Fc = U·(S - J)/2 with U the force of 1 % of OP, spec 1.1); its true S is
+the band it shows on reversal, which is what a Choudhury S measures: with the Stribeck term a
+slowly driven stem creeps with its friction near Fs, so that band is 2·Fs/U = S + J (the
+``valve.karnopp`` docstring; :func:`karnopp_reversal_band`), not the nominal S. Its J stays
+the nominal one, the slip of an overdamped stem from Fs down to Fc, (Fs - Fc)/U = J.
 
 :func:`make_set` draws a balanced, seeded set (composition in its docstring);
 :func:`write_csv` writes one loop as a historian CSV that
@@ -79,7 +84,9 @@ class SimulatedLoop:
     ``position``; ``label``: ``"stiction"`` or ``"no_stiction"``; ``loop_type``:
     ``"self-regulating"`` (a flow loop, FOPDT) or ``"integrating"`` (a level loop, IPDT);
     ``case``: a short description; ``s``, ``j``: the true Choudhury S and J, % of span (0, 0
-    for a clean valve; a Karnopp valve's nominal S = deadband + resolution, J = resolution);
+    for a clean valve; a Karnopp valve's S is the band it shows on reversal,
+    :func:`karnopp_reversal_band`, its J the nominal one); ``s_nominal``: the S the valve
+    was made from (= ``s`` except for a Karnopp valve);
     ``controller``: the controller kind; ``valve``: ``"choudhury"``, ``"karnopp"`` or
     ``"linear"``; ``seed``: the seed the loop was drawn and simulated from.
     """
@@ -93,6 +100,7 @@ class SimulatedLoop:
     controller: str
     valve: str
     seed: int
+    s_nominal: float = 0.0
 
 
 # ----------------------------------------------------------------------------- tuning
@@ -222,9 +230,20 @@ def simulate_loop(*, loop_type: str = "self-regulating", controller: str = "pid"
                     op=result["pid.out"][keep], position=result["valve.position"][keep],
                     mode=np.ones(len(t)), source=case or "simulated")
     sticky = valve != "linear" and s > 0.0
+    shown = karnopp_reversal_band(s, j) if valve == "karnopp" else s
     return SimulatedLoop(data=data, label="stiction" if sticky else "no_stiction",
-                         loop_type=loop_type, case=case, s=s if sticky else 0.0,
-                         j=j if sticky else 0.0, controller=controller, valve=valve, seed=seed)
+                         loop_type=loop_type, case=case, s=shown if sticky else 0.0,
+                         j=j if sticky else 0.0, controller=controller, valve=valve, seed=seed,
+                         s_nominal=s if sticky else 0.0)
+
+
+def karnopp_reversal_band(s: float, j: float) -> float:
+    """The band (% of OP) a ``valve.karnopp`` made from nominal ``s``, ``j`` (force balance,
+    spec 1.1: Fs = U·(S + J)/2) shows after a reversal when driven slowly, as a loop's
+    integral action drives it: with the Stribeck term the creeping stem's friction is near
+    Fs in either direction, so the OP must travel 2·Fs/U = S + J (the block's docstring,
+    "Stiction as S and J"; checked against the block in tests/analysis/test_synthetic.py)."""
+    return s + j
 
 
 # ----------------------------------------------------------------------------- the set
@@ -302,7 +321,9 @@ def draw_loop(group: str, loop_type: str, controller: str, seed: int,
         valve = group
         s = float(rng.uniform(0.5, 5.0))
         j = 0.0 if rng.uniform() < 1.0 / 6.0 else float(rng.uniform(0.0, s))
-        what = f"{group} S={s:.2f} J={j:.2f}"
+        what = f"{group} S={s:.2f} J={j:.2f}" + (
+            f" (nominal; {karnopp_reversal_band(s, j):.2f} on reversal)"
+            if group == "karnopp" else "")
     elif group == "clean":
         what = "linear valve"
     elif group == "aggressive":
