@@ -170,20 +170,27 @@ def test_every_example_runs_the_same_compiled_and_interpreted(
         assert_same(a, b, where=f"{path.name} [{name}]")
 
 
+def pid_fopdt(*events: Event) -> Module:
+    """A pid on a fopdt of 1 s dead time, SP 1, with ``events``."""
+    return Module({"pid": loopworks.create_block("pid", k=2.0, ti=5.0),
+                   "process": loopworks.create_block("process.fopdt", dead_time=1.0)},
+                  wires={"process.u": "pid.out", "pid.pv": "process.y"},
+                  inputs={"pid": {"sp": 1.0}}, events=list(events))
+
+
+def retuned_loop() -> Module:
+    """pid_fopdt with a gain change at 3.3 s and an SP step at 7 s."""
+    return pid_fopdt(Event(3.3, "pid.k", 1.0), Event(7.0, "pid.sp", 2.0))
+
+
 def test_a_split_compiled_run_equals_one_run() -> None:
     """reset=False continues the plan from the blocks' state (their arrays are views of the
     plan's buffers), and parameter events between chunks take effect at their scan."""
-    def make() -> Module:
-        return Module({"pid": loopworks.create_block("pid", k=2.0, ti=5.0),
-                       "process": loopworks.create_block("process.fopdt", dead_time=1.0)},
-                      wires={"process.u": "pid.out", "pid.pv": "process.y"},
-                      inputs={"pid": {"sp": 1.0}},
-                      events=[Event(3.3, "pid.k", 1.0), Event(7.0, "pid.sp", 2.0)])
-    whole = make().run(20.0, 0.1, plan="compiled")
-    split = make()
+    whole = retuned_loop().run(20.0, 0.1, plan="compiled")
+    split = retuned_loop()
     first = split.run(5.0, 0.1, plan="compiled")
     second = split.run(15.0, 0.1, plan="compiled", reset=False)
-    reference = make().run(20.0, 0.1, plan="python")
+    reference = retuned_loop().run(20.0, 0.1, plan="python")
     assert_same(whole, reference, where="whole")
     for name in whole.values:
         joined = np.concatenate([first.values[name], second.values[name]])
@@ -198,17 +205,11 @@ def test_the_fused_plan_equals_the_interpreted_run(monkeypatch: pytest.MonkeyPat
 
     monkeypatch.setattr(module_mod, "PLAN_FUSE_BLOCK_SCANS", 0)  # every run is "long"
 
-    def make() -> Module:
-        return Module({"pid": loopworks.create_block("pid", k=2.0, ti=5.0),
-                       "process": loopworks.create_block("process.fopdt", dead_time=1.0)},
-                      wires={"process.u": "pid.out", "pid.pv": "process.y"},
-                      inputs={"pid": {"sp": 1.0}},
-                      events=[Event(3.3, "pid.k", 1.0), Event(7.0, "pid.sp", 2.0)])
-    split = make()
+    split = retuned_loop()
     first = split.run(5.0, 0.1, plan="compiled")
     assert split._scans[0] == "fused"
     second = split.run(15.0, 0.1, plan="compiled", reset=False)
-    reference = make().run(20.0, 0.1, plan="python")
+    reference = retuned_loop().run(20.0, 0.1, plan="python")
     for name in reference.values:
         np.testing.assert_array_equal(np.concatenate([first.values[name], second.values[name]]),
                                       reference.values[name], err_msg=name)
@@ -228,10 +229,7 @@ def test_the_fused_plan_equals_the_interpreted_run(monkeypatch: pytest.MonkeyPat
 def test_the_record_holds_status_bytes() -> None:
     """A status is one byte (spec architecture: the Foundation Fieldbus status byte): the
     record keeps it as uint8, compiled and interpreted alike."""
-    m = Module({"pid": loopworks.create_block("pid", k=2.0, ti=5.0),
-                "process": loopworks.create_block("process.fopdt", dead_time=1.0)},
-               wires={"process.u": "pid.out", "pid.pv": "process.y"},
-               inputs={"pid": {"sp": 1.0}}, events=[Event(1.0, "pid.sp", float("nan"))])
+    m = pid_fopdt(Event(1.0, "pid.sp", float("nan")))
     for how in ("compiled", "python"):
         r = m.run(3.0, 0.1, plan=how)
         assert all(s.dtype == np.uint8 for s in r.status.values())
