@@ -232,7 +232,7 @@ def _held_check(data: LoopData, reasons: list[str], notes: list[str]) -> float:
     """The fraction of the record in held stretches (:func:`held_stretches`); a failure above
     :data:`MAX_HELD_FRACTION`, a note when there are any."""
     stretches = held_stretches(data)
-    if not stretches or len(data) == 0:
+    if not stretches:
         return 0.0
     count = sum(b - a for a, b in stretches)
     fraction = count / len(data)

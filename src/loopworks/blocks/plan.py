@@ -353,9 +353,10 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
     injected = [k if refs[k] is None else None for k, _ in kernels]
     lines = _header(kernels, refs, linked=not {"call", "fused"} & set(entries))
     deco = "@numba.njit(cache=CACHE, nogil=True)"
-    for what in {"scans", "fused"} & set(entries):
-        # ``fused``: the same scans with every kernel inlined (compiled with the plan, once
-        # per module shape), for long runs; ``scans`` reaches each kernel's own cached entry
+    # ``fused``: the same scans with every kernel inlined (compiled with the plan, once per
+    # module shape), for long runs; ``scans`` reaches each kernel's own cached entry. In a
+    # fixed order: the source is hashed into the cache key.
+    for what in [w for w in ("scans", "fused") if w in entries]:
         lines += ["", "", deco,
                   f"def {what}(F0, S0, dt, t0, k0, n, T, RF, RS, IF, IS, at):", *_UNCOUNTED,
                   "    for k in range(n):",
