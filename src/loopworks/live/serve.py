@@ -50,6 +50,7 @@ from loopworks.live.opcua import Variable, WriteRefused
 from loopworks.live.registers import RegisterMap
 from loopworks.live.schedule import ScanStats, Scheduler
 from loopworks.live.split import Split
+from loopworks.live.tasks import cancel_and_wait
 from loopworks.sim.module import Module
 
 log = logging.getLogger("loopworks.serve")
@@ -564,6 +565,5 @@ async def serve(config: str | Path | None = None, *, device: str | None = None,
         if local is not None:
             await local.stop()
         if device_task is not None:
-            device_task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await device_task
+            with contextlib.suppress(Exception):
+                await cancel_and_wait(device_task)

@@ -42,6 +42,7 @@ from typing import Any
 
 from loopworks.errors import InputError
 from loopworks.live.opcua import Variable, WriteRefused
+from loopworks.live.tasks import cancel_and_wait
 
 log = logging.getLogger("loopworks.serve")
 
@@ -185,9 +186,7 @@ def device_main(config: str | None, variant: str | None, speedup: float, conn: A
         if ua_server is not None:
             await ua_server.stop()
         await device.stop()
-        task.cancel()
-        with contextlib.suppress(asyncio.CancelledError):
-            await task
+        await cancel_and_wait(task)
 
     asyncio.run(run())
 

@@ -49,6 +49,7 @@ from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field
 
 from loopworks.live.faceplate.link import Link, WriteError, flatten, is_link_error, status_name
+from loopworks.live.tasks import cancel_and_wait
 
 log = logging.getLogger("loopworks.faceplate")
 
@@ -205,9 +206,8 @@ def create_app(opcua_url: str, *, period: float = 0.25) -> FastAPI:
             yield
         finally:
             fp.close()
-            task.cancel()
-            with contextlib.suppress(asyncio.CancelledError, Exception):
-                await task
+            with contextlib.suppress(Exception):
+                await cancel_and_wait(task)
             for s in fp.sessions.values():
                 await _disconnect(s.client)
             fp.sessions.clear()
