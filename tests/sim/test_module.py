@@ -310,11 +310,12 @@ def test_late_events_are_the_ones_no_scan_reaches() -> None:
 
 
 def test_a_run_too_long_to_record_is_refused_with_the_memory_it_needs() -> None:
-    """1e12 s at 1 ms is 1e15 scans; the estimate is scans × recorded signals (every input
-    and output of every block) × 9 bytes (float64 value + status byte): petabytes."""
+    """1e12 s at 1 ms is 1e15 scans; the estimate is (scans + 1) × signals written scan by
+    scan × 9 bytes (float64 value + status byte): petabytes. Every input of this loop is
+    wired or constant, so only the outputs are written."""
     m = closed_loop()
-    signals = sum(len(b.INPUTS) + len(b.OUTPUTS) for b in m.blocks.values())
-    need_gb = 1e15 * signals * 9 / 1e9
+    outputs = sum(len(b.OUTPUTS) for b in m.blocks.values())
+    need_gb = (1e15 + 1) * outputs * 9 / 1e9
     with pytest.raises(InputError) as err:
         m.run(duration=1e12, dt=1e-3)
     message = str(err.value)
@@ -328,7 +329,7 @@ def test_the_memory_check_uses_what_is_available(monkeypatch: pytest.MonkeyPatch
 
     m = closed_loop()
     need = m.record_bytes(round(1000.0 / DT))
-    assert need == 2000 * sum(len(b.INPUTS) + len(b.OUTPUTS) for b in m.blocks.values()) * 9
+    assert need == 2001 * sum(len(b.OUTPUTS) for b in m.blocks.values()) * 9
     monkeypatch.setattr(module, "available_memory", lambda: 1)
     m.run(duration=1000.0, dt=DT)  # under 64 MB: runs without asking
     monkeypatch.setattr(module, "RECORD_BYTES", 10**6)  # 1 MB a signal-scan: 2000 scans > 1 GB

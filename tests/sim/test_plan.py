@@ -238,6 +238,71 @@ def test_the_record_holds_status_bytes() -> None:
         assert out[-1] == m._S[m._rec_s[list(m.signals()).index("pid.out")]]
 
 
+def scanned(m: Module, n: int, dt: float) -> tuple[np.ndarray, dict[str, np.ndarray],
+                                                   dict[str, np.ndarray]]:
+    """The record written out by hand: reset, then per scan ``Module.scan`` and every
+    block's inputs and outputs read from the block (no record plan involved)."""
+    m.reset()
+    t = np.empty(n)
+    values = {name: np.empty(n) for name in m.signals()}
+    status = {name: np.empty(n, dtype=np.int64) for name in m.signals()}
+    for k in range(n):
+        t[k] = m.t
+        m.scan(dt)
+        for name in m.order:
+            b = m.blocks[name]
+            for arr, sarr, ports in ((b.u, b.us, b.INPUTS), (b.y, b.ys, b.OUTPUTS)):
+                for i, port in enumerate(ports):
+                    values[f"{name}.{port.name}"][k] = arr[i]
+                    status[f"{name}.{port.name}"][k] = sarr[i]
+    return t, values, status
+
+
+def feedback_first() -> Module:
+    """pid_fopdt run process first: the pid reads this scan's PV, the process last scan's
+    output."""
+    return Module({"pid": loopworks.create_block("pid", k=2.0, ti=5.0),
+                   "process": loopworks.create_block("process.fopdt", dead_time=1.0)},
+                  wires={"process.u": "pid.out", "pid.pv": "process.y"},
+                  inputs={"pid": {"sp": 1.0}}, order=["process", "pid"],
+                  events=[Event(2.0, "pid.sp", 2.0), Event(3.3, "pid.k", 1.0)])
+
+
+@pytest.mark.parametrize("how", ["compiled", "python"])
+def test_the_record_is_what_the_blocks_held(how: str) -> None:
+    """A run writes each signal once (record_plan): a constant input is not written, an
+    input wired to an output shares that output's record (shifted by a scan when its source
+    runs after it). Every signal still reads what its block held after each scan, as a scan
+    loop records it by hand; the record is read-only. Both orders of a feedback loop, events
+    on a constant input and on a parameter, and every variant of the default example."""
+    path = Path(__file__).parents[2] / "examples" / "default.toml"
+    variants = list(load_scenario(path).variants)
+    # each run on a new module: a parameter event stays applied after a run
+    makers = [("pid first", retuned_loop), ("process first", feedback_first),
+              *((v, lambda v=v: load_scenario(path).variants[v]) for v in variants)]
+    for where, make in makers:
+        dt = 0.1 if where.endswith("first") else 0.5
+        n = 120
+        r = make().run(n * dt, dt, plan=how)
+        t, values, status = scanned(make(), n, dt)
+        np.testing.assert_array_equal(r.t, t)
+        assert r.values.keys() == values.keys()
+        for name in values:
+            np.testing.assert_array_equal(r.values[name], values[name], err_msg=f"{where}: {name}")
+            np.testing.assert_array_equal(r.status[name], status[name],
+                                          err_msg=f"{where}: {name} status")
+            assert not r.values[name].flags.writeable and not r.status[name].flags.writeable
+    m = retuned_loop()
+    rows, kinds = m.record_plan(range(len(m.signals())))
+    # written: the five outputs; pid.sp has an event; every other input is wired or constant
+    assert sorted(m.signals()[i] for i in rows) == sorted(
+        ["pid.out", "pid.p_term", "pid.i_term", "pid.d_term", "process.y", "pid.sp"])
+    assert kinds[m.signals().index("process.u")] == ("row", rows.index(
+        m.signals().index("pid.out")))
+    assert kinds[m.signals().index("pid.pv")][0] == "before"
+    assert kinds[m.signals().index("pid.ff")] == ("const", -1)
+
+
 def test_plan_choice_is_checked() -> None:
     m = Module({"p": loopworks.create_block("pid", jit=False)})
     with pytest.raises(InputError, match="plan = 'fast' is not allowed"):

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -295,10 +295,54 @@ class Module:
         return wanted
 
     def record_bytes(self, n: int) -> int:
-        """Memory a run of ``n`` scans records: every input and output of every block, a
-        float64 value and a status byte each (9 bytes per signal per scan)."""
-        signals = sum(len(b.INPUTS) + len(b.OUTPUTS) for b in self.blocks.values())
-        return n * signals * RECORD_BYTES
+        """Memory a run of ``n`` scans records of every signal: a float64 value and a status
+        byte (9 bytes) per scan, and one more, of each signal it writes scan by scan
+        (:meth:`record_plan`: a constant input or an input wired to an output costs nothing)."""
+        rows, _ = self.record_plan(range(len(self.signals())))
+        return (n + 1) * len(rows) * RECORD_BYTES
+
+    def record_plan(self, chosen: Iterable[int]) -> tuple[list[int], list[tuple[str, int]]]:
+        """How a run records the signals ``chosen`` (indices into :meth:`signals`): the signals
+        it writes scan by scan (``rows``, indices into :meth:`signals`), each into a row of
+        n + 1 columns, column 0 its value before the first scan and column k + 1 its value
+        after scan k; and, per chosen signal, where its record comes from:
+
+        * ``("row", r)``: columns 1..n of row r;
+        * ``("before", r)``: columns 0..n-1 of row r: an input wired from an output of a block
+          that runs after it (or of itself) reads, in scan k, that output as scan k - 1 left
+          it (module docstring);
+        * ``("const", -1)``: an unwired input that no event sets and no clock drives keeps its
+          value and status for the whole run (no kernel writes its inputs).
+
+        An input wired from a block that runs before it is ``("row", r)`` of that output: it
+        holds the same value and status every scan. So no signal is written twice, and a
+        constant not at all."""
+        names = self.signals()
+        first: dict[str, int] = {}  # each block's first signal (its inputs, then outputs)
+        at = 0
+        for name in self.order:
+            first[name] = at
+            at += len(self.blocks[name].INPUTS) + len(self.blocks[name].OUTPUTS)
+        place = {name: k for k, name in enumerate(self.order)}
+        evented = {(b, p.lower()) for b, p in (_split(ev.target, "event") for ev in self.events)}
+        rows: dict[int, int] = {}  # signal index -> row
+        how: list[tuple[str, int]] = []
+        for i in chosen:
+            block, port = names[i].rsplit(".", 1)
+            source = self.wires.get(names[i])
+            output = i - first[block] >= len(self.blocks[block].INPUTS)
+            clock = block in self._clocks and port == "clock"
+            if output or clock or (block, port) in evented:
+                how.append(("row", rows.setdefault(i, len(rows))))
+            elif source is None:
+                how.append(("const", -1))
+            else:
+                sblock, sport = source.rsplit(".", 1)
+                j = first[sblock] + len(self.blocks[sblock].INPUTS) \
+                    + self.blocks[sblock]._out_index[sport]
+                r = rows.setdefault(j, len(rows))
+                how.append(("row" if place[sblock] < place[block] else "before", r))
+        return list(rows), how
 
     def _check_unwired(self, ref: str, what: str) -> None:
         block, port = self._port(ref, "input", what)
@@ -396,16 +440,21 @@ class Module:
                 raise InputError(f"record: no signal '{unknown[0]}'; signals: "
                                  + ", ".join(names))
             chosen = sorted({where[r] for r in record})
-        check_record_size(len(chosen) * n * RECORD_BYTES, duration, dt, n)
+        rows, how = self.record_plan(chosen)
+        check_record_size(len(rows) * (n + 1) * RECORD_BYTES, duration, dt, n)
         if reset:
             self.reset()
         for block in self.blocks.values():
             block.check_dt(dt)
-        t = np.empty(n)
-        rec_f, rec_s = self._rec_f[chosen], self._rec_s[chosen]
-        # one row per signal: each signal's record is a contiguous array, handed out as is
-        RF = np.empty((len(chosen), n))
-        RS = np.empty((len(chosen), n), dtype=np.uint8)
+        # T[k + 1] is the time of scan k; row r of RF/RS is signal rows[r], column 0 before
+        # the first scan and column k + 1 after scan k (record_plan): each signal's record is
+        # a contiguous array, handed out as a view
+        T = np.empty(n + 1)
+        rec_f, rec_s = self._rec_f[rows], self._rec_s[rows]
+        RF = np.empty((len(rows), n + 1))
+        RS = np.empty((len(rows), n + 1), dtype=np.uint8)
+        RF[:, 0] = self._F[rec_f]
+        RS[:, 0] = self._S[rec_s]
         if plan not in ("auto", "compiled", "python"):
             raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or python")
         if plan == "compiled" and not self.compiled:
@@ -415,25 +464,37 @@ class Module:
         if plan == "compiled" or (plan == "auto" and self.compiled and (
                 n * len(self.blocks) >= PLAN_MIN_BLOCK_SCANS
                 or is_cached(self._slots, "scans") or is_cached(self._slots, "fused"))):
-            self._run_compiled(n, dt, t, RF, RS, rec_f, rec_s, progress)
+            self._run_compiled(n, dt, T, RF, RS, rec_f, rec_s, progress)
         else:
-            self._run_python(n, dt, t, RF, RS, rec_f, rec_s, progress)
-        values = {names[i]: RF[row] for row, i in enumerate(chosen)}
-        status = {names[i]: RS[row] for row, i in enumerate(chosen)}
-        return SimResult(t=t, values=values, status=status,
+            self._run_python(n, dt, T, RF, RS, rec_f, rec_s, progress)
+        # a record is evidence, and a row may be two signals' record: read-only
+        for array in (T, RF, RS):
+            array.flags.writeable = False
+        values: dict[str, np.ndarray] = {}
+        status: dict[str, np.ndarray] = {}
+        for i, (what, r) in zip(chosen, how, strict=True):
+            if what == "const":
+                values[names[i]] = np.broadcast_to(self._F[self._rec_f[i]], (n,))
+                status[names[i]] = np.broadcast_to(np.uint8(self._S[self._rec_s[i]]), (n,))
+            else:
+                cols = slice(1, n + 1) if what == "row" else slice(0, n)
+                values[names[i]] = RF[r, cols]
+                status[names[i]] = RS[r, cols]
+        return SimResult(t=T[1:], values=values, status=status,
                          kinds={n: self.blocks[n].kind for n in self.order},
                          wires=dict(self.wires))
 
     def _run_python(self, n: int, dt: float, t: np.ndarray, RF: np.ndarray, RS: np.ndarray,
                     rec_f: np.ndarray, rec_s: np.ndarray,
                     progress: Callable[[int, int], None] | None) -> None:
-        """The reference: one :meth:`scan` per scan from Python (interpreted blocks)."""
+        """The reference: one :meth:`scan` per scan from Python (interpreted blocks); scan k
+        recorded in column k + 1 of ``t``, RF and RS."""
         every = max(1, n // 100)
         for k in range(n):
-            t[k] = self.t
+            t[k + 1] = self.t
             self.scan(dt)
-            RF[:, k] = self._F[rec_f]
-            RS[:, k] = self._S[rec_s]
+            RF[:, k + 1] = self._F[rec_f]
+            RS[:, k + 1] = self._S[rec_s]
             if progress is not None and (k % every == 0 or k == n - 1):
                 progress(k + 1, n)
 
@@ -470,7 +531,7 @@ class Module:
                 stop = min(stop, done + max(1, k_event - self.k))
             m = stop - done
             scans(self._F, self._S, dt, self.t, self.k, m, t, RF, RS, rec_f, rec_s,
-                        done)
+                  done + 1)
             self.k += m
             self.t = self.k * dt
             done = stop

@@ -16,7 +16,12 @@ if TYPE_CHECKING:
 @dataclass
 class SimResult:
     """``t`` (s, the time of each scan); ``values["block.port"]`` and ``status["block.port"]``
-    for every input and output of every block; ``kinds`` maps block names to kinds."""
+    for every input and output of every block; ``kinds`` maps block names to kinds.
+
+    From :meth:`Module.run <loopworks.sim.module.Module.run>` the arrays are read-only: a
+    constant input is one value broadcast over the scans, and an input wired to an output
+    shares that output's memory (``Module.record_plan``); copy one (``np.array(a)``) to
+    change it."""
 
     t: np.ndarray
     values: dict[str, np.ndarray]
