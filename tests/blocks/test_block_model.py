@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import zlib
 
 import numpy as np
 import pytest
@@ -458,3 +459,39 @@ def test_a_parameter_the_state_depends_on_cannot_change(
     assert np.array_equal(block.p, before[0]) and np.array_equal(block.x, before[1],
                                                                  equal_nan=True)
     assert block.params == before[2]
+
+
+@pytest.mark.parametrize("kind", sorted(VARIANTS))
+def test_the_keyword_step_equals_the_general_step(kind: str) -> None:
+    """A kind's ``step`` made for its ports (``keyword_step``: the ports as keyword-only
+    parameters, a fast path for up to two floats) does what :meth:`Block.step` does with the
+    same inputs, on a random mix of calls: floats, ints, ``(value, status)`` pairs, codes and
+    names of enumerated inputs, one to four inputs at a time, some in upper case."""
+    rng = np.random.default_rng(zlib.crc32(kind.encode()))
+    params = VARIANTS[kind][-1]
+    fast = loopworks.create_block(kind, **params)
+    slow = loopworks.create_block(kind, **params)
+    assert getattr(type(fast).step, "generated", False) or type(fast).step is not Block.step
+    ports = list(fast.INPUTS)
+    for _ in range(60):
+        chosen = rng.choice(len(ports), size=min(len(ports), int(rng.integers(0, 5))),
+                            replace=False)
+        inputs: dict[str, object] = {}
+        for i in chosen:
+            port = ports[int(i)]
+            name = port.name.upper() if rng.uniform() < 0.1 else port.name
+            if port.choices:
+                code = int(rng.integers(0, len(port.choices)))
+                inputs[name] = port.choices[code] if rng.uniform() < 0.5 else code
+                continue
+            base = port.default if math.isfinite(port.default) else 0.0
+            value = base + float(rng.normal(0.0, 2.0))
+            form = rng.uniform()
+            inputs[name] = (value if form < 0.7 else int(value) if form < 0.8
+                            else loopworks.Signal(value, st.GOOD_NC if form < 0.9 else 0x40))
+        dt = scan_time(params, rng, 0.05, 1.0)
+        a = fast.step(dt, **inputs)
+        b = Block.step(slow, dt, **inputs)
+        np.testing.assert_equal([tuple(a[k]) for k in a], [tuple(b[k]) for k in b],
+                                err_msg=str(inputs))  # NaN equals NaN here
+        np.testing.assert_equal(fast.state_dict(), slow.state_dict(), err_msg=str(inputs))

@@ -78,8 +78,100 @@ _new_outputs = tuple.__new__
 _INF = math.inf
 
 
+_MISSING: Any = object()  # a keyword step()'s default: the input was not given
+
+
+def keyword_step(inputs: Sequence[Port]) -> Any:
+    """A kind's ``step(dt, *, sp=..., pv=..., **other)``: :meth:`Block.step` with the kind's
+    input ports as keyword-only parameters, generated from its ``INPUTS`` (so a call binds
+    them without building a dict of keywords, and ``help(block.step)`` lists them).
+
+    The rule is :meth:`Block.step`'s: up to two plain floats given to non-enumerated ports
+    by their exact names go to the compiled scan in its one call; any other call (an int, a
+    ``(value, status)`` pair, an enumerated input, a third input, a name in another letter
+    case) takes :meth:`Block.step`'s general path with the given inputs in port order, then
+    ``other`` in the order given. Returns None when a port name cannot be a parameter."""
+    import keyword
+
+    names = [port.name for port in inputs]
+    if any(not n.isidentifier() or keyword.iskeyword(n) or n in ("self", "dt", "other")
+           or n.startswith("_") for n in names):
+        return None
+    slow = ("return _general(self, dt, {" + ", ".join(f"{n!r}: {n}" for n in names)
+            + "}, other)")
+    def packed(ia: int, a: str, ib: int, b: str) -> str:
+        return (f"return _new(_Outputs, (self._out_index, self._packed(dt, self._fa, self._sa, "
+                f"{ia}, {a}, {ib}, {b}, self._all_good)))")
+
+    lines = ["def step(self, dt, " + ("*, " if names else "")
+             + "".join(f"{n}=_M, " for n in names) + "**other):",
+             "    if other or not 0.0 < dt < _INF:",
+             f"        {slow}"]
+    # the common call first: only the first two float ports given (or fewer), as floats
+    first = [i for i, port in enumerate(inputs) if not port.choices][:2]
+    if len(first) == 2:
+        (i, m), (k, n) = ((i, names[i]) for i in first)
+        rest = [x for j, x in enumerate(names) if j not in first]
+        lines += ["    if " + " and ".join(f"{x} is _M" for x in rest) + ":" if rest
+                  else "    if True:",
+                  f"        if {m} is _M:",
+                  f"            if {n} is _M:",
+                  f"                {packed(-1, '0.0', -1, '0.0')}",
+                  f"            if {n}.__class__ is float:",
+                  f"                {packed(k, n, -1, '0.0')}",
+                  f"        elif {m}.__class__ is float:",
+                  f"            if {n} is _M:",
+                  f"                {packed(i, m, -1, '0.0')}",
+                  f"            if {n}.__class__ is float:",
+                  f"                {packed(i, m, k, n)}",
+                  f"        {slow}"]
+    lines += ["    ia = ib = -1",
+              "    a = b = 0.0"]
+    for i, port in enumerate(inputs):
+        n = port.name
+        lines += [f"    if {n} is not _M:"]
+        if port.choices:
+            lines += [f"        {slow}"]
+            continue
+        lines += [f"        if {n}.__class__ is not float or ib >= 0:",
+                  f"            {slow}",
+                  "        if ia < 0:",
+                  f"            ia = {i}",
+                  f"            a = {n}",
+                  "        else:",
+                  f"            ib = {i}",
+                  f"            b = {n}"]
+    lines += ["    return _new(_Outputs, (self._out_index, self._packed(",
+              "        dt, self._fa, self._sa, ia, a, ib, b, self._all_good)))"]
+    namespace: dict[str, Any] = {"_M": _MISSING, "_INF": _INF, "_new": _new_outputs,
+                                 "_Outputs": Outputs, "_general": _general_step}
+    exec("\n".join(lines), namespace)  # the source is built above from the port names
+    step = namespace["step"]
+    step.__doc__ = Block.step.__doc__
+    step.__qualname__ = "step"
+    step.generated = True
+    return step
+
+
+def _general_step(block: Block, dt: float, given: Mapping[str, Any],
+                  other: Mapping[str, Any]) -> Outputs:
+    """A keyword step()'s general path: :meth:`Block.step` with the inputs given."""
+    inputs = {name: value for name, value in given.items() if value is not _MISSING}
+    inputs.update(other)
+    return Block.step(block, dt, **inputs)
+
+
 class Block:
-    """Base class of every block kind. Subclasses are registered with ``@register``."""
+    """Base class of every block kind. Subclasses are registered with ``@register``.
+
+    A subclass whose ``step`` is :meth:`Block.step` (it does not write its own) gets the
+    keyword form made for its ``INPUTS`` (:func:`keyword_step`)."""
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if cls.step is Block.step or getattr(cls.step, "generated", False):
+            step = keyword_step(cls.INPUTS)
+            cls.step = step if step is not None else Block.step  # type: ignore[method-assign]
 
     kind: ClassVar[str] = ""
     summary: ClassVar[str] = ""
