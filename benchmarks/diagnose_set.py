@@ -14,6 +14,7 @@ recommendation's simulations), the table of docs/diagnose.md.
 from __future__ import annotations
 
 import argparse
+import math
 import time
 from collections import Counter
 from collections.abc import Callable, Mapping
@@ -25,6 +26,8 @@ from loopworks.analysis.loopdata import LoopData
 from loopworks.analysis.synthetic import SimulatedLoop, make_set
 
 Diagnose = Callable[[LoopData, str], Mapping[str, Any]]
+#: bands of S / (transmitter noise std) the sticky loops are also scored in
+SIGNAL_TO_NOISE = ((0.0, 10.0), (10.0, 30.0), (30.0, 100.0), (100.0, math.inf))
 
 
 def group_of(loop: SimulatedLoop) -> str:
@@ -91,6 +94,14 @@ def evaluate(loops: list[SimulatedLoop], diagnose: Diagnose) -> str:
     for key in sorted({(group_of(x), x.loop_type) for x in loops}):
         part = [(x, v) for x, v in verdicts if (group_of(x), x.loop_type) == key]
         lines.append(f"{key[0] + ', ' + key[1]:<34} {rates(part)}")
+    # the sticky loops by how far the stick band stands above the transmitter noise
+    for lo, hi in SIGNAL_TO_NOISE:
+        part = [(x, v) for x, v in verdicts if x.label == "stiction"
+                and lo <= x.s / max(x.noise, 1e-12) < hi]
+        name = f"sticky, {lo:g} <= S/noise < {hi:g}" if math.isfinite(hi) else (
+            f"sticky, S/noise >= {lo:g}")
+        if part:
+            lines.append(f"{name:<34} {rates(part)}")
     return "\n".join(lines)
 
 

@@ -88,7 +88,8 @@ class SimulatedLoop:
     :func:`karnopp_reversal_band`, its J the nominal one); ``s_nominal``: the S the valve
     was made from (= ``s`` except for a Karnopp valve);
     ``controller``: the controller kind; ``valve``: ``"choudhury"``, ``"karnopp"`` or
-    ``"linear"``; ``seed``: the seed the loop was drawn and simulated from.
+    ``"linear"``; ``seed``: the seed the loop was drawn and simulated from; ``noise``: the
+    transmitter noise's standard deviation, % of span.
     """
 
     data: LoopData
@@ -101,6 +102,7 @@ class SimulatedLoop:
     valve: str
     seed: int
     s_nominal: float = 0.0
+    noise: float = 0.0
 
 
 # ----------------------------------------------------------------------------- tuning
@@ -234,7 +236,7 @@ def simulate_loop(*, loop_type: str = "self-regulating", controller: str = "pid"
     return SimulatedLoop(data=data, label="stiction" if sticky else "no_stiction",
                          loop_type=loop_type, case=case, s=shown if sticky else 0.0,
                          j=j if sticky else 0.0, controller=controller, valve=valve, seed=seed,
-                         s_nominal=s if sticky else 0.0)
+                         s_nominal=s if sticky else 0.0, noise=noise)
 
 
 def karnopp_reversal_band(s: float, j: float) -> float:
