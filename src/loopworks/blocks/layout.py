@@ -114,14 +114,17 @@ def pack(entries: Sequence[Entry], values: Mapping[str, Any], what: str,
     one float64 array. A missing, unknown or wrongly sized entry is a ValueError naming it,
     ``what`` naming the values ("pid: coefficients()", "pid: saved state")."""
     declared = [_name(e) for e in entries]
-    missing = [n for n in declared if n not in values]
-    extra = [n for n in values if n not in declared]
-    if missing or extra:
+    if len(values) != len(declared) or not all(n in values for n in declared):
+        missing = [n for n in declared if n not in values]
+        extra = [n for n in values if n not in declared]
         raise ValueError(f"{what}: {', '.join(sorted(extra)) or 'nothing'} not declared, "
                          f"{', '.join(sorted(missing)) or 'nothing'} missing")
-    parts: list[np.ndarray] = []
-    for entry in entries:
-        value = values[_name(entry)]
+    # the floats in order, an Array's values as one array among them (a scalar layout, the
+    # common case, is one conversion of a list)
+    parts: list[Any] = []
+    arrays = False
+    for entry, name in zip(entries, declared, strict=True):
+        value = values[name]
         if isinstance(entry, Array):
             items = np.asarray(value, dtype=np.float64)
             if items.ndim != 1:
@@ -130,9 +133,12 @@ def pack(entries: Sequence[Entry], values: Mapping[str, Any], what: str,
                 raise ValueError(f"{what}: '{entry.name}' has {len(items)} values, its "
                                  f"declaration {entry.length(params)}")
             parts.append(items)
+            arrays = True
         else:
-            parts.append(np.array([float(value)]))
-    return np.concatenate(parts) if parts else np.zeros(0)
+            parts.append(float(value))
+    if not arrays:
+        return np.array(parts, dtype=np.float64)
+    return np.concatenate([p if isinstance(p, np.ndarray) else np.array([p]) for p in parts])
 
 
 def unpack(entries: Sequence[Entry], flat: Any,

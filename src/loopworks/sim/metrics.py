@@ -180,10 +180,13 @@ def step_metrics(t: np.ndarray, y: np.ndarray, r: float, band: float = 0.02) -> 
 
 def _per_row(f: Any, x: np.ndarray) -> np.ndarray:
     """``f`` (a reduction: np.sum, np.mean, np.std) of each row of ``x`` on its own: a row's
-    figure must not depend on how many rows are reduced with it (numpy sums a 2-D array's
-    rows in another order than a 1-D array), so that an instance's metrics are the same in
-    any batch, in any chunk, on any worker."""
-    return np.fromiter((f(row) for row in x), dtype=np.float64, count=len(x))
+    figure must not depend on how many rows are reduced with it, so that an instance's
+    metrics are the same in any batch, in any chunk, on any worker. numpy reduces the last
+    axis of an array whose rows are contiguous row by row, each as it reduces a 1-D array
+    (pairwise); rows laid out column-major would be summed across rows instead, in another
+    order. So the rows are made contiguous first, and ``tests/sim/test_metrics.py`` checks
+    the figures against each row reduced alone, bit for bit."""
+    return np.asarray(f(np.ascontiguousarray(x), axis=1), dtype=np.float64)
 
 
 def _first(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -224,8 +227,10 @@ def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
     rise[sel] = np.where(has90 & has10, t[i90] - t[i10], nan)
     m = np.maximum(2, (n - start) // 20)  # the tail: the last 5 % of the response, >= 2
     tail = k >= (n - m)[:, None]
-    yinf = np.fromiter((np.mean(row[n - mi:]) for row, mi in zip(y, m, strict=True)),
-                       dtype=np.float64, count=len(y))
+    yinf = np.empty(len(y))
+    for mi in np.unique(m):  # the rows whose tails are as long, at once
+        same = m == mi
+        yinf[same] = _per_row(np.mean, y[same, n - mi:])
     dev = np.abs(y - yinf[:, None])
     settled = ~(tail & (dev > tol[:, None])).any(axis=1) & (np.abs(r - yinf) <= tol)
     peak = np.where(after, (y - yinf[:, None]) * sgn, -math.inf).max(axis=1)
