@@ -118,6 +118,11 @@ MAX_S = 10.0
 REPRODUCE_FACTOR = 10.0
 #: the score a verdict needs (rule 4): one full vote's worth of net evidence
 DECIDE = 1.0
+#: what an estimate of S and J from a record means (docs/diagnose.md, "Why J is not
+#: estimated"): the valve moves on the controller's output at its scan, the record samples it
+SAMPLED = ("S and J are the band and the jump the valve shows to the OP as recorded (every "
+           "{dt:g} s): when the controller scans faster and its OP is noisy, the valve breaks "
+           "away sooner than the record shows, its own S is larger and its J is not known.")
 #: the bicoherence abstains below this many segments: its noise level on Gaussian data is
 #: about 1/K (K segments), so NGI = 0.001 can only separate noise from K ≈ 1000 on; at 100
 #: segments a linear loop's NGI is ≈ 0.01 and is still read as "linear" by the relative rule
@@ -333,7 +338,8 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
         model = model_pv(data, fit)
         stiction = {"s": fit.s, "j": fit.j, "resolution": fit.resolution,
                     "deadband": fit.deadband, "r2": fit.r2, "r2_linear": fit.r2_linear,
-                    "process": dict(fit.process), "reason": fit.reason}
+                    "process": dict(fit.process),
+                    "reason": f"{fit.reason} {SAMPLED.format(dt=data.dt)}"}
         if recommend:
             rec = _recommendation(data, fit, ctl, model, samples)
     return Diagnosis(verdict, confidence, lt, data.source, quality, osc, evidence, score,
