@@ -183,6 +183,30 @@ def retuned_loop() -> Module:
     return pid_fopdt(Event(3.3, "pid.k", 1.0), Event(7.0, "pid.sp", 2.0))
 
 
+def test_a_scan_from_python_is_one_call_of_the_plan(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``Module.scan`` of a compiled module runs its plan's scans entry once (no block binds
+    an entry of its own), with events and a block's input written between scans, and gives
+    the interpreted module's numbers scan by scan."""
+    compiled = retuned_loop()
+    monkeypatch.setenv("LOOPWORKS_JIT", "0")
+    interpreted = retuned_loop()
+    assert compiled.compiled and not interpreted.compiled
+    for k in range(120):
+        if k == 50:  # an operator's output bias, between scans
+            for m in (compiled, interpreted):
+                m.blocks["pid"].set_inputs({"ff": 0.25})
+        for m in (compiled, interpreted):
+            m.scan(0.1)
+        for name in compiled.order:
+            a, b = compiled.blocks[name], interpreted.blocks[name]
+            np.testing.assert_array_equal(a.y, b.y, err_msg=f"{name} at scan {k}")
+            np.testing.assert_array_equal(a.ys, b.ys, err_msg=f"{name} at scan {k}")
+            np.testing.assert_array_equal(a.x, b.x, err_msg=f"{name} at scan {k}")
+    assert compiled.t == interpreted.t and compiled.k == interpreted.k == 120
+    assert compiled._scans is not None and compiled._scans[0] == "scans"
+    assert all(b._run == b._run_first for b in compiled.blocks.values())
+
+
 def test_a_split_compiled_run_equals_one_run() -> None:
     """reset=False continues the plan from the blocks' state (their arrays are views of the
     plan's buffers), and parameter events between chunks take effect at their scan."""

@@ -103,6 +103,8 @@ def test_specs() -> None:
     ("pid.k=normal(1,-1)", "needs s > 0"),
     ("pid.k=uniform(1)", "takes two numbers, got 1"),
     ("pid.k=1,,2", "an empty value"),
+    ("pid.k=1:3", "a range is a:b:n, three parts"),
+    ("pid.k=1:2:3:4", "a range is a:b:n, three parts"),
 ])
 def test_a_bad_spec_is_a_located_error(text: str, message: str) -> None:
     with pytest.raises(InputError, match=re.escape(message)) as err:

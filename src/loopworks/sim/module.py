@@ -52,6 +52,11 @@ PLAN_MIN_BLOCK_SCANS = 20_000
 #: (about a second per kind of block); a shorter run takes ``scans`` (only its glue to
 #: compile) unless the fused plan is already cached
 PLAN_FUSE_BLOCK_SCANS = 1_000_000
+# the record arguments of a one-scan plan call that records nothing (Module.scan)
+_T1 = np.empty(1)
+_NO_F = np.empty((0, 1))
+_NO_S = np.empty((0, 1), dtype=np.uint8)
+_NO_I = np.empty(0, dtype=np.int64)
 
 
 @dataclass(frozen=True)
@@ -397,7 +402,25 @@ class Module:
             self._next_event += 1
 
     def scan(self, dt: float) -> None:
-        """Run every block once, in order, at the module's current time; then advance it."""
+        """Run every block once, in order, at the module's current time; then advance it.
+
+        A compiled module runs the scan as one call of its plan (:meth:`run`'s ``scans``
+        entry, recording nothing), so a scan loop from Python (a relay test, a live
+        controller) loads one compiled plan instead of one entry per block."""
+        if not self.compiled:
+            self._scan_blocks(dt)
+            return
+        self._apply_events(self.t)
+        if self._scans is None:
+            self._scans = ("scans", entry(self._slots, "scans", SCANS_SIGNATURE))
+        self._scans[1](self._F, self._S, dt, self.t, self.k, 1, _T1, _NO_F, _NO_S, _NO_I,
+                       _NO_I, 0)
+        self.k += 1
+        self.t = self.k * dt
+
+    def _scan_blocks(self, dt: float) -> None:
+        """:meth:`scan` block by block from Python (the reference plan): each block
+        interpreted or through its own compiled step."""
         self._apply_events(self.t)
         for name in self.order:
             block = self.blocks[name]
@@ -492,7 +515,7 @@ class Module:
         every = max(1, n // 100)
         for k in range(n):
             t[k + 1] = self.t
-            self.scan(dt)
+            self._scan_blocks(dt)
             RF[:, k + 1] = self._F[rec_f]
             RS[:, k + 1] = self._S[rec_s]
             if progress is not None and (k % every == 0 or k == n - 1):

@@ -153,6 +153,9 @@ def parse_vary(text: str) -> Axis:
         n = int(n_text)
         values = (a,) if n == 1 else tuple(float(v) for v in np.linspace(a, b, n))
         return Axis(name, values=values)
+    if ":" in spec:
+        raise InputError(f"{where}: a range is a:b:n, three parts (n values from a to b), "
+                         f"not '{spec}'")
     items = tuple(_item(p) for p in spec.split(","))
     if any(v == "" for v in items):
         raise InputError(f"{where}: an empty value in the list")
