@@ -88,17 +88,26 @@ def settle_check(block: Block, held: float, dt: float, scale: float, n: int,
     integral to u - P - D - ff - bias and then keeps it within out_lo..out_hi, as simple-pid's
     set_auto_mode does: the output continues from ``held`` while that integral lies within
     the limits, and otherwise from P + clamp(integral) + ff + bias (D is 0 at the return, and
-    the integral does not move at PV = SP), limited, and stays there."""
+    the integral does not move at PV = SP), limited, and stays there. Unless an error gap
+    (``e_deadband`` > 0) holds the output: at PV = SP the error is inside it, so the output
+    stays at ``held`` and nothing is re-initialised (pid docstring, "Dead bands"). A jump to
+    that new output is rate limited: each scan moves at most rate_limit·dt towards it (pid
+    docstring, the effective limits)."""
+    gap = block.params.get("e_deadband", 0.0) > 0.0
+    target = held
+    step = block.params["rate_limit"] * dt
     for k in range(n):
         outputs = block.step(dt, **inputs)
-        if k == 0 and block.params["antiwindup"] == "integral_limits":
+        if k == 0 and block.params["antiwindup"] == "integral_limits" and not gap:
             lo, hi = block.params["out_lo"], block.params["out_hi"]
             p, ff, bias = outputs["p_term"].value, float(inputs["ff"]), block.params["bias"]
             integral = min(max(held - p - ff - bias, lo), hi)
-            held = min(max(p + integral + ff + bias, lo), hi)
+            target = min(max(p + integral + ff + bias, lo), hi)
+        expected = min(max(target, held - step), held + step)
         out = outputs["out"]
-        assert close(out.value, held, scale), (
-            f"scan {k} after the switch: out {out.value} != {held} ({block!r})")
+        assert close(out.value, expected, scale), (
+            f"scan {k} after the switch: out {out.value} != {expected} ({block!r})")
+        held = out.value
 
 
 @given(data=st.data(), mode=st.sampled_from(["AUTO", "CAS"]))
