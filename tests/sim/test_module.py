@@ -159,6 +159,37 @@ def test_to_csv_writes_every_signal(tmp_path: object) -> None:
     assert float(rows[2][col]) == result["process.y"][1]
 
 
+def test_to_csv_is_the_same_text_compiled_and_interpreted(tmp_path: object,
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """SimResult.to_csv formats compiled (floatfmt) or with csv.writer (LOOPWORKS_JIT=0): the
+    same bytes, and every value reads back as the same double, awkward ones included."""
+    import csv
+    from pathlib import Path
+
+    from loopworks.sim.result import SimResult
+
+    rng = np.random.default_rng(7)
+    t = np.arange(6) * 0.1
+    awkward = np.array([0.1, -0.0, np.nan, np.inf, -1e-5, 1.2345678901234567e-308])
+    values = {"a.y": awkward, "b.y": rng.normal(size=6) * 1e6}
+    status = {"a.y": np.array([128, 0, 0x47, 0, 131, 255], dtype=np.uint8),
+              "b.y": np.full(6, 128, dtype=np.uint8)}
+    result = SimResult(t=t, values=values, status=status)
+    texts = []
+    for jit in ("1", "0"):
+        monkeypatch.setenv("LOOPWORKS_JIT", jit)
+        path = Path(str(tmp_path)) / f"run{jit}.csv"
+        result.to_csv(path)
+        texts.append(path.read_bytes())
+    assert texts[0] == texts[1]
+    rows = list(csv.reader(texts[0].decode().splitlines()))
+    assert rows[0] == ["t", "a.y", "b.y", "a.y.ST", "b.y.ST"]
+    got = np.array([[float(v) for v in row[:3]] for row in rows[1:]])
+    np.testing.assert_array_equal(got, np.column_stack([t, awkward, values["b.y"]]))
+    assert [row[1] for row in rows[1:3]] == ["0.1", "-0.0"]
+    assert [int(row[3]) for row in rows[1:]] == [128, 0, 0x47, 0, 131, 255]
+
+
 def test_module_is_exported() -> None:
     assert loopworks.Module is Module
 

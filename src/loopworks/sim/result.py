@@ -140,15 +140,32 @@ class SimResult:
         return pd.DataFrame(data, index=pd.Index(self.t, name="t"))
 
     def to_csv(self, path: str | Path) -> None:
-        """Write ``t``, every signal and its ``.ST`` status column."""
+        """Write ``t``, every signal and its ``.ST`` status column: a value as ``repr`` writes
+        it (it reads back as the same double), a status as an integer. Compiled, the rows are
+        formatted by :func:`loopworks.sim.floatfmt.format_rows` (the same text, bit for bit,
+        as ``csv.writer``); interpreted (``LOOPWORKS_JIT=0``), by ``csv.writer``."""
+        from loopworks.blocks.kernel import jit_enabled
+
+        names = list(self.values)
+        n = len(self.t)
+        t = np.asarray(self.t, dtype=np.float64)
+        values = np.empty((n, len(names)))
+        stats = np.empty((n, len(names)), dtype=np.int64)
+        for j, name in enumerate(names):
+            values[:, j] = self.values[name]
+            stats[:, j] = self.status[name]
         with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            names = list(self.values)
-            w.writerow(["t", *names, *(f"{n}.ST" for n in names)])
-            cols = [self.t, *(self.values[n] for n in names)]
-            stats = [self.status[n] for n in names]
-            for k in range(len(self.t)):
-                w.writerow([*(repr(float(c[k])) for c in cols), *(int(s[k]) for s in stats)])
+            csv.writer(fh, lineterminator="\n").writerow(
+                ["t", *names, *(f"{n}.ST" for n in names)])
+            if jit_enabled() and n > 0:
+                from loopworks.sim.floatfmt import format_rows
+
+                fh.flush()
+                fh.buffer.write(format_rows(t, values, stats).tobytes())
+                return
+            body = np.concatenate([t[:, None], values], axis=1).tolist()
+            csv.writer(fh, lineterminator="\n").writerows(
+                b + s for b, s in zip(body, stats.tolist(), strict=True))
 
     def plot(self, signals: list[str] | None = None, ax: Any = None) -> Any:
         """Plot signals against time; by default one panel per block with its outputs.
