@@ -378,6 +378,18 @@ def test_a_scan_count_that_overflows_is_a_clear_error() -> None:
         closed_loop().run(duration=1e300, dt=1e-300)
 
 
+@pytest.mark.parametrize("duration", [2.0**53 + 4096, 1e308])
+def test_more_scans_than_a_double_counts_exactly_is_a_clear_error(duration: float) -> None:
+    """A finite but huge duration (found by the scenario fuzzer: duration = 1e308 crashed the
+    memory check with an OverflowError) is refused by name before anything is sized; 2**53
+    scans, the most a double counts exactly, is the limit."""
+    from loopworks.sim.module import MAX_SCANS, scan_count
+
+    with pytest.raises(InputError, match=r"duration = .* more scans than can be counted"):
+        closed_loop().run(duration=duration, dt=1.0)
+    assert scan_count(float(MAX_SCANS), 1.0) == MAX_SCANS
+
+
 def test_available_memory_is_a_positive_byte_count() -> None:
     from loopworks.sim.module import available_memory
 

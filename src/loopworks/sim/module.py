@@ -79,17 +79,22 @@ def _codes(choices: tuple[str, ...]) -> str:
     return ", ".join(f"{c} {i}" for i, c in enumerate(choices))
 
 
+#: the most scans a run can have: 2**53, the largest count a double holds exactly (t = k·dt)
+MAX_SCANS = 2**53
+
+
 def scan_count(duration: float, dt: float) -> int:
     """n = round(duration/dt) scans, at t_k = k·dt; InputError unless dt and duration are
-    finite and > 0 and give at least one scan."""
+    finite and > 0 and give at least one scan and at most ``MAX_SCANS``."""
     if not 0.0 < dt < math.inf:
         raise InputError(f"dt = {dt!r} s is not allowed: dt must be > 0 and finite")
     if not 0.0 < duration < math.inf:
         raise InputError(f"duration = {duration!r} s is not allowed: must be > 0 and finite")
     ratio = duration / dt
-    if not math.isfinite(ratio):
+    if not ratio <= MAX_SCANS:
         raise InputError(f"duration = {duration:g} s in scans of dt = {dt:g} s is more scans "
-                         "than can be counted")
+                         f"than can be counted (at most {MAX_SCANS:.4g}: 2**53, where a scan "
+                         "number is still exact as a double)")
     n = round(ratio)
     if n < 1:
         raise InputError(f"duration = {duration:g} s is shorter than one scan of dt = {dt:g} s")
