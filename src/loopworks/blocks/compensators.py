@@ -610,8 +610,8 @@ class TwoMove(Block):
         (target = model: from the initial sp), else NaN (marked Bad by :meth:`reset`)."""
         target = math.nan
         if self.p[TP.model] != 0.0:
-            target = model_target(float(self.u[TU.sp]), self.p[TP.model_bias],
-                                  self.p[TP.model_gain])
+            target = model_target(float(self.u[TU.sp]), float(self.p[TP.model_bias]),
+                                  float(self.p[TP.model_gain]))
         return [pass_through(self.u[TU.op_in]), 0.0, PASS,
                 target if math.isfinite(target) else math.nan]
 
