@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -385,6 +386,42 @@ def test_a_second_process_loads_the_plan(tmp_path: Path) -> None:
     second = run_fresh(env)
     assert second.stdout == first.stdout
     assert sorted(p.name for p in (tmp_path / "plans" / "__pycache__").iterdir()) == made
+
+
+RACE = """
+import sys, time
+from pathlib import Path
+from loopworks.blocks import plan
+from tests.sim.test_plan import doubling_kernel
+slots = plan.layout([(doubling_kernel, 0, 1, 3, 1, True)])
+Path(sys.argv[1]).touch()
+while not Path(sys.argv[2]).exists():
+    time.sleep(0.005)
+disp = plan.entry(slots, "step", plan.step_signature(1))
+print(sum(disp.stats.cache_misses.values()), sum(disp.stats.cache_hits.values()))
+"""
+
+
+def test_two_processes_needing_one_plan_compile_it_once(tmp_path: Path) -> None:
+    """Two processes released at the same instant on an empty cache need the same plan: one
+    compiles it (a cache miss) while the other waits on its lock file and loads the machine
+    code it wrote (a cache hit), instead of both compiling it."""
+    env = {**os.environ, "LOOPWORKS_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+    go = tmp_path / "go"
+    procs = [subprocess.Popen([sys.executable, "-c", RACE, str(tmp_path / f"ready{i}"), str(go)],
+                              env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) for i in range(2)]
+    deadline = time.monotonic() + 300
+    while not all((tmp_path / f"ready{i}").exists() for i in range(2)):
+        assert time.monotonic() < deadline and all(p.poll() is None for p in procs), (
+            [p.communicate() for p in procs])
+        time.sleep(0.01)
+    go.touch()
+    outs = [p.communicate(timeout=600) for p in procs]
+    assert all(p.returncode == 0 for p in procs), outs
+    counts = sorted(tuple(int(v) for v in out.split()) for out, _ in outs)
+    assert counts == [(0, 1), (1, 0)], outs  # (misses, hits): one compiled, one loaded
 
 
 def test_an_unwritable_cache_compiles_in_memory_with_one_warning(tmp_path: Path) -> None:

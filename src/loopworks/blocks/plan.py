@@ -34,7 +34,9 @@ Where the cache lives: ``LOOPWORKS_CACHE_DIR`` if set, else the platform's user 
 directory (``$XDG_CACHE_HOME/loopworks`` or ``~/.cache/loopworks`` on Linux,
 ``~/Library/Caches/loopworks`` on macOS, ``%LOCALAPPDATA%\\loopworks\\Cache`` on Windows). A
 cache that cannot be written falls back to compiling in memory, with one warning line per
-process, never an error.
+process, never an error. Processes that need the same plan at once compile it once: the
+first holds a lock file beside it while it compiles, the others wait and load its machine
+code.
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ import tempfile
 import types
 import warnings
 from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
@@ -511,8 +514,35 @@ def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
             thing = kinds if what == "call" else f"the {what} plan of this module ({kinds})"
             announce(f"compiling {thing} once for this machine (cached in {cache_dir()}; "
                      "later runs load it): this can take a minute")
-        disp.compile(signature)
+        if getattr(mod, "CACHE", False):
+            with _compile_lock(cache_dir() / "plans" / f"{name}.{what}.lock"):
+                disp.compile(signature)  # loads what another process compiled meanwhile
+        else:
+            disp.compile(signature)
     return disp
+
+
+@contextmanager
+def _compile_lock(path: Path) -> Iterator[None]:
+    """An exclusive lock on ``path`` while a plan is compiled into the cache: a process that
+    needs the same plan at the same time (a sweep's workers, a parallel test suite) waits,
+    then loads the machine code the first one wrote instead of compiling it too. POSIX
+    ``flock``, released by the system if the holder dies; where there is none (Windows, a file
+    system without locks) nothing is held and each process compiles, as before."""
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows
+        yield
+        return
+    try:
+        fh = open(path, "a")  # noqa: SIM115 - held open for the lock's lifetime
+    except OSError:
+        yield
+        return
+    with fh:
+        with suppress(OSError):
+            fcntl.flock(fh, fcntl.LOCK_EX)
+        yield
 
 
 _announced = False
