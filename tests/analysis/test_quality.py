@@ -135,6 +135,19 @@ def test_nan_values() -> None:
     assert q.passed and q.nan_fraction == 0.01 and any("10 of 1000" in m for m in q.notes)
 
 
+@pytest.mark.parametrize("value", [np.inf, -np.inf, 1e308, -2e12])
+def test_infinite_and_absurd_values_are_bad_samples(value: float) -> None:
+    """A sample that is infinite or beyond ±1e12 in its units is Bad, as a block's input is
+    (pid docstring, INPUT_LIMIT): counted with the NaNs. 1.5e12 is beyond, 1e12 is not."""
+    sp = np.full(1000, 50.0)
+    sp[::10] = value
+    q = check_quality(loop(sp=sp))
+    assert not q.passed and q.nan_fraction == 0.1
+    assert any("100 of 1000" in r and "SP 100" in r for r in q.reasons), q.reasons
+    sp[::10] = 1e12
+    assert check_quality(loop(sp=sp)).nan_fraction == 0.0
+
+
 def test_sp_moves_are_a_note() -> None:
     sp = np.full(1000, 50.0)
     sp[300:] = 51.0

@@ -72,7 +72,7 @@ from loopworks.analysis.area_ratio import area_ratio
 from loopworks.analysis.bicoherence import bicoherence_test
 from loopworks.analysis.curve_fit import curve_fit_loop
 from loopworks.analysis.horch import horch_test
-from loopworks.analysis.loopdata import LoopData, read_csv
+from loopworks.analysis.loopdata import LoopData, bad, read_csv
 from loopworks.analysis.oscillation import Oscillation, regularity
 from loopworks.analysis.quality import Quality, check_quality
 from loopworks.analysis.seized import CONFIDENCE as SEIZED_CONFIDENCE
@@ -314,6 +314,7 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     lt: LoopType = "integrating" if loop_type == "integrating" else "self-regulating"
     if not isinstance(data, LoopData):
         data = read_csv(data, columns, duplicates="last")
+    data = _bad_as_nan(data)
     quality = check_quality(data)
     seized = seized_valve(data)
     if seized is not None:
@@ -331,8 +332,8 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     evidence.append(_valve_fit_vote(fit))
     verdict, confidence, score, reason = verdict_of(evidence)
     if held:
-        reason += (f"; {held} Bad (NaN or infinite) sample(s) of SP, PV or OP held at the "
-                   "last good value before the tests")
+        reason += (f"; {held} Bad (NaN, infinite or beyond ±1e12) sample(s) of SP, PV or OP "
+                   "held at the last good value before the tests")
     stiction = model = rec = None
     if verdict == "stiction" and fit.ok:
         model = model_pv(data, fit)
@@ -375,6 +376,20 @@ def _hold(x: np.ndarray) -> np.ndarray:
     first = int(np.argmax(good))
     idx[:first] = first
     return np.asarray(x[idx], dtype=np.float64)
+
+
+def _bad_as_nan(data: LoopData) -> LoopData:
+    """The record with every Bad sample of SP, PV, OP and valve position (infinite, or beyond
+    ±1e12: :func:`~loopworks.analysis.loopdata.bad`) as NaN, the reader's Bad value, so the
+    gate counts it and the tests hold it (the caller's record is not changed)."""
+    changes: dict[str, Any] = {}
+    for name in ("sp", "pv", "op", "position"):
+        a = getattr(data, name)
+        if a is not None:
+            marked = bad(a) & ~np.isnan(a)
+            if marked.any():
+                changes[name] = np.where(marked, np.nan, a)
+    return replace(data, **changes) if changes else data
 
 
 def _hold_bad(data: LoopData) -> tuple[LoopData, int]:

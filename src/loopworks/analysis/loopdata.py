@@ -46,6 +46,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from loopworks.blocks.pid import INPUT_LIMIT
 from loopworks.errors import FileFormatError, InputError
 
 FloatArray = npt.NDArray[np.float64]
@@ -140,6 +141,13 @@ class LoopData:
         return LoopData(t=self.t[keep], sp=self.sp[keep], pv=self.pv[keep], op=self.op[keep],
                         position=cut(self.position), mode=cut(self.mode), source=self.source,
                         resampled=self.resampled)
+
+
+def bad(a: FloatArray) -> npt.NDArray[np.bool_]:
+    """True where a sample is Bad: NaN, infinite, or beyond ±INPUT_LIMIT (1e12) in its units,
+    the rule of a block's input (no real measurement is that large; pid docstring), so a
+    test that squares and sums samples never meets one."""
+    return ~(np.abs(a) <= INPUT_LIMIT)
 
 
 def _check_uniform(t: FloatArray) -> None:

@@ -49,7 +49,8 @@ Rules, their thresholds (module constants) and their sources:
   with SP moves is a servo record or a cascade slave (the slave's SP moves every sample); the
   stiction tests then work on the control error e = SP - PV, as Choudhury's method does for
   cascade loops, so refusing it would refuse most flow loops. Engineering judgement.
-* **Bad values** — the fraction of samples with a NaN in SP, PV or OP: above
+* **Bad values** — the fraction of samples with a Bad SP, PV or OP (NaN, infinite, or beyond
+  ±1e12 in its units, the rule of a block's input: :func:`loopdata.bad`): above
   :data:`MAX_NAN_FRACTION` (5 %) fails, any is a note: the spectral and shape tests need
   continuous records, and a few gaps can be bridged, many cannot. Engineering judgement.
 
@@ -63,7 +64,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from loopworks.analysis.loopdata import LoopData
+from loopworks.analysis.loopdata import LoopData, bad
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -161,16 +162,16 @@ def _pct(x: float) -> str:
 
 
 def _nan_check(data: LoopData, reasons: list[str], notes: list[str]) -> float:
-    """The fraction of samples with a NaN in SP, PV or OP; a failure above the limit."""
-    bad = np.isnan(data.sp) | np.isnan(data.pv) | np.isnan(data.op)
-    count = int(bad.sum())
+    """The fraction of samples with a Bad SP, PV or OP (NaN, infinite or beyond ±1e12:
+    :func:`~loopworks.analysis.loopdata.bad`); a failure above the limit."""
+    flags = [(name, bad(a)) for name, a in (("SP", data.sp), ("PV", data.pv), ("OP", data.op))]
+    count = int((flags[0][1] | flags[1][1] | flags[2][1]).sum())
     fraction = count / len(data)
     if not count:
         return 0.0
-    each = ", ".join(f"{name} {int(np.isnan(a).sum())}"
-                     for name, a in (("SP", data.sp), ("PV", data.pv), ("OP", data.op)))
-    text = (f"{count} of {len(data)} samples ({_pct(fraction)}) have a Bad (NaN) SP, PV or OP "
-            f"({each})")
+    each = ", ".join(f"{name} {int(b.sum())}" for name, b in flags)
+    text = (f"{count} of {len(data)} samples ({_pct(fraction)}) have a Bad SP, PV or OP (NaN, "
+            f"infinite or beyond ±1e12; {each})")
     if fraction > MAX_NAN_FRACTION:
         reasons.append(f"{text}: at most {_pct(MAX_NAN_FRACTION)} is allowed")
     else:
