@@ -399,6 +399,38 @@ def test_parameter_errors_name_parameter_value_and_range() -> None:
         loopworks.create_block("process.first_order", time_constant=math.nan)
 
 
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf, "nan", "inf", 1e308])
+def test_a_non_finite_or_huge_integer_parameter_names_itself(value: object) -> None:
+    """An integer parameter given NaN or infinity (a float, or text as a CLI gives it) is out
+    of its range, named, not a ValueError or OverflowError from int() (found by fuzzing)."""
+    with pytest.raises(ParameterError, match=r"'delay_capacity' = .* is out of range: "
+                                             r"allowed \[1, 1e\+07\] integer"):
+        loopworks.create_block("process.fopdt", delay_capacity=value)
+    with pytest.raises(ParameterError, match=r"'max_cycles' = .* is out of range"):
+        loopworks.create_block("relay", max_cycles=value)
+
+
+def test_none_is_a_parameter_not_given() -> None:
+    """None for a parameter means "not given" (found by fuzzing: a None gain reached the
+    coefficients as a TypeError): the declared default, or the derived one."""
+    assert (loopworks.create_block("process.fopdt", gain=None, dead_time=None).params
+            == loopworks.create_block("process.fopdt").params)
+    assert (loopworks.create_block("pid", k=None, ti=None).gains()  # type: ignore[attr-defined]
+            == loopworks.create_block("pid").gains())  # type: ignore[attr-defined]
+
+
+def test_a_dead_time_no_delay_line_holds_is_a_clear_error() -> None:
+    """dead_time/dt beyond the largest delay line (delay_capacity ≤ 1e7), or not even a
+    finite count (1e308 s in scans of 1e-9 s), says so, instead of an OverflowError."""
+    block = loopworks.create_block("process.ipdt", dead_time=1e308, jit=False)
+    for dt in (1.0, 1e-9):
+        with pytest.raises(InputError, match=r"dead_time = 1e\+308 s .* more than the most a "
+                                             r"delay line holds .* longer dt"):
+            block.step(dt)
+    with pytest.raises(InputError, match=r"needs 10 scans .* give delay_capacity ≥ 10"):
+        loopworks.create_block("process.fopdt", dead_time=10.0, delay_capacity=1).step(1.0)
+
+
 def test_parameters_from_strings_as_a_cli_gives_them() -> None:
     pid = loopworks.create_block("pid", k="2", ti="inf", action="DIRECT", out_hi="1e3")
     assert pid.params["ti"] == math.inf

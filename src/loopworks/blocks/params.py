@@ -61,10 +61,11 @@ class Param:
         return text + (" integer" if self.type == "int" else "")
 
     def check(self, value: Any, kind: str = "") -> ParamValue:
-        """Return ``value`` converted to this parameter's type, or raise ParameterError."""
+        """Return ``value`` converted to this parameter's type, or raise ParameterError. None
+        means "not given": the default."""
         where = f"{kind}: " if kind else ""
-        if value is None:
-            return None
+        if value is None:  # not given: the default (None where the block derives it)
+            return self.default
         if self.type == "choice":
             text = str(value).strip().lower()
             if text not in self.choices:
@@ -79,13 +80,13 @@ class Param:
                 raise ParameterError(f"{where}parameter '{self.name}' = {value!r} must be text")
             return value
         x = _to_float(value, self.name, where)
-        if self.type == "int" and x != int(x):
+        if self.type == "int" and math.isfinite(x) and x != int(x):
             raise ParameterError(
                 f"{where}parameter '{self.name}' = {value!r} must be an integer "
                 f"in {self.range_text()}")
         below = x < self.lo or (self.lo_open and x == self.lo)
         above = x > self.hi or (self.hi_open and x == self.hi)
-        if math.isnan(x) or below or above:
+        if math.isnan(x) or below or above or (self.type == "int" and not math.isfinite(x)):
             raise ParameterError(
                 f"{where}parameter '{self.name}' = {_fmt_value(value)} is out of range: "
                 f"allowed {self.range_text()}" + (f" {self.unit}" if self.unit else ""))

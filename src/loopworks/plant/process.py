@@ -581,7 +581,14 @@ class _LineProcess(Block):
         theta = float(self.params["dead_time"])
         cap = int(self.params["delay_capacity"])
         if theta - cap * dt > DELAY_TOL * (theta + dt):
-            need = math.ceil(theta / dt * (1.0 - DELAY_TOL))
+            scans = theta / dt * (1.0 - DELAY_TOL)
+            most = next(p.hi for p in self.PARAMS if p.name == "delay_capacity")
+            if scans > most:  # no delay line holds it (and the count may not be an integer)
+                raise InputError(
+                    f"{self.kind}: dead_time = {theta:g} s at dt = {dt:g} s needs {scans:.4g} "
+                    f"scans of delay line, more than the most a delay line holds "
+                    f"(delay_capacity ≤ {most:g}): give a shorter dead_time or a longer dt")
+            need = math.ceil(scans)
             raise InputError(
                 f"{self.kind}: dead_time = {theta:g} s at dt = {dt:g} s needs {need} scans of "
                 f"delay line, more than delay_capacity = {cap}: give delay_capacity ≥ {need}")
