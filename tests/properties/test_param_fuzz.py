@@ -61,3 +61,40 @@ def test_any_parameter_values_give_a_block_or_a_named_error(
         for name, signal in outputs.items():
             assert math.isfinite(signal.value) or (signal.status & 0xC0) == 0, (
                 f"{kind}.{name} = {signal.value} with status {signal.status:#x}")
+
+
+TEXT_VALUES = ["0", "1", "-1", "1e308", "-1e308", "inf", "-inf", "nan", "", "x", "1e-320",
+               "AUTO", "true", "false", "2", "100", "0.5", "1e12", "ideal", "parallel",
+               "series", "standard", "direct", "reverse", "exact"]
+TARGET_NAMES = ["form", "alpha", "r", "scale", "dd_decay", "throttling_range", "i_tr_normalise",
+                "d_tr_normalise", "arithmetic", "sample_period", "update_interval",
+                "pv_scale_eu_0", "pv_scale_eu_100", "out_scale_eu_100", "b", "c", "spans"]
+
+
+@given(data=st.data())
+def test_any_conversion_gives_settings_or_a_one_line_error(data: st.DataObject) -> None:
+    """``loopworks convert`` as the CLI calls it (every value text): between any two controller
+    kinds, with any source parameters, target settings and sample time, the result is a
+    conversion whose note states no NaN, or one error line (found by fuzzing: target
+    settings read with int() and float(), bool("false"), words of inf, 1/Td of a subnormal
+    Td)."""
+    from loopworks.catalog import controller_kinds
+    from loopworks.tuning.convert import convert
+
+    kinds = controller_kinds()
+    source = data.draw(st.sampled_from(kinds))
+    names = [p.name for p in block_class(source).PARAMS]
+    params = {data.draw(st.sampled_from(names)): data.draw(st.sampled_from(TEXT_VALUES))
+              for _ in range(data.draw(st.integers(0, 4)))}
+    target = {data.draw(st.sampled_from(TARGET_NAMES)): data.draw(st.sampled_from(TEXT_VALUES))
+              for _ in range(data.draw(st.integers(0, 3)))}
+    sample_time = data.draw(st.sampled_from([None, "1", "0.1", "1e-320", "1e308", "0", "x"]))
+    try:
+        out = convert(source, params, data.draw(st.sampled_from(kinds)),
+                      sample_time=sample_time, target=target)  # type: ignore[arg-type]
+    except LoopworksError as exc:
+        assert str(exc).strip() and "\n" not in str(exc).strip(), str(exc)
+        return
+    assert out.note and "nan" not in out.note.lower(), out.note
+    for name, value in out.params.items():
+        assert not (isinstance(value, float) and math.isnan(value)), (name, out.params)

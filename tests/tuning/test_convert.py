@@ -272,3 +272,47 @@ def test_an_unknown_target_is_named_before_the_source_is_read() -> None:
     """An S5 source without its sample time is an error too; the unknown target comes first."""
     with pytest.raises(ParameterError, match="kind 'foo' is not allowed"):
         convert("s5.pid", {"k": 1}, "foo")
+
+
+@pytest.mark.parametrize("text, normalised", [("false", False), ("no", False), ("0", False),
+                                              ("true", True), ("ON", True), (True, True)])
+def test_a_target_flag_given_as_text_means_what_it_says(text: object, normalised: bool) -> None:
+    """``-t i_tr_normalise=false`` from the CLI arrives as the text "false": it means false
+    (it meant true before, bool("false")). E2 ki = Kc·Δ/Ti = 2·1/10 = 0.2 %/EU per update,
+    times TR/100 = 0.5 when normalised (spec 3.3)."""
+    out = convert("pid", {"k": 2.0, "ti": 10.0}, "e2.pid", sample_time=1.0,
+                  target={"i_tr_normalise": text, "throttling_range": 50.0})
+    assert out.params["ki"] == pytest.approx(0.1 if normalised else 0.2, rel=1e-12)
+    assert bool(out.params.get("i_tr_normalise", False)) is normalised
+    with pytest.raises(ParameterError, match=r"'d_tr_normalise' = 'maybe' must be true or false"):
+        convert("pid", {"k": 2.0, "ti": 10.0}, "e2.pid", sample_time=1.0,
+                target={"d_tr_normalise": "maybe"})
+
+
+@pytest.mark.parametrize("to_kind, target, name", [
+    ("s5.pid", {"r": "series"}, "r"), ("s5.pid", {"r": "1e-320"}, "r"),
+    ("s5.pid", {"r": "2.5"}, "r"), ("deltav.pid", {"alpha": "AUTO"}, "alpha"),
+    ("deltav.pid", {"pv_scale_eu_0": "x"}, "pv_scale_eu_0"),
+    ("deltav.pid", {"out_scale_eu_100": "inf"}, "out_scale_eu_100")])
+def test_a_malformed_target_setting_is_named(to_kind: str, target: dict[str, str],
+                                             name: str) -> None:
+    """Target settings from the CLI are text: a malformed one is a ParameterError naming it
+    (found by fuzzing `loopworks convert`: they were ValueErrors from int() and float())."""
+    with pytest.raises(ParameterError, match=rf"'{name}' = "):
+        convert("pid", {"k": 2.0, "ti": 10.0}, to_kind, sample_time=1.0, target=target)
+
+
+def test_settings_beyond_double_precision_are_refused_with_the_values() -> None:
+    """Found by fuzzing `loopworks convert`: a Td of 1e308 s in GE's integer words, a sample
+    time of 1e308 s in the frequency responses, one of 1e-320 s divided into E2's gains. Each
+    is a ParameterError with the values given, not an OverflowError, a "math domain error"
+    or a ZeroDivisionError."""
+    with pytest.raises(ParameterError, match=r"'word7' = inf is out of range: allowed "
+                                             r"0..32767 \(integer word\)"):
+        convert("pid", {"k": 1.0, "td": 1e308}, "ge.pid_isa", sample_time=1.0)
+    with pytest.raises(ParameterError, match=r"beyond what the conversion can compute .*"
+                                             r"sample_time = 1e\+308"):
+        convert("deltav.pid", {"rate": 0.5}, "s5.pid", sample_time=1e308)
+    with pytest.raises(ParameterError, match=r"beyond what the conversion can compute .*"
+                                             r"sample_time = 1e-320"):
+        convert("e2.pid", {}, "e2.pid", sample_time=1e-320)

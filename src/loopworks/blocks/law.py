@@ -96,6 +96,15 @@ def number(name: str, value: Any, lo: float = 0.0, *, lo_open: bool = True,
     return x
 
 
+def flag(name: str, value: Any, kind: str = "convert") -> bool:
+    """``value`` as true or false as a parameter takes it (a bool, 0 or 1, or the words
+    true/false, yes/no, on/off, 1/0 in any case: a CLI's text), or a ParameterError naming
+    ``name`` (``bool("false")`` would be True)."""
+    from loopworks.blocks.params import Param
+
+    return bool(Param(name, False, type="bool").check(value, kind))
+
+
 def span(ctx: Mapping[str, Any], name: str, default: float, kind: str) -> float:
     """A span from the context (port units of 100 %), ``default`` when not given."""
     return number(name, ctx.get(name, default), kind=kind)
@@ -103,10 +112,11 @@ def span(ctx: Mapping[str, Any], name: str, default: float, kind: str) -> float:
 
 def word(name: str, value: float, kind: str, hi: float = 32767.0) -> int:
     """``abs(value)`` rounded half up to an integer word, at most ``hi``."""
-    w = math.floor(abs(value) + 0.5)
-    if w > hi:
-        raise ParameterError(f"{kind}: parameter '{name}' = {w} is out of range: allowed "
+    if not abs(value) + 0.5 < hi + 1.0:  # also inf and NaN: no word holds them
+        w = math.floor(abs(value) + 0.5) if math.isfinite(value) else value
+        raise ParameterError(f"{kind}: parameter '{name}' = {w:g} is out of range: allowed "
                              f"0..{hi:g} (integer word)")
+    w = math.floor(abs(value) + 0.5)
     return int(w)
 
 

@@ -54,16 +54,17 @@ for the typical causes the term bound:
 from __future__ import annotations
 
 import cmath
+import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, TypeVar
 
 from loopworks.blocks.controller import Controller
 from loopworks.blocks.forms import ideal_to_parallel
 from loopworks.blocks.law import TOL, DiscreteLaw, Ideal, ParamValue, number
 from loopworks.catalog import block_class, controller_kinds, create_block
-from loopworks.errors import ParameterError
+from loopworks.errors import LoopworksError, ParameterError
 
 KINDS: tuple[str, ...] = tuple(controller_kinds())  # the controller kinds, sorted
 
@@ -203,7 +204,7 @@ def _compare(src: DiscreteLaw, tgt: DiscreteLaw) -> tuple[bool, list[str]]:
             else "the target's parameter ranges"
         why.append(f"Largest relative parameter change from {cause}: {moved[name]:.3g} "
                    f"({name}).")
-    if has_d and errs.get("Tf", 0.0) > TOL and s.td > 0.0:
+    if has_d and errs.get("Tf", 0.0) > TOL and s.td > 0.0 and math.isfinite(1.0 / s.td):
         w = 1.0 / s.td
         e = abs(1.0 / complex(1.0, w * t.tf) - 1.0 / complex(1.0, w * s.tf))
         why.append(f"Derivative filter Tf = {s.tf:g} s in the source, {t.tf:g} s in the "
@@ -248,7 +249,8 @@ def _compare(src: DiscreteLaw, tgt: DiscreteLaw) -> tuple[bool, list[str]]:
             else f"{e:.3g} (P only, any ω)" for label, w, e in errors]
     where = f"discrete, Δ = {dt:g} s" if dt is not None else "continuous, no Δ given"
     why.append("Controller frequency-response error |C_t - C_s|/|C_s| "
-               f"({where}): " + "; ".join(text) + ".")
+               f"({where}): " + ("; ".join(text) if text else "not computable in double "
+                                 "precision at these settings") + ".")
     return False, why
 
 
@@ -260,14 +262,15 @@ def _response_errors(src: DiscreteLaw, tgt: DiscreteLaw, dt: float | None
     found: list[tuple[str, float | None, float]] = []
     for label, w in (("1/Ti", 1.0 / s.ti if s.ti < math.inf else 0.0),
                      ("1/Td", 1.0 / s.td if s.td > 0.0 else 0.0)):
-        if w > 0.0:
+        if 0.0 < w < math.inf:  # (a subnormal Td: 1/Td overflows, no frequency to state)
             cs = _response(src, w, src.dt if src.dt is not None else dt)
             ct = _response(tgt, w, tgt.dt if tgt.dt is not None else dt)
             found.append((label, w, abs(ct - cs) / abs(cs)))
     if not found:
         cs, ct = _response(src, 1.0, None), _response(tgt, 1.0, None)
         found.append(("", None, abs(ct - cs) / abs(cs)))
-    return found
+    # a response of subnormal times (Δ, Ti of 1e-320 s) can be 0/0: no figure, not a NaN
+    return [(label, w, e) for label, w, e in found if math.isfinite(e)]
 
 
 def _rect(ti: float, dt: float) -> str:
@@ -290,6 +293,32 @@ def _note(parts: list[str] | tuple[str, ...], exact: bool) -> str:
     return " ".join([head, *parts])
 
 
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _computable(fn: F) -> F:
+    """A conversion whose arithmetic leaves double precision (a Td of 1e308 s in integer
+    words, a sample time of 1e-320 s divided into a gain, a phase of 1e308 rad) is refused as
+    a ParameterError that shows the values given, not an OverflowError, ZeroDivisionError or
+    "math domain error" from deep inside it."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        try:
+            return fn(*args, **kwargs)
+        except LoopworksError:
+            raise
+        except (ArithmeticError, ValueError) as exc:
+            given = ", ".join([*(repr(a) for a in args),
+                               *(f"{k} = {v!r}" for k, v in kwargs.items() if v is not None)])
+            raise ParameterError(f"{fn.__name__}: these settings are beyond what the "
+                                 f"conversion can compute in double precision ({exc}): "
+                                 f"{given}") from None
+
+    return wrapper  # type: ignore[return-value]
+
+
+@_computable
 def to_ideal(kind: str, params: Mapping[str, Any], *, sample_time: float | None = None,
              context: Mapping[str, Any] | None = None) -> tuple[Ideal, bool, str]:
     """The normalised ideal settings of a ``kind`` block with ``params``; ``exact`` is True
@@ -320,6 +349,7 @@ def _from_law(kind: str, law: DiscreteLaw, dt: float | None, ctx: dict[str, Any]
                       ideal=law.ideal, response_errors=errors)
 
 
+@_computable
 def from_ideal(kind: str, ideal: Ideal, *, sample_time: float | None = None,
                context: Mapping[str, Any] | None = None) -> Conversion:
     """Parameters of a ``kind`` block realising ``ideal`` (normalised %/%, the generic pid's
@@ -332,6 +362,7 @@ def from_ideal(kind: str, ideal: Ideal, *, sample_time: float | None = None,
     return _from_law(kind, _canonical(ideal, dt, ctx), dt, ctx)
 
 
+@_computable
 def convert(from_kind: str, params: Mapping[str, Any], to_kind: str, *,
             sample_time: float | None = None,
             target: Mapping[str, Any] | None = None) -> Conversion:
@@ -347,6 +378,7 @@ def convert(from_kind: str, params: Mapping[str, Any], to_kind: str, *,
     return _from_law(to_kind, law, dt, ctx)
 
 
+@_computable
 def from_loop_units(kind: str, kc: float, ti: float, td: float, *, direct: bool = False,
                     sample_time: float | None = None,
                     context: Mapping[str, Any] | None = None) -> Conversion:

@@ -184,6 +184,7 @@ from loopworks.blocks.law import (
     Ideal,
     ParamValue,
     Realisation,
+    flag,
     no_ideal,
     number,
     span,
@@ -551,8 +552,8 @@ class E2PID(Controller, Block):
         else:
             kp = 1.0
             tr = 100.0 / kc_port
-        i_norm = bool(context.get("i_tr_normalise", False))
-        d_norm = bool(context.get("d_tr_normalise", False))
+        i_norm = flag("i_tr_normalise", context.get("i_tr_normalise", False), kind)
+        d_norm = flag("d_tr_normalise", context.get("d_tr_normalise", False), kind)
         ki = kc_port / ideal.ti * step if ideal.ti < math.inf else 0.0
         kd = kc_port * ideal.td / step
         if i_norm:

@@ -650,9 +650,10 @@ class S5PID(Controller, Block):
         scale = SCALES[scale_name]
         d = number("dd_decay", context.get("dd_decay", 0.5), 0.0, lo_open=False, kind=kind)
         kc = ideal.kc * out_span / pv_span
-        r_word = int(context["r"]) if "r" in context else int(scale)
-        if not 0 < r_word <= 32767:
-            raise ParameterError(f"s5.pid: parameter 'r' = {r_word} is out of range: allowed "
+        r_given = number("r", context["r"], kind=kind) if "r" in context else scale
+        r_word = int(r_given)
+        if not 0 < r_word <= 32767 or r_word != r_given:
+            raise ParameterError(f"s5.pid: parameter 'r' = {r_given:g} is out of range: allowed "
                                  "1..32767 (integer word)")
         r = r_word / scale
         big_k = kc / r

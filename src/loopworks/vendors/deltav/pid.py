@@ -245,7 +245,7 @@ from loopworks.blocks.block import Block
 from loopworks.blocks.controller import Action, Controller, Handover, Roles
 from loopworks.blocks.forms import ideal_to_series, series_to_ideal
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
-from loopworks.blocks.law import DiscreteLaw, Ideal, ParamValue, Realisation
+from loopworks.blocks.law import DiscreteLaw, Ideal, ParamValue, Realisation, number
 from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port, validate
 from loopworks.blocks.primitives import clamp, finite, lag_step
@@ -890,8 +890,10 @@ class DeltaVPID(Controller, Block):
         """The PV_SCALE and OUT_SCALE spans (EU of 100 %; default 100, 100), spec 4.1."""
         spans = []
         for scale in ("pv_scale", "out_scale"):
-            e0 = float(context.get(f"{scale}_eu_0", 0.0))
-            e100 = float(context.get(f"{scale}_eu_100", 100.0))
+            e0 = number(f"{scale}_eu_0", context.get(f"{scale}_eu_0", 0.0), -math.inf,
+                        kind=cls.kind)
+            e100 = number(f"{scale}_eu_100", context.get(f"{scale}_eu_100", 100.0), -math.inf,
+                          kind=cls.kind)
             if not e100 > e0:
                 raise ParameterError(f"{cls.kind}: parameter '{scale}_eu_100' = {e100:g} must "
                                      f"be greater than {scale}_eu_0 = {e0:g}")
@@ -960,7 +962,7 @@ class DeltaVPID(Controller, Block):
         ideal, b, c = law.ideal, law.b, law.c
         form = str(context.get("form", "standard")).lower()
         if "alpha" in context:
-            alpha = float(context["alpha"])
+            alpha = number("alpha", context["alpha"], kind=cls.kind)
         elif ideal.td > 0.0 and ideal.tf > 0.0:
             alpha = min(max(ideal.tf / ideal.td, 0.05), 1.0)
         else:
