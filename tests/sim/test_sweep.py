@@ -129,6 +129,15 @@ def test_design_is_grid_times_samples() -> None:
     assert design(axes, 4, seed=4) != points
 
 
+def test_any_integer_is_a_seed() -> None:
+    """A scenario's seed may be negative (simulate takes it, mix_seed works modulo 2**64), so
+    a sweep's may be too: it was a ValueError from numpy's generator (found by fuzzing)."""
+    axes = [parse_vary("c.z=uniform(0,1)")]
+    assert design(axes, 4, seed=-1) == design(axes, 4, seed=2**64 - 1)
+    assert design(axes, 4, seed=-1) != design(axes, 4, seed=1)
+    assert len(design(axes, 4, seed=2**70)) == 4
+
+
 # -- against simulate --------------------------------------------------------------------------
 def _simulate_metrics(tmp: Path, text: str, values: dict[str, float], seed: int,
                       variant: str) -> dict[str, float]:

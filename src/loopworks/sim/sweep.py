@@ -180,7 +180,9 @@ def design(axes: Sequence[Axis], samples: int, seed: int) -> list[dict[str, Valu
         raise InputError(f"--samples {samples}: the distributions need at least 1 sample")
     draws: list[dict[str, Value]] = [{}]
     if dist_axes:
-        u = latin_hypercube(samples, len(dist_axes), np.random.default_rng(seed))
+        # any integer is a seed (a scenario's may be negative): modulo 2**64, as mix_seed
+        # takes it, numpy's generator needs one >= 0
+        u = latin_hypercube(samples, len(dist_axes), np.random.default_rng(seed % 2**64))
         draws = [{a.name: a.at(float(u[i, j])) for j, a in enumerate(dist_axes)}
                  for i in range(samples)]
     points: list[dict[str, Value]] = []
