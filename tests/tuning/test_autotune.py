@@ -224,3 +224,17 @@ def test_tune_without_loop_runs_the_scenarios_own_test() -> None:
     assert data["process_gain"] == pytest.approx(at["process_gain"], rel=1e-9)
     # the relay oscillated under the PID's reverse action: the settings keep it
     assert data["settings"]["direct_acting"] is False
+
+
+@pytest.mark.parametrize("start, message", [
+    (1e308, r"start = 1e\+308 s in scans of dt = .* more scans than can be counted"),
+    (1e14, r"start = 1e\+14 s in scans of dt = .* needs about .* of memory .* shorter start")])
+def test_a_relay_start_beyond_any_run_is_a_clear_error(start: float, message: str) -> None:
+    """Found by fuzzing `loopworks tune`: --start 1e308 was an OverflowError from round(), and
+    a start of 1e14 s would have asked numpy for 1.6 PB for the settling's PV record."""
+    from loopworks.errors import InputError
+    from loopworks.sim.tune import check_relay_test
+
+    sc = parse_scenario(LOOP)
+    with pytest.raises(InputError, match=message):
+        check_relay_test(sc.module, "pid", sc.dt, start=start)

@@ -121,9 +121,11 @@ def _gb(n: float) -> str:
     return f"{n / 1e9:.3g} GB" if n >= 1e9 else f"{n / 1e6:.3g} MB"
 
 
-def check_record_size(need: int, duration: float, dt: float, n: int) -> None:
+def check_record_size(need: int, duration: float, dt: float, n: int,
+                      what: str = "duration") -> None:
     """InputError when a run's record of ``need`` bytes (``n`` scans) would not fit: beyond
-    the available memory, or beyond RECORD_CAP when that is unknown."""
+    the available memory, or beyond RECORD_CAP when that is unknown. ``what`` names the
+    length in the message (``duration``; a relay test's ``start``)."""
     if need <= 2**26:  # 64 MB fits anywhere this runs; skip reading the system's figure
         return
     avail = available_memory()
@@ -132,8 +134,8 @@ def check_record_size(need: int, duration: float, dt: float, n: int) -> None:
         have = ("the record cap of " + _gb(RECORD_CAP) if avail is None
                 else f"{_gb(avail)} is available")
         raise InputError(
-            f"duration = {duration:g} s in scans of dt = {dt:g} s is {n:.4g} scans; recording "
-            f"them needs about {_gb(need)} of memory and {have}: use a shorter duration or a "
+            f"{what} = {duration:g} s in scans of dt = {dt:g} s is {n:.4g} scans; recording "
+            f"them needs about {_gb(need)} of memory and {have}: use a shorter {what} or a "
             "longer dt")
 
 
