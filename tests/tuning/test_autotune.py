@@ -238,3 +238,56 @@ def test_a_relay_start_beyond_any_run_is_a_clear_error(start: float, message: st
     sc = parse_scenario(LOOP)
     with pytest.raises(InputError, match=message):
         check_relay_test(sc.module, "pid", sc.dt, start=start)
+
+
+FOPDT_LOOP = """
+[simulation]
+dt = 0.5
+duration = 20
+
+[blocks.pid]
+kind = "pid"
+k = 2.0
+ti = 10.0
+sp = 1.0
+
+[blocks.process]
+kind = "{kind}"
+gain = {gain}
+{extra}
+dead_time = 2.0
+
+[wires]
+"process.u" = "pid.out"
+"pid.pv" = "process.y"
+"""
+
+
+@pytest.mark.parametrize("kind, gain, extra, expected", [
+    ("process.fopdt", 1.0, "time_constant = 10.0", "self_regulating"),
+    ("process.ipdt", 0.1, "y0 = 1.0\nu0 = 50.0", "integrating")])
+def test_a_lag_dominant_fopdt_in_slow_scans_is_not_taken_for_an_integrator(
+        tmp_path: Path, kind: str, gain: float, extra: str, expected: str) -> None:
+    """K = 1, T = 10 s, L = 2 s (spec 3.2's plant) in 0.5 s scans, `loopworks tune` with its
+    defaults: the half periods are whole scans, so the biased stage moves the mean input by
+    0.3 % of d, under the 1 % the auto rule asked, and the plant was called integrating
+    (AMIGO's integrating settings for a self-regulating loop). Its ΔPV/Δu is K = 1 (K·Ku = 11):
+    self-regulating, K within 2 %; an integrator (Kv = 0.1, L = 2 s) in the same scans stays
+    one."""
+    from typer.testing import CliRunner
+
+    from loopworks.cli import app
+
+    path = tmp_path / "loop.toml"
+    text = FOPDT_LOOP.format(kind=kind, gain=gain, extra=extra)
+    if kind == "process.ipdt":
+        text = text.replace("sp = 1.0", "sp = 1.0\nbias = 50.0")
+    path.write_text(text)
+    done = CliRunner().invoke(app, ["tune", str(path), "--loop", "pid", "--json"])
+    assert done.exit_code == 0, done.output
+    data = json.loads(done.stdout)
+    assert data["process_type"] == expected
+    if expected == "self_regulating":
+        assert data["process_gain"] == pytest.approx(1.0, rel=0.02)
+    else:
+        assert data["integrating_gain"] == pytest.approx(0.1, rel=0.3)
