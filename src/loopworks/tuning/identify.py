@@ -98,12 +98,6 @@ amplitudes); y below is (PV - c), negated for direct action.
 
 Integrating plants (``process = "integrating"``, or ``auto`` when a biased relay's mean output
 equals u0, 3.2): ``a = ε + Kv·d·L`` gives Kv = (a - ε)/(d·L); there is no static gain.
-``auto`` decides by :func:`process_kind`: an integrator holds the same mean input in both
-stages, a self-regulating plant moves it by ΔPV/K; a move of 1 % of d or more is
-self-regulating, and so is a smaller one whose static gain ΔPV/Δu has the loop's sign and
-K·Ku ≤ ``MAX_GAIN_KU`` (a lag-dominant plant under a slow scan, whose half periods are whole
-scans, moves it by less than 1 %: K = 1, T = 10 s, L = 2 s in 0.5 s scans by 0.3 %; an
-integrator's ΔPV/Δu is unbounded).
 
 Refusals (:class:`IdentificationRefused`, an InputError: one line, never settings). A record
 the formulas above cannot be applied to is refused with its reason:
@@ -146,11 +140,6 @@ import numpy as np
 from loopworks.blocks.relay import MIN_CYCLE_SCANS
 from loopworks.errors import InputError, ParameterError
 from loopworks.tuning.settings import ProcessData
-
-#: an apparent static gain of this many 1/Ku or more is taken as integrating: a lag process
-#: has |G(0)| ≥ |G(jωu)| = 1/Ku, and a FOPDT reaches K·Ku = 50 near T = 30·L, far past the
-#: T > 8·L at which SIMC (Skogestad 2003) already tunes a FOPDT as an integrator
-MAX_GAIN_KU = 50.0
 
 KU_CONVENTIONS = ("hysteresis_corrected", "describing_function", "harmonic")
 AMPLITUDE_ESTIMATES = ("peaks", "harmonic")
@@ -550,8 +539,7 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
             mean_du, mean_dy = means_bia.u - means_sym.u, means_bia.pv - means_sym.pv
             du_cyc, dy_cyc = means_bia.u_cycles - means_sym.u, means_bia.pv_cycles - means_sym.pv
         if process == "auto":
-            kind = process_kind(mean_du, mean_dy, max(d_up, d_down), ku,
-                                test.action == "direct")
+            kind = "integrating" if abs(mean_du) < 0.01 * max(d_up, d_down) else "self_regulating"
         if kind == "self_regulating":
             k_static = mean_dy / mean_du
             with np.errstate(divide="ignore", invalid="ignore"):
@@ -708,20 +696,6 @@ def _or_nan(estimate: Callable[[], tuple[float, float]]) -> tuple[float, float]:
         return estimate()
     except InputError:
         return math.nan, math.nan
-
-
-def process_kind(mean_du: float, mean_dy: float, d: float, ku: float, direct: bool) -> str:
-    """"integrating" or "self_regulating" from the change of the whole-cycle means of the input
-    and the PV between the two stages (module docstring); ``d`` the larger relay amplitude,
-    ``ku`` the ultimate gain, ``direct`` the loop's action (under reverse action a static gain
-    is positive)."""
-    if abs(mean_du) >= 0.01 * d:
-        return "self_regulating"
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gain = mean_dy / mean_du if mean_du != 0.0 else math.inf
-    if math.isfinite(gain) and (gain > 0.0) != direct and abs(gain) * ku <= MAX_GAIN_KU:
-        return "self_regulating"
-    return "integrating"
 
 
 def fopdt_from_ultimate(ku: float, pu: float, dead_time: float) -> tuple[float, float]:
