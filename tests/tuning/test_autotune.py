@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -238,3 +239,51 @@ def test_a_relay_start_beyond_any_run_is_a_clear_error(start: float, message: st
     sc = parse_scenario(LOOP)
     with pytest.raises(InputError, match=message):
         check_relay_test(sc.module, "pid", sc.dt, start=start)
+
+
+CLIPPED_LOOP = """
+[simulation]
+dt = 0.5
+duration = 20
+
+[blocks.pid]
+kind = "pid"
+k = 2.0
+ti = 10.0
+sp = {sp}
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 10.0
+dead_time = 2.0
+
+[wires]
+"process.u" = "pid.out"
+"pid.pv" = "process.y"
+"""
+
+
+def test_a_relay_the_output_limits_would_clip_is_refused(tmp_path: Path) -> None:
+    """SP = 1 on K = 1 settles the output at 1 %, and the default relay (d = 5 % of 0..100)
+    would swing it to -4 %: clipped at 0, both stages hit the same low level, the stage means
+    barely differ, and the plant came out "integrating" (found while fuzzing tune). The
+    clip is refused before the test, with the amplitude that fits; SP = 50 runs, and spec
+    3.2's plant reads K = 1 and T = 10 s."""
+    from typer.testing import CliRunner
+
+    from loopworks.cli import app
+
+    path = tmp_path / "loop.toml"
+    path.write_text(CLIPPED_LOOP.format(sp=1.0))
+    done = CliRunner().invoke(app, ["tune", str(path), "--loop", "pid"])
+    assert done.exit_code == 2
+    assert re.search(r"levels u0 ± d = -4 \.\. 6 .* pass the controller's output limits "
+                     r"0 \.\. 100, .* --amplitude 1 or less", done.output, re.S), done.output
+    path.write_text(CLIPPED_LOOP.format(sp=50.0))
+    done = CliRunner().invoke(app, ["tune", str(path), "--loop", "pid", "--json"])
+    assert done.exit_code == 0, done.output
+    data = json.loads(done.stdout)
+    assert data["process_type"] == "self_regulating"
+    assert data["process_gain"] == pytest.approx(1.0, rel=0.02)
+    assert data["time_constant"] == pytest.approx(10.0, rel=0.05)

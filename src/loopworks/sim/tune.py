@@ -227,6 +227,7 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
     noise = float(np.std(np.diff(tail, 2)) / math.sqrt(6.0)) if len(tail) > 3 else 0.0
     eps = 3.0 * noise if hysteresis is None else float(hysteresis)
     relay_params["hysteresis"] = eps
+    _check_levels(loop, float(ctrl.y[ctrl._out_index[out_port]]), relay_params)
 
     # splice the relay in
     relay = Relay(**relay_params)
@@ -322,6 +323,24 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
                                f"{run.t[-1] - start if len(run.t) else 0.0:.0f} s and gives no "
                                f"identification: {run.refusal}", run)
     return run
+
+
+def _check_levels(loop: str, u0: float, relay: dict[str, Any]) -> None:
+    """InputError when the relay's levels around the settled output ``u0``, u0 + d and
+    u0 - d (the symmetric stage; the biased one moves down by d_down ≤ d), pass the
+    controller's output limits: the limits would clip the relay, and a clipped relay is not
+    the ±d relay whose cycle the identification reads (spec 3.1-3.3; its stage means, K and
+    the process type come out wrong)."""
+    d, lo, hi = float(relay["amplitude"]), float(relay["out_lo"]), float(relay["out_hi"])
+    if u0 - d >= lo and u0 + d <= hi:
+        return
+    room = max(0.0, min(u0 - lo, hi - u0))
+    raise InputError(
+        f"the relay test on '{loop}': its levels u0 ± d = {u0 - d:.4g} .. {u0 + d:.4g} (the "
+        f"output {u0:.4g} at the start, d = {d:.4g}) pass the controller's output limits "
+        f"{lo:g} .. {hi:g}, which would clip the relay and spoil the identification: give "
+        + (f"--amplitude {room:.3g} or less" if room > 0.0 else "an operating point off the "
+           "limit") + " (or move the operating point away from the limit)")
 
 
 def _read(module: Module, ref: str) -> float:
