@@ -20,6 +20,7 @@ from hypothesis import strategies as st
 from loopworks.analysis.diagnosis import diagnose
 from loopworks.analysis.loopdata import read_csv
 from loopworks.errors import LoopworksError
+from tests.properties.csv_mutations import EDITS, mutate
 
 
 def _base(n: int, stamps: bool) -> list[list[str]]:
@@ -43,48 +44,17 @@ CELLS = ["", " ", "nan", "NaN", "inf", "-inf", "1e308", "-1e999", "x", "auto", "
 READABLE = ["", "nan", "1e308", "-1e308", "0", "-5", "1e-320", "1e12", "50", "50.000001"]
 
 
+HEADERS = ["t", "timestamp", "sv", "PV", "mv", "valve", "mode", "", "op", "pv", "x"]
+
+
 def _mutate(draw: st.DrawFn, rows: list[list[str]]) -> str:
     """Up to six edits; a file drawn ``readable`` only gets edits that keep it readable
-    (values, missing cells, repeated and dropped rows), so the methods run on it."""
-    readable = draw(st.booleans())
-    for _ in range(draw(st.integers(1, 6))):
-        op = draw(st.sampled_from(["values", "dup_line", "drop_line"] if readable else
-                                  ["cell", "drop_cell", "add_cell", "dup_line", "drop_line",
-                                   "header", "swap", "column", "values"]))
-        r = draw(st.integers(0, len(rows) - 1))
-        row = rows[r]
-        if op == "cell" and row:
-            row[draw(st.integers(0, len(row) - 1))] = draw(st.sampled_from(CELLS)
-                                                           | st.text(max_size=6))
-        elif op == "drop_cell" and row:
-            row.pop(draw(st.integers(0, len(row) - 1)))
-        elif op == "add_cell":
-            row.append(draw(st.sampled_from(CELLS)))
-        elif op == "dup_line":
-            rows.insert(r, list(row))
-        elif op == "drop_line" and len(rows) > 1:
-            rows.pop(r)
-        elif op == "header":
-            rows[0][draw(st.integers(0, len(rows[0]) - 1))] = draw(st.sampled_from(
-                ["t", "timestamp", "sv", "PV", "mv", "valve", "mode", "", "op", "pv", "x"]))
-        elif op == "swap" and len(rows) > 2:
-            a, b = draw(st.integers(1, len(rows) - 1)), draw(st.integers(1, len(rows) - 1))
-            rows[a], rows[b] = rows[b], rows[a]
-        elif op == "column":  # one column set to one value over a stretch of rows
-            j = draw(st.integers(0, len(rows[0]) - 1))
-            start = draw(st.integers(1, len(rows) - 1))
-            value = draw(st.sampled_from(CELLS))
-            for line in rows[start:start + draw(st.integers(1, 200))]:
-                if j < len(line):
-                    line[j] = value
-        elif op == "values":  # readable values over a stretch of one data column
-            j = draw(st.integers(1, len(rows[0]) - 2))
-            start = draw(st.integers(1, len(rows) - 1))
-            value = draw(st.sampled_from(READABLE))
-            for line in rows[start:start + draw(st.integers(1, 400))]:
-                if j < len(line):
-                    line[j] = value
-    return "\n".join(",".join(row) for row in rows) + "\n"
+    (readable values over stretches of a data column, repeated and dropped rows), so the
+    methods run on it."""
+    if draw(st.booleans()):
+        return mutate(draw, rows, cells=READABLE, headers=HEADERS, stretch=400,
+                      first_column=1, edits=("column", "dup_line", "drop_line"))
+    return mutate(draw, rows, cells=CELLS, headers=HEADERS, edits=EDITS)
 
 
 @st.composite

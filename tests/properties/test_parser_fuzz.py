@@ -22,6 +22,7 @@ import loopworks
 from loopworks.errors import LoopworksError
 from loopworks.sim.replay import replay
 from loopworks.sim.scenario import parse_scenario
+from tests.properties.csv_mutations import mutate
 
 EXAMPLES = sorted((Path(__file__).parents[2] / "examples").glob("*.toml"))
 
@@ -39,30 +40,9 @@ def _located(message: str) -> bool:
 
 @st.composite
 def mutated_csv(draw: st.DrawFn) -> str:
-    lines = [line.split(",") for line in VALID_CSV.strip().split("\n")]
-    for _ in range(draw(st.integers(1, 6))):
-        op = draw(st.sampled_from(["cell", "drop_cell", "add_cell", "dup_line", "drop_line",
-                                   "header", "swap"]))
-        r = draw(st.integers(0, len(lines) - 1))
-        row = lines[r]
-        if op == "cell" and row:
-            row[draw(st.integers(0, len(row) - 1))] = draw(st.sampled_from(CELLS) | st.text(
-                max_size=6))
-        elif op == "drop_cell" and row:
-            row.pop(draw(st.integers(0, len(row) - 1)))
-        elif op == "add_cell":
-            row.append(draw(st.sampled_from(CELLS)))
-        elif op == "dup_line":
-            lines.insert(r, list(row))
-        elif op == "drop_line" and len(lines) > 1:
-            lines.pop(r)
-        elif op == "header":
-            lines[0][draw(st.integers(0, len(lines[0]) - 1))] = draw(st.sampled_from(
-                ["T", "dt", "SP", "Pv", "pv.st", "mode.ST", "out", "clock", "", "t", "sp"]))
-        elif op == "swap" and len(lines) > 2:
-            a, b = draw(st.integers(1, len(lines) - 1)), draw(st.integers(1, len(lines) - 1))
-            lines[a], lines[b] = lines[b], lines[a]
-    return "\n".join(",".join(row) for row in lines) + "\n"
+    return mutate(draw, [line.split(",") for line in VALID_CSV.strip().split("\n")],
+                  cells=CELLS, headers=["T", "dt", "SP", "Pv", "pv.st", "mode.ST", "out",
+                                        "clock", "", "t", "sp"])
 
 
 def _replay_text(tmp_path: Path, text: str | bytes) -> None:
