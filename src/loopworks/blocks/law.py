@@ -24,6 +24,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+from loopworks.blocks.params import Param
 from loopworks.errors import ParameterError
 
 TOL = 1e-9  # relative: what "the same" means in float arithmetic
@@ -100,8 +101,6 @@ def flag(name: str, value: Any, kind: str = "convert") -> bool:
     """``value`` as true or false as a parameter takes it (a bool, 0 or 1, or the words
     true/false, yes/no, on/off, 1/0 in any case: a CLI's text), or a ParameterError naming
     ``name`` (``bool("false")`` would be True)."""
-    from loopworks.blocks.params import Param
-
     return bool(Param(name, False, type="bool").check(value, kind))
 
 
