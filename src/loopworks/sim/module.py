@@ -83,21 +83,22 @@ def _codes(choices: tuple[str, ...]) -> str:
 MAX_SCANS = 2**53
 
 
-def scan_count(duration: float, dt: float) -> int:
+def scan_count(duration: float, dt: float, what: str = "duration", least: int = 1) -> int:
     """n = round(duration/dt) scans, at t_k = k·dt; InputError unless dt and duration are
-    finite and > 0 and give at least one scan and at most ``MAX_SCANS``."""
+    finite and > 0 and give at least ``least`` scans and at most ``MAX_SCANS``. ``what``
+    names the length in the messages (``duration``; a relay test's ``start``)."""
     if not 0.0 < dt < math.inf:
         raise InputError(f"dt = {dt!r} s is not allowed: dt must be > 0 and finite")
     if not 0.0 < duration < math.inf:
-        raise InputError(f"duration = {duration!r} s is not allowed: must be > 0 and finite")
+        raise InputError(f"{what} = {duration!r} s is not allowed: must be > 0 and finite")
     ratio = duration / dt
     if not ratio <= MAX_SCANS:
-        raise InputError(f"duration = {duration:g} s in scans of dt = {dt:g} s is more scans "
+        raise InputError(f"{what} = {duration:g} s in scans of dt = {dt:g} s is more scans "
                          f"than can be counted (at most {MAX_SCANS:.4g}: 2**53, where a scan "
                          "number is still exact as a double)")
     n = round(ratio)
-    if n < 1:
-        raise InputError(f"duration = {duration:g} s is shorter than one scan of dt = {dt:g} s")
+    if n < least:
+        raise InputError(f"{what} = {duration:g} s is shorter than one scan of dt = {dt:g} s")
     return n
 
 

@@ -40,7 +40,7 @@ from loopworks.blocks.block import Block
 from loopworks.blocks.controller import Controller
 from loopworks.blocks.relay import PHASE_NAMES, RUNNING, Relay
 from loopworks.errors import InputError
-from loopworks.sim.module import MAX_SCANS, Module, check_record_size
+from loopworks.sim.module import Module, check_record_size, scan_count
 from loopworks.tuning.convert import Conversion
 from loopworks.tuning.identify import (
     Identification,
@@ -176,10 +176,8 @@ def _relay_setup(module: Module, loop: str, dt: float, start: float | None,
     start = _default_start(module, dt) if start is None else float(start)
     if not 0.0 <= start < math.inf:
         raise InputError(f"start = {start!r} s is not allowed: must be finite and >= 0")
-    if not start / dt <= MAX_SCANS:
-        raise InputError(f"start = {start:g} s in scans of dt = {dt:g} s is more scans than "
-                         f"can be counted (at most {MAX_SCANS:.4g})")
-    settle = round(start / dt)  # the settling keeps the PV of each scan
+    settle = scan_count(start, dt, "start", least=0) if start > 0.0 else 0  # the settling
+    # keeps the PV of each scan
     check_record_size(8 * settle, start, dt, settle, what="start")
     Relay(**relay_params, hysteresis=0.0 if hysteresis is None else float(hysteresis))
     return ctrl, pv_src, relay_params, d, start
