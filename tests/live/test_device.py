@@ -23,6 +23,7 @@ from loopworks.live.device import Device
 from loopworks.live.registers import Point, RegisterMap, decode_f32, default_map, encode_f32
 from loopworks.live.split import Split, split_scenario
 from loopworks.sim.scenario import load_scenario
+from tests.live.timing import wall_clock
 
 SC = load_scenario(None)
 SPEEDUP = 50.0  # a 0.5 s plant scan every 10 ms
@@ -205,6 +206,7 @@ def test_writes_to_the_output_registers_are_refused() -> None:
     assert codes == [2, 2, 2]  # illegal data address
 
 
+@wall_clock
 def test_run_keeps_absolute_deadlines() -> None:
     """Each scan here blocks for 6 ms of a 10 ms period: on absolute deadlines 40 scans take
     0.4 s (a plain sleep(period) after each would take 0.64 s); one scan that stalls 35 ms

@@ -10,6 +10,7 @@ import pytest
 
 from loopworks.errors import InputError
 from loopworks.live.schedule import ScanStats, Scheduler
+from tests.live.timing import wall_clock
 
 
 def run(sched: Scheduler, work: float, scans: int,
@@ -27,6 +28,7 @@ def run(sched: Scheduler, work: float, scans: int,
     return asyncio.run(main())
 
 
+@wall_clock
 def test_absolute_deadlines_do_not_drift() -> None:
     # 40 scans of 20 ms, each doing 5 ms of work: a sleep(period) loop would take
     # 40 x 25 ms = 1.0 s; on absolute deadlines the last scan starts at 39 x 20 ms
@@ -39,6 +41,7 @@ def test_absolute_deadlines_do_not_drift() -> None:
     assert s["overruns"] == 0 and s["skipped"] == 0
 
 
+@wall_clock
 def test_overruns_skip_to_the_next_release_and_trip_the_watchdog() -> None:
     trips: list[int] = []
     sched = Scheduler(0.010, watchdog_overruns=3,
@@ -54,6 +57,7 @@ def test_overruns_skip_to_the_next_release_and_trip_the_watchdog() -> None:
     # releases of the slow scans are 2, then >= 5, ... : k jumps past the missed ones
 
 
+@wall_clock
 def test_a_scan_on_time_rearms_the_watchdog() -> None:
     sched = Scheduler(0.010, watchdog_overruns=2)
     stats, _ = run(sched, 0.0, 6, slow={0, 4}, slow_work=0.015)
@@ -67,6 +71,7 @@ def test_a_wrong_period_is_named(period: float) -> None:
         Scheduler(period)
 
 
+@wall_clock
 def test_stop_ends_the_run_at_once() -> None:
     async def main() -> tuple[int, float]:
         stop = asyncio.Event()
