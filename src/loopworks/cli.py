@@ -561,8 +561,8 @@ def diagnose(
         "--columns", metavar="ROLE=COLUMN,...", help="map the file's columns: "
         "sp=FIC101.SV,pv=FIC101.PV,op=FIC101.MV (roles t, sp, pv, op, position, mode)")] = None,
     loop_type: Annotated[str, typer.Option(
-        "--loop-type", help="self-regulating (flow, pressure, temperature) or integrating "
-        "(level)")] = "self-regulating",
+        "--loop-type", help="self-regulating or integrating; or the loop's service: flow, "
+        "pressure, temperature (self-regulating), level (integrating)")] = "self-regulating",
     as_json: Annotated[bool, typer.Option("--json", help="print the diagnosis as JSON")] = False,
     output: Annotated[Path | None, typer.Option(
         "--output", "-o", help="directory for a report: report.html and its plots")] = None,
@@ -575,12 +575,15 @@ def diagnose(
     from rich.markup import escape
     from rich.table import Table
 
-    from loopworks.analysis import LOOP_TYPES
+    from loopworks.analysis import loop_type_of
     from loopworks.analysis.diagnosis import diagnose as run_diagnosis
     from loopworks.analysis.loopdata import parse_columns, read_csv
+    from loopworks.errors import InputError
 
-    if loop_type not in LOOP_TYPES:
-        _fail(f"--loop-type {loop_type}: expected " + " or ".join(LOOP_TYPES))
+    try:
+        loop_type = loop_type_of(loop_type)  # --loop-type level: integrating
+    except InputError as exc:
+        _fail(f"--loop-type {loop_type}: {str(exc).split(': ', 1)[1]}")
     if output is not None:
         _check_report_directory(output)
     mapping = parse_columns(columns) if columns else None

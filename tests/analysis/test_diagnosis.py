@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
+from loopworks.analysis import loop_type_of
 from loopworks.analysis.diagnosis import (
     DECIDE,
     MAX_S,
@@ -25,6 +26,7 @@ from loopworks.analysis.diagnosis import (
 from loopworks.analysis.loopdata import LoopData, read_csv
 from loopworks.analysis.valve_fit import ValveFit
 from loopworks.cli import app
+from loopworks.errors import InputError
 
 PLANT = Path(__file__).resolve().parents[1] / "data" / "plant-loops"
 LABELS = json.loads((PLANT / "labels.json").read_text())
@@ -87,12 +89,13 @@ def test_a_sticky_looking_cycle_and_a_linear_one() -> None:
 
 @pytest.mark.parametrize("entry", LABELS, ids=[e["file"] for e in LABELS])
 def test_every_plant_file_gets_a_diagnosis(entry: dict[str, str], tmp_path: Path) -> None:
-    loop_type = "integrating" if entry["loop_type"] == "level" else "self-regulating"
     out = tmp_path / "report"
     run = CliRunner().invoke(app, ["diagnose", str(PLANT / entry["file"]), "--loop-type",
-                                   loop_type, "--json", "-o", str(out)])
+                                   entry["loop_type"], "--json", "-o", str(out)])  # flow, level
     assert run.exit_code == 0, run.output
     doc = json.loads(run.stdout)
+    assert doc["loop_type"] == ("integrating" if entry["loop_type"] == "level"
+                                else "self-regulating")
     for key in ("verdict", "confidence", "oscillation", "indices", "stiction",
                 "recommendation", "quality", "evidence"):
         assert key in doc
@@ -124,6 +127,7 @@ def test_the_command_line_refuses_bad_input(tmp_path: Path) -> None:
     assert "bad.csv" in run.output and "line 3" in run.output and "pv" in run.output
     run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--loop-type", "x"])
     assert run.exit_code == 2 and "--loop-type x" in run.output
+    assert "self-regulating or integrating" in run.output and "level" in run.output
     run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--columns", "zz"])
     assert run.exit_code == 2 and "zz" in run.output
 
@@ -245,3 +249,21 @@ def test_a_record_with_absurd_values_is_diagnosed_not_crashed(tmp_path: Path) ->
             assert f"{count} Bad (NaN, infinite or beyond ±1e12) sample(s)" in d.reason
         else:
             assert d.verdict == "undetermined"
+
+
+@pytest.mark.parametrize(("name", "loop_type"), [
+    ("self-regulating", "self-regulating"), ("integrating", "integrating"),
+    ("flow", "self-regulating"), ("Pressure", "self-regulating"),
+    ("TEMPERATURE", "self-regulating"), ("level", "integrating"), (" Level ", "integrating")])
+def test_a_loop_is_named_by_its_type_or_its_service(name: str, loop_type: str) -> None:
+    """A level loop integrates; flow, pressure and temperature loops self-regulate (the loop
+    types of issue 15, and the services a historian tag or labels.json gives)."""
+    assert loop_type_of(name) == loop_type
+
+
+def test_an_unknown_loop_type_is_named_with_the_choices() -> None:
+    with pytest.raises(InputError, match=r"'tank' is not allowed.*self-regulating or "
+                                         r"integrating.*flow, pressure, temperature, level"):
+        loop_type_of("tank")
+    with pytest.raises(InputError, match="'tank'"):
+        diagnose(_loop(np.ones(400), np.ones(400)), "tank")

@@ -67,7 +67,7 @@ from typing import Any
 
 import numpy as np
 
-from loopworks.analysis import LOOP_TYPES, LoopType, Verdict
+from loopworks.analysis import LoopType, Verdict, loop_type_of
 from loopworks.analysis.area_ratio import area_ratio
 from loopworks.analysis.bicoherence import bicoherence_test
 from loopworks.analysis.curve_fit import curve_fit_loop
@@ -305,13 +305,11 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     """Diagnose one loop (module docstring) from ``data``: a :class:`LoopData`, or the path
     of a historian CSV (read by :func:`~loopworks.analysis.loopdata.read_csv` with
     ``columns``; a repeated time stamp keeps the later row, as a historian's hold does, and
-    the data's ``resampled`` note says so). ``loop_type``: ``"self-regulating"`` (flow,
-    pressure, temperature) or ``"integrating"`` (level). ``recommend``: simulate the options
-    for a sticky valve (``samples`` draws of the fit's uncertainty each)."""
-    if loop_type not in LOOP_TYPES:
-        raise InputError(f"loop type '{loop_type}' is not allowed: expected "
-                         + " or ".join(LOOP_TYPES))
-    lt: LoopType = "integrating" if loop_type == "integrating" else "self-regulating"
+    the data's ``resampled`` note says so). ``loop_type``: ``"self-regulating"`` (also
+    ``"flow"``, ``"pressure"``, ``"temperature"``) or ``"integrating"`` (``"level"``), any
+    letter case (:func:`~loopworks.analysis.loop_type_of`). ``recommend``: simulate the
+    options for a sticky valve (``samples`` draws of the fit's uncertainty each)."""
+    lt = loop_type_of(loop_type)
     if not isinstance(data, LoopData):
         data = read_csv(data, columns, duplicates="last")
     data = _bad_as_nan(data)
