@@ -321,12 +321,14 @@ def format_rows(first: npt.NDArray[np.float64], floats: npt.NDArray[np.float64],
                 ints: npt.NDArray[np.int64]) -> npt.NDArray[np.uint8]:
     """CSV lines (ASCII bytes) of the rows ``first[r], *floats[r], *ints[r]``, each ending in
     ``\\n``: floats as ``repr`` writes them, ints as ``str``, as ``csv.writer`` writes them."""
+    from loopworks.blocks.kernel import compiled_arg
+
     n = first.shape[0]
-    f = np.ascontiguousarray(floats, dtype=np.float64).reshape(n, -1)
-    i = np.ascontiguousarray(ints, dtype=np.int64).reshape(n, -1)
+    f = compiled_arg(floats).reshape(n, -1)
+    i = compiled_arg(ints, np.int64).reshape(n, -1)
     width = (1 + f.shape[1]) * (FORMATTED_MAX + 1) + i.shape[1] * (INT_MAX + 1)
     buf = np.empty(n * width + 8, dtype=np.uint8)  # 8: room for the last 8-byte store
-    t = np.ascontiguousarray(first, dtype=np.float64)
+    t = compiled_arg(first)
     end = _format_rows(t.view(np.uint64), f.view(np.uint64), i, buf)
     return buf[:end]
 
