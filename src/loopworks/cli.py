@@ -583,7 +583,7 @@ def diagnose(
     try:
         loop_type = loop_type_of(loop_type)  # --loop-type level: integrating
     except InputError as exc:
-        _fail(f"--loop-type {loop_type}: {str(exc).split(': ', 1)[1]}")
+        _fail(f"--loop-type {loop_type}: {exc}")
     if output is not None:
         _check_report_directory(output)
     mapping = parse_columns(columns) if columns else None
@@ -696,7 +696,7 @@ def _compile_helpers() -> None:
     """Compile (or load) the package's own cached compiled functions that are not kernels:
     the CSV formatter of ``simulate`` and ``replay`` (8 s to compile) and the reversal count
     of the metrics, each for the one signature it is called with (their arguments go through
-    :func:`loopworks.blocks.kernel.compiled_arg`). numba caches them beside the installed
+    :func:`loopworks.sim.arrays.compiled_arg`). numba caches them beside the installed
     package (or in ``NUMBA_CACHE_DIR``)."""
     import numpy as np
 

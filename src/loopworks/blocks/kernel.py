@@ -61,15 +61,6 @@ def sees_nonfinite(fn: F) -> F:
     return fn
 
 
-def compiled_arg(a: npt.ArrayLike, dtype: Any = np.float64) -> Any:
-    """``a`` as an argument of a cached compiled function: C-contiguous, of ``dtype`` and
-    writable. numba types a read-only array (a pyarrow column's, a frozen record's) apart
-    from a writable one, so without this one function compiles twice, once per kind of
-    array (8 s each for the CSV formatter); a read-only array is copied."""
-    out = np.ascontiguousarray(a, dtype=dtype)
-    return out if out.flags.writeable else out.copy()
-
-
 def jit_enabled() -> bool:
     """Compiled kernels are used unless the environment sets ``LOOPWORKS_JIT=0``."""
     return os.environ.get("LOOPWORKS_JIT", "1").strip().lower() not in ("0", "false", "no", "off")

@@ -321,7 +321,7 @@ def format_rows(first: npt.NDArray[np.float64], floats: npt.NDArray[np.float64],
                 ints: npt.NDArray[np.int64]) -> npt.NDArray[np.uint8]:
     """CSV lines (ASCII bytes) of the rows ``first[r], *floats[r], *ints[r]``, each ending in
     ``\\n``: floats as ``repr`` writes them, ints as ``str``, as ``csv.writer`` writes them."""
-    from loopworks.blocks.kernel import compiled_arg
+    from loopworks.sim.arrays import compiled_arg
 
     n = first.shape[0]
     f = compiled_arg(floats).reshape(n, -1)

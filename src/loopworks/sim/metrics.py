@@ -275,7 +275,7 @@ def reversals(y: np.ndarray, threshold: float = 0.05) -> int:
     """Sign changes of the moves of ``y``, ignoring moves of at most ``threshold`` (spec 4.1:
     so noise below the resolution is not counted). Moves are taken between the points where y
     has moved more than the threshold since the last counted point."""
-    from loopworks.blocks.kernel import compiled_arg
+    from loopworks.sim.arrays import compiled_arg
 
     return int(_reversals_loop()(compiled_arg(y), float(threshold)))
 
@@ -336,7 +336,7 @@ def _signal_metrics(u: np.ndarray, threshold: float) -> tuple[np.ndarray, np.nda
     finite = np.isfinite(u).all(axis=1)
     with np.errstate(over="ignore", invalid="ignore"):  # beyond the float range: n/a
         moves = _per_row(np.sum, np.abs(np.diff(u, axis=1)))
-    from loopworks.blocks.kernel import compiled_arg
+    from loopworks.sim.arrays import compiled_arg
 
     count = _reversals_loop()
     turns = np.array([float(count(compiled_arg(u[i]), float(threshold))) if finite[i]
