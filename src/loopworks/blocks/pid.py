@@ -198,7 +198,10 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
             if init or first:
                 d_prev = d
                 d_filt = 0.0
-            dterm = (p[P.tf] * d_filt + p[P.kd] * (d - d_prev)) / (p[P.tf] + dt)
+            if p[P.kd] == 0.0 and d_filt == 0.0:
+                dterm = 0.0
+            else:
+                dterm = (p[P.tf] * d_filt + p[P.kd] * (d - d_prev)) / (p[P.tf] + dt)
             i_prev = x[X.i]
             acc = x[X.acc]
             v_prev = x[X.v_prev]
