@@ -198,7 +198,7 @@ def pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntAr
             if init or first:
                 d_prev = d
                 d_filt = 0.0
-            if p[P.kd] == 0.0 and d_filt == 0.0:
+            if p[P.kd] == 0.0 and d_filt == 0.0:  # a PI: the same 0, without the division
                 dterm = 0.0
             else:
                 dterm = (p[P.tf] * d_filt + p[P.kd] * (d - d_prev)) / (p[P.tf] + dt)
