@@ -510,3 +510,25 @@ def test_the_plan_name_follows_the_kernels_code_not_its_module(tmp_path: Path) -
     assert plan._kernels_hash((kernel("\n\n# moved down\n" + text, 2.0),)) == base
     assert plan._kernels_hash((kernel(text, 3.0),)) != base  # a constant numba freezes
     assert plan._kernels_hash((kernel(text.replace("*", "+"), 2.0),)) != base
+
+
+def test_is_cached_finds_machine_code_under_numba_cache_dir(monkeypatch: pytest.MonkeyPatch,
+                                                            tmp_path: Path) -> None:
+    """With ``NUMBA_CACHE_DIR`` set numba writes a plan's machine code there, not next to its
+    source: ``is_cached`` must look where numba does, or every cached plan looks uncached (a
+    wrong "compiling ..." line, and ``Module.run`` choosing between plans by the wrong rule)."""
+    import numba
+
+    monkeypatch.setenv("LOOPWORKS_CACHE_DIR", str(tmp_path / "lw"))
+    monkeypatch.setattr(numba.config, "CACHE_DIR", str(tmp_path / "numba"))
+    monkeypatch.setattr(plan, "_loaded", {})  # this test's plans stay its own
+    slots = plan.layout([(doubling_kernel, 0, 1, 3, 1, True)])
+    assert not plan.is_cached(slots, "step")
+    plan.entry(slots, "step", plan.step_signature(1))
+    name = plan._name(slots, "step")[0]
+    plan._loaded.pop(name)  # as a fresh process sees it: only what is on disk
+    assert plan.is_cached(slots, "step")
+    on_disk = [p.name for p in (tmp_path / "numba").rglob(f"{name}.step-*.nbi")]
+    assert on_disk, "numba wrote no index under NUMBA_CACHE_DIR"
+    assert not (tmp_path / "lw" / "plans" / "__pycache__").exists() or not any(
+        (tmp_path / "lw" / "plans" / "__pycache__").glob(f"{name}.step-*.nbi"))

@@ -491,7 +491,26 @@ def is_cached(slots: Sequence[Slot], what: str) -> bool:
     name, _, _ = _name(slots, what)
     if name in _loaded and getattr(_loaded[name], what).overloads:
         return True
-    return any((cache_dir() / "plans" / "__pycache__").glob(f"{name}.{what}-*.nbi"))
+    return any(_machine_code_dir(cache_dir() / "plans" / f"{name}.py")
+               .glob(f"{name}.{what}-*.nbi"))
+
+
+def _machine_code_dir(path: Path) -> Path:
+    """Where numba keeps the machine code of the functions in the source file ``path``: its
+    ``__pycache__``, or a directory under ``NUMBA_CACHE_DIR`` when that is set. Asked of
+    numba's own cache locators, in numba's order (the first that takes the file wins), so the
+    answer follows numba; the ``__pycache__`` guess when numba's internals have moved."""
+    try:
+        from numba.core.caching import CacheImpl
+
+        locators: list[Any] = list(CacheImpl._locator_classes)
+        for locator in locators:
+            found = locator.from_function(is_cached, str(path))
+            if found is not None:
+                return Path(found.get_cache_path())
+    except (ImportError, AttributeError, TypeError):
+        pass
+    return path.parent / "__pycache__"
 
 
 def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
