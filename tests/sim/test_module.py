@@ -415,3 +415,24 @@ def test_a_run_records_only_what_is_asked_and_the_metrics_read_only_that() -> No
                             full.metrics(window=(60.0, 120.0)))
     with pytest.raises(InputError, match=re.escape("record: no signal 'pid.nope'")):
         module.run(1.0, sc.dt, record=["pid.nope"])
+
+
+def test_every_run_from_the_start_sees_the_same_parameters() -> None:
+    """A parameter event (a retune at 3 s) changes the parameter for the rest of that run;
+    the next run from the start (reset) begins with the value before the event again, so
+    two runs of one module agree. A value set between runs (``set_params``) stays."""
+    def loop() -> Module:
+        return Module({"pid": loopworks.create_block("pid", k=2.0, ti=10.0),
+                       "p": loopworks.create_block("process.first_order", time_constant=5.0)},
+                      wires={"p.u": "pid.out", "pid.pv": "p.y"}, inputs={"pid": {"sp": 1.0}},
+                      events=[Event(3.0, "pid.k", 0.5)])
+
+    module = loop()
+    first = module.run(10.0, 0.1, plan="python")
+    assert module.blocks["pid"].params["k"] == 0.5  # the event's value, after the run
+    again = module.run(10.0, 0.1, plan="python")
+    np.testing.assert_array_equal(again["pid.out"], first["pid.out"])
+    assert first["pid.out"][0] == pytest.approx(2.0 * 1.0 + 0.1 * 2.0 / 10.0)  # k = 2 at t = 0
+    module.blocks["pid"].set_params(k=4.0)  # between runs: kept
+    third = module.run(1.0, 0.1, plan="python")
+    assert third["pid.out"][0] == pytest.approx(4.0 * 1.0 + 0.1 * 4.0 / 10.0)

@@ -251,6 +251,35 @@ def test_the_fused_plan_equals_the_interpreted_run(monkeypatch: pytest.MonkeyPat
         assert_same(a, b, where=f"default.toml [{name}]")
 
 
+
+@pytest.mark.parametrize("what", ["scans", "fused"])
+def test_the_usual_record_and_any_other_give_the_blocks_numbers(
+        what: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A module's plan writes its usual record (every signal) at literal offsets and any
+    other record through the index arrays: both hold what the interpreted run holds."""
+    from loopworks.sim import module as module_mod
+
+    monkeypatch.setattr(module_mod, "PLAN_FUSE_BLOCK_SCANS", 0 if what == "fused" else 10**12)
+    if what == "scans":  # not the fused plan, even when it is cached
+        monkeypatch.setattr(module_mod, "is_cached", lambda *args: False)
+    compiled = retuned_loop()
+    text = plan.source(compiled._slots, [what], compiled._usual_record())[0]
+    assert "        if usual:" in text and "RF[0, at + k] = F[" in text
+    monkeypatch.setenv("LOOPWORKS_JIT", "0")
+    reference = retuned_loop().run(20.0, 0.1, plan="python")
+    every = compiled.run(20.0, 0.1, plan="compiled")
+    assert compiled._scans[0] == what
+    some = ["pid.out", "process.y", "pid.i_term"]
+    part = compiled.run(20.0, 0.1, plan="compiled", record=some)
+    assert set(part.values) == set(some)
+    for result in (every, part):
+        for name in result.values:
+            np.testing.assert_array_equal(result.values[name], reference.values[name],
+                                          err_msg=name)
+            np.testing.assert_array_equal(result.status[name], reference.status[name],
+                                          err_msg=name)
+
+
 def test_the_record_holds_status_bytes() -> None:
     """A status is one byte (spec architecture: the Foundation Fieldbus status byte): the
     record keeps it as uint8, compiled and interpreted alike."""

@@ -15,7 +15,9 @@ Three entry points are generated from the same layout:
 * ``scans(F, S, dt, t0, k0, n, T, RF, RS, IF, IS, at)``: n scans of a module
   (``Module.run``), scan k at t = t0 (k = 0) or (k0 + k)·dt, recording T[at + k] = t,
   RF[:, at + k] = F[IF] and RS[:, at + k] = S[IS] (one row per signal, so each signal's
-  record is one contiguous array);
+  record is one contiguous array). The module's usual record (every signal: ``Record``) is
+  written with literal offsets, another one by a loop over IF and IS: the loop over index
+  arrays costs a sixth of a pid + fopdt scan;
 * ``step(dt, fa, sa, ia, a, ib, b, good)``: one scan of one block (``Block.step``) on its
   buffers F and S given by their addresses (:mod:`loopworks.blocks.address`), after writing
   input ``ia`` = a and ``ib`` = b (-1: none; their statuses Good NC unless ``good``: all
@@ -72,6 +74,10 @@ CALL_SIGNATURE = ("none(float64, float64[::1], float64[::1], float64[::1], int64
 SCANS_SIGNATURE = ("none(float64[::1], int64[::1], float64, float64, int64, int64, "
                    "float64[::1], float64[:, ::1], uint8[:, ::1], int64[::1], int64[::1], "
                    "int64)")
+
+
+#: the usual record of a module's ``scans``/``fused`` plan, (IF, IS) as tuples (see above)
+Record = tuple[tuple[int, ...], tuple[int, ...]]
 
 
 def step_signature(n_y: int) -> str:
@@ -346,9 +352,34 @@ def kernel_call(kernel: Any, jit: bool, full: bool) -> Any:
     return entry(layout([(kernel, 0, 0, 0, 0, full)]), "call", CALL_SIGNATURE)
 
 
-def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any]]:
+def _record(usual: Record | None) -> tuple[list[str], list[str]]:
+    """The record of one scan of ``scans``/``fused``: (lines before the scan loop, lines in
+    it). With a usual record, a test before the loop (are IF and IS the usual ones?) and in
+    the loop its writes at literal offsets, else the loop over IF and IS (numba hoists the
+    loop-invariant test: two loops, each without the other's branch)."""
+    loop = ["for j in range(IF.shape[0]):", "    RF[j, at + k] = F[IF[j]]",
+            "for j in range(IS.shape[0]):", "    RS[j, at + k] = S[IS[j]]"]
+    if not usual or not (usual[0] or usual[1]):
+        return [], [" " * 8 + line for line in loop]
+    fs, ss = usual
+    test = [f"IF.shape[0] == {len(fs)}", f"IS.shape[0] == {len(ss)}"]
+    test += [f"IF[{j}] == {i}" for j, i in enumerate(fs)]
+    test += [f"IS[{j}] == {i}" for j, i in enumerate(ss)]
+    before = ["    usual = (" + test[0]]
+    before += [f"             and {t}" for t in test[1:]]
+    before[-1] += ")"
+    inside = ["        if usual:"]
+    inside += [f"            RF[{j}, at + k] = F[{i}]" for j, i in enumerate(fs)]
+    inside += [f"            RS[{j}, at + k] = S[{i}]" for j, i in enumerate(ss)]
+    inside += ["        else:"] + [" " * 12 + line for line in loop]
+    return before, inside
+
+
+def source(slots: Sequence[Slot], entries: Sequence[str],
+           usual: Record | None = None) -> tuple[str, list[Any]]:
     """The Python source of a plan's entry points (``scans``, ``step``, ``rows``; the last
-    two for a one-block plan), and the kernels it needs injected (those not importable)."""
+    two for a one-block plan), and the kernels it needs injected (those not importable).
+    ``usual``: the record a module's ``scans``/``fused`` write at literal offsets."""
     kernels: dict[tuple[Any, bool], str] = {}
     for slot in slots:
         kernels.setdefault((slot.kernel, slot.full), f"G{len(kernels)}")
@@ -359,17 +390,16 @@ def source(slots: Sequence[Slot], entries: Sequence[str]) -> tuple[str, list[Any
     # ``fused``: the same scans with every kernel inlined (compiled with the plan, once per
     # module shape), for long runs; ``scans`` reaches each kernel's own cached entry. In a
     # fixed order: the source is hashed into the cache key.
+    before, inside = _record(usual)
     for what in [w for w in ("scans", "fused") if w in entries]:
         lines += ["", "", deco,
                   f"def {what}(F0, S0, dt, t0, k0, n, T, RF, RS, IF, IS, at):", *_UNCOUNTED,
+                  *before,
                   "    for k in range(n):",
                   "        t = t0 if k == 0 else (k0 + k) * dt",
                   "        T[at + k] = t"]
         lines += _scan(slots, kernels, " " * 8)
-        lines += ["        for j in range(IF.shape[0]):",
-                  "            RF[j, at + k] = F[IF[j]]",
-                  "        for j in range(IS.shape[0]):",
-                  "            RS[j, at + k] = S[IS[j]]"]
+        lines += inside
     if "batch" in entries:
         lines += ["", "", "@numba.njit(cache=CACHE, nogil=True, parallel=True)",
                   "def batch(F0, S0, dt, k0, m, R, IR, at):",
@@ -477,18 +507,19 @@ def _module(name: str, text: str, injected: list[Any]) -> Any:
     return mod
 
 
-def _name(slots: Sequence[Slot], what: str) -> tuple[str, str, list[Any]]:
+def _name(slots: Sequence[Slot], what: str,
+          usual: Record | None = None) -> tuple[str, str, list[Any]]:
     """(module name, source, injected kernels) of a plan's entry point."""
-    text, injected = source(slots, (what,))
+    text, injected = source(slots, (what,), usual)
     key = hashlib.sha256((_kernels_hash(tuple(dict.fromkeys(slot.kernel for slot in slots)))
                           + text).encode()).hexdigest()[:20]
     return f"lw_plan_{key}", text, injected
 
 
-def is_cached(slots: Sequence[Slot], what: str) -> bool:
+def is_cached(slots: Sequence[Slot], what: str, usual: Record | None = None) -> bool:
     """True when the entry point's machine code is in the cache (or loaded in this process):
     using it costs a load, not a compilation."""
-    name, _, _ = _name(slots, what)
+    name, _, _ = _name(slots, what, usual)
     if name in _loaded and getattr(_loaded[name], what).overloads:
         return True
     return any(_machine_code_dir(cache_dir() / "plans" / f"{name}.py")
@@ -513,11 +544,11 @@ def _machine_code_dir(path: Path) -> Path:
     return path.parent / "__pycache__"
 
 
-def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
+def entry(slots: Sequence[Slot], what: str, signature: str, usual: Record | None = None) -> Any:
     """The compiled entry point ``what`` ("scans", "fused", "step", "rows" or "batch") of a plan
     laid out as ``slots``, loaded from the cache or compiled (once per process, once per
     machine)."""
-    name, text, injected = _name(slots, what)
+    name, text, injected = _name(slots, what, usual)
     mod = _loaded.get(name)
     if mod is None:
         mod = _loaded[name] = _module(name, text, injected)
@@ -527,7 +558,7 @@ def entry(slots: Sequence[Slot], what: str, signature: str) -> Any:
         # a kernel's own entry, a batch (parallel) and a fused plan take long to compile; the
         # glue of the other plans (step, rows, scans) takes well under a second: not announced
         if (announce is not None and not _announced and what in ("call", "batch", "fused")
-                and not is_cached(slots, what)):
+                and not is_cached(slots, what, usual)):
             _announced = True  # one line per process, before the first compilation
             kinds = ", ".join(sorted({_kind(slot.kernel) for slot in slots}))
             thing = kinds if what == "call" else f"the {what} plan of this module ({kinds})"

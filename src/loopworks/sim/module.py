@@ -34,7 +34,7 @@ import numpy as np
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.params import Port
-from loopworks.blocks.plan import SCANS_SIGNATURE, Slot, entry, is_cached, layout
+from loopworks.blocks.plan import SCANS_SIGNATURE, Record, Slot, entry, is_cached, layout
 from loopworks.errors import InputError, LoopworksError
 from loopworks.sim.result import SimResult
 
@@ -148,6 +148,9 @@ class Module:
                  order: Sequence[str] | None = None,
                  events: Sequence[Event] | None = None) -> None:
         self.blocks: dict[str, Block] = dict(blocks)
+        # per parameter an event changed since the last reset: its value before the run's
+        # first event on it and the value the events left (reset() sets it back)
+        self._undo: dict[tuple[str, str], tuple[Any, Any]] = {}
         self.order: list[str] = list(order) if order is not None else list(self.blocks)
         missing = set(self.blocks) - set(self.order)
         unknown = [n for n in self.order if n not in self.blocks]
@@ -314,6 +317,14 @@ class Module:
         rows, _ = self.record_plan(range(len(self.signals())))
         return (n + 1) * len(rows) * RECORD_BYTES
 
+    def _usual_record(self) -> Record:
+        """The buffer offsets (values, statuses) of the record of every signal, the usual
+        one, which the compiled plan writes at literal offsets (:func:`~loopworks.blocks.plan.
+        source`)."""
+        rows, _ = self.record_plan(range(len(self.signals())))
+        return (tuple(int(i) for i in self._rec_f[rows]),
+                tuple(int(i) for i in self._rec_s[rows]))
+
     def record_plan(self, chosen: Iterable[int]) -> tuple[list[int], list[tuple[str, int]]]:
         """How a run records the signals ``chosen`` (indices into :meth:`signals`): the signals
         it writes scan by scan (``rows``, indices into :meth:`signals`), each into a row of
@@ -371,7 +382,16 @@ class Module:
         Then the start is settled: twice over the run order, each wired input is copied from
         its source and a block that derives its published start from its inputs (a
         ``publish_start`` method: sensors, loads, valves) publishes it again, so no block reads
-        a placeholder 0 from a source that runs later in the order (issue 11 point 8)."""
+        a placeholder 0 from a source that runs later in the order (issue 11 point 8).
+
+        A parameter an event changed during the last run is set back to its value before
+        that run's first event, so every run from the start sees the same parameters; unless
+        it was changed since (``set_params`` between runs: a sweep's value, an operator's), then
+        that value stays."""
+        for (owner, key), (before, after) in self._undo.items():
+            if self.blocks[owner].params[key] == after:
+                self.blocks[owner].set_params(**{key: before})
+        self._undo.clear()
         for name in self.order:
             block = self.blocks[name]
             block.reset()
@@ -404,7 +424,12 @@ class Module:
             ev = self.events[self._next_event]
             block, name = _split(ev.target, "event target")
             if self._is_parameter(ev.target):
-                self.blocks[block].set_params(**{name: ev.value})
+                b, key = self.blocks[block], name.lower()
+                before = b.params[key]
+                b.set_params(**{name: ev.value})
+                first = self._undo.get((block, key))
+                self._undo[(block, key)] = (before if first is None else first[0],
+                                            b.params[key])
             else:
                 self.blocks[block].set_inputs({name: ev.value})
             self._next_event += 1
@@ -420,7 +445,8 @@ class Module:
             return
         self._apply_events(self.t)
         if self._scans is None:
-            self._scans = ("scans", entry(self._slots, "scans", SCANS_SIGNATURE))
+            self._scans = ("scans", entry(self._slots, "scans", SCANS_SIGNATURE,
+                                          self._usual_record()))
         self._scans[1](self._F, self._S, dt, self.t, self.k, 1, _T1, _NO_F, _NO_S, _NO_I,
                        _NO_I, 0)
         self.k += 1
@@ -494,7 +520,8 @@ class Module:
                              + " are interpreted")
         if plan == "compiled" or (plan == "auto" and self.compiled and (
                 n * len(self.blocks) >= PLAN_MIN_BLOCK_SCANS
-                or is_cached(self._slots, "scans") or is_cached(self._slots, "fused"))):
+                or is_cached(self._slots, "scans", self._usual_record())
+                or is_cached(self._slots, "fused", self._usual_record()))):
             self._run_compiled(n, dt, T, RF, RS, rec_f, rec_s, progress)
         else:
             self._run_python(n, dt, T, RF, RS, rec_f, rec_s, progress)
@@ -547,10 +574,11 @@ class Module:
                       progress: Callable[[int, int], None] | None) -> None:
         """The compiled plan, in chunks: events are applied between chunks (a parameter
         change recomputes the coefficients once), and progress is reported per chunk."""
+        usual = self._usual_record()
         what = "fused" if (n * len(self.blocks) >= PLAN_FUSE_BLOCK_SCANS
-                           or is_cached(self._slots, "fused")) else "scans"
+                           or is_cached(self._slots, "fused", usual)) else "scans"
         if self._scans is None or self._scans[0] != what:
-            self._scans = (what, entry(self._slots, what, SCANS_SIGNATURE))
+            self._scans = (what, entry(self._slots, what, SCANS_SIGNATURE, usual))
         scans = self._scans[1]
         every = max(1, n // 100) if progress is not None else n
         done = 0
