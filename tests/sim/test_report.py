@@ -164,3 +164,50 @@ def test_zoom_is_centred_on_the_largest_command_move() -> None:
     assert report.zoom_span(t, (1800.0, 3600.0), command) == (3500.0, 3600.0)
     assert report.zoom_span(t, (1800.0, 3600.0), None) == (2650.0, 2750.0)
     assert report.zoom_span(t, (100.0, 150.0), command) == (100.0, 150.0)
+
+
+FORKED = """
+import os, sys
+from pathlib import Path
+from loopworks.sim.report import forked
+
+out = Path(sys.argv[1])
+parent = os.getpid()
+
+def draw() -> None:
+    (out / "drawn").write_text(str(os.getpid()))
+
+wait = forked(draw)
+wait()
+print("child" if int((out / "drawn").read_text()) != parent else "here")
+
+def fail_in_child() -> None:
+    if os.getpid() != parent:
+        raise RuntimeError("the child fails")
+    (out / "again").write_text("here")
+
+forked(fail_in_child)()
+print((out / "again").read_text())
+
+def fail() -> None:
+    raise ValueError("a bad figure")
+
+try:
+    forked(fail)()
+except ValueError as exc:
+    print("raised:", exc)
+"""
+
+
+def test_figures_drawn_in_a_forked_child_or_here_on_failure(tmp_path: Path) -> None:
+    """``report.forked``: in a one-thread process on Linux the job runs in a child; a job that
+    fails there runs again in the caller, so its error is raised where it would have been."""
+    import subprocess
+    import sys
+
+    run = subprocess.run([sys.executable, "-c", FORKED, str(tmp_path)], capture_output=True,
+                         text=True, timeout=120, check=True)
+    where, again, raised = run.stdout.split("\n")[:3]
+    assert where == ("child" if sys.platform.startswith("linux") else "here"), run.stderr
+    assert again == "here"
+    assert raised == "raised: a bad figure"
