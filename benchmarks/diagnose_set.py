@@ -8,12 +8,15 @@ compiles each module layout's plan, cached afterwards). :func:`evaluate` scores 
 the set: give it ``diagnose(data, loop_type) -> {"verdict": "stiction" | "no_stiction",
 "s": ..., "j": ...}`` (s and j optional). ``--oracle`` runs it with a detector that reads the
 truth, to show the table's form; ``--diagnose`` scores ``loopworks.diagnose`` (without the
-recommendation's simulations), the table of docs/diagnose.md.
+recommendation's simulations) on the records as a historian keeps them, without the valve
+position, the first table of docs/diagnose.md; ``--position`` keeps the recorded stem
+position (a digital positioner's travel feedback), the second.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import time
 from collections import Counter
@@ -113,6 +116,8 @@ def main() -> None:
                         help="evaluate a detector that reads the truth (shows the table)")
     parser.add_argument("--diagnose", action="store_true",
                         help="evaluate loopworks.diagnose on the set")
+    parser.add_argument("--position", action="store_true",
+                        help="give diagnose the recorded valve position too")
     args = parser.parse_args()
     t0 = time.perf_counter()
     loops = make_set(n=args.n, seed=args.seed)
@@ -133,6 +138,8 @@ def main() -> None:
         from loopworks.analysis.diagnosis import diagnose
 
         def detector(data: LoopData, loop_type: str) -> dict[str, Any]:
+            if not args.position:  # a historian rarely has the stem position
+                data = dataclasses.replace(data, position=None)
             d = diagnose(data, loop_type, recommend=False)
             st = d.stiction or {}
             return {"verdict": d.verdict, "s": st.get("s"), "j": st.get("j")}

@@ -3,6 +3,7 @@ stated rule, the CLI and its JSON."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from pathlib import Path
@@ -18,6 +19,7 @@ from loopworks.analysis.diagnosis import (
     MIN_R2_GAIN,
     MIN_S,
     REPRODUCE_FACTOR,
+    WEIGHTS,
     Evidence,
     _valve_fit_vote,
     diagnose,
@@ -50,6 +52,9 @@ def test_the_verdict_rule() -> None:
         "stiction"
     assert verdict_of([_vote("valve_fit", "stiction"), _vote("b", "no_stiction")])[0] == \
         "undetermined"
+    # the recorded valve travel (weight 2) carries the verdict alone, even against one index
+    assert verdict_of([_vote("valve_travel", "stiction", 2.0), _vote("b", "no_stiction")])[0] \
+        == "stiction"
     verdict, conf, score, _ = verdict_of([_vote("a", "no_stiction"), _vote("b", "undetermined")])
     assert (verdict, score, conf) == ("no_stiction", -1.0, 0.5)
     assert DECIDE == 1.0
@@ -133,15 +138,18 @@ def test_the_command_line_refuses_bad_input(tmp_path: Path) -> None:
 
 
 # -- loops whose truth is known (loopworks' own blocks, analysis.synthetic) --------------------
-def _spec_loop(valve: str, s: float, j: float, **kw: float) -> LoopData:
+def _spec_loop(valve: str, s: float, j: float, position: bool = False,
+               **kw: float) -> LoopData:
     """The spec 5.1 loop (FOPDT K 1, T 10 s, L 2 s; PI Kc 1, Ti 10 s) with a little noise,
-    recorded every 1 s for 4000 s."""
+    recorded every 1 s for 4000 s; without the valve position (a historian's record) unless
+    ``position``."""
     from loopworks.analysis.synthetic import simulate_loop
 
     args: dict[str, float] = {"noise": 0.02, "kc": 1.0, "ti": 10.0, "sp_step": 1.0}
     args.update(kw)
-    return simulate_loop(valve=valve, s=s, j=j, dt=0.5, sample_period=1.0, warmup=300.0,
+    data = simulate_loop(valve=valve, s=s, j=j, dt=0.5, sample_period=1.0, warmup=300.0,
                          duration=4000.0, seed=4, **args).data  # type: ignore[arg-type]
+    return data if position else dataclasses.replace(data, position=None)
 
 
 def test_the_spec_sticky_loop_is_found_and_measured() -> None:
@@ -161,6 +169,22 @@ def test_a_clean_loop_and_an_external_oscillation_are_not_called_sticky() -> Non
                                    sine_period=150.0), recommend=False)
     assert external.verdict != "stiction", external.reason
     assert external.oscillation is not None and external.oscillation.detected
+
+
+def test_a_recorded_valve_position_shows_the_stiction_directly() -> None:
+    # with the stem's travel recorded, the OP -> position fit measures S and J on the valve
+    # itself: the truth the loop was made with (S 3, J 1), within the issue's 30 %
+    d = diagnose(_spec_loop("choudhury", 3.0, 1.0, position=True), recommend=False)
+    travel = next(e for e in d.evidence if e.key == "valve_travel")
+    assert travel.vote == "stiction" and travel.weight == WEIGHTS["valve_travel"]
+    assert d.verdict == "stiction" and d.stiction is not None
+    assert d.stiction["s"] == pytest.approx(3.0, rel=0.3)
+    assert d.stiction["reason"].startswith("on the recorded position")
+    # a clean valve's recorded position votes against, and the record is not called sticky
+    clean = diagnose(_spec_loop("linear", 0.0, 0.0, position=True, walk_std=0.05),
+                     recommend=False)
+    vote = next(e for e in clean.evidence if e.key == "valve_travel")
+    assert vote.vote == "no_stiction" and clean.verdict == "no_stiction", clean.reason
 
 
 def test_a_simulate_report_csv_is_diagnosed(tmp_path: Path) -> None:

@@ -38,6 +38,11 @@ The rules, in order:
    otherwise (or when the record does not support a fit, or S is above :data:`MAX_S` %) it
    abstains.
 
+   When the record has the valve position (a digital positioner's travel feedback), the
+   valve is also measured on it (:mod:`loopworks.analysis.valve_travel`: OP → position, no
+   process in between), weight 2, with the valve fit's thresholds; its S and J then replace
+   the valve fit's in the estimate.
+
    The bicoherence is reported with weight 0 (it does not vote). By its rule it can only say
    "linear, so no stiction" (Choudhury, Shah & Thornhill 2004 run the stiction test only on
    nonlinear loops) or abstain, but on the simulated set (docs/diagnose.md) it found every
@@ -46,8 +51,9 @@ The rules, in order:
    above the 0.001 threshold (:mod:`loopworks.analysis.bicoherence`).
 4. **Verdict**: the score is Σ wᵢ·vᵢ (v = +1 stiction, −1 no stiction, 0 undetermined) over
    the applicable methods and W = Σ wᵢ. ``stiction`` when the score ≥ :data:`DECIDE` and
-   either two methods vote stiction or the valve fit does (the one method that needs no
-   cycle); ``no_stiction`` when the score ≤ −:data:`DECIDE`;
+   either two methods vote stiction or the valve fit or the valve travel does
+   (:data:`SUFFICIENT`: the methods that need no cycle); ``no_stiction`` when the score
+   ≤ −:data:`DECIDE`;
    otherwise ``undetermined``. Confidence = |score| / W, in [0, 1]: the weighted share of the
    applicable evidence that agrees with the verdict, net of the evidence against it (0 for
    ``undetermined``).
@@ -84,11 +90,15 @@ from loopworks.analysis.valve_fit import (
     fit_valve,
     model_pv,
 )
+from loopworks.analysis.valve_travel import TravelFit, fit_travel
 from loopworks.errors import InputError
 
 #: each method's weight in the verdict (rule 4)
 WEIGHTS: dict[str, float] = {"horch": 1.0, "area_ratio": 1.0, "curve_fit": 1.0,
-                             "bicoherence": 0.0, "valve_fit": 1.0}
+                             "bicoherence": 0.0, "valve_fit": 1.0, "valve_travel": 2.0}
+#: the methods whose stiction vote alone can carry the verdict (rule 4): the two that need no
+#: cycle and see the valve itself, through the process (valve_fit) or on its recorded travel
+SUFFICIENT = ("valve_fit", "valve_travel")
 #: the oscillation test's noise band (:func:`~loopworks.analysis.oscillation.regularity`): ACF
 #: zero crossings count only between lobes that leave ±this·1/√N
 OSCILLATION_NOISE_SIGMAS = 3.0
@@ -260,6 +270,25 @@ def _valve_fit_vote(fit: ValveFit) -> Evidence:
     return Evidence("valve_fit", name, vote, WEIGHTS["valve_fit"], fit.s, why)
 
 
+def _valve_travel_vote(fit: TravelFit) -> Evidence:
+    """The recorded valve position's vote (module docstring, rule 3), by the valve fit's
+    thresholds (:data:`MIN_S`, :data:`MIN_R2_GAIN`, :data:`NO_R2_GAIN`) on the position."""
+    name = "valve model fitted to the recorded position (OP → stem travel)"
+    weight = WEIGHTS["valve_travel"]
+    if not fit.ok:
+        return Evidence("valve_travel", name, "undetermined", weight, math.nan, fit.reason)
+    gain = (fit.r2 - fit.r2_linear) / max(1.0 - fit.r2_linear, 1e-12)
+    why = (f"{fit.reason} The valve's stiction explains {gain:.1%} of what a linear valve "
+           "leaves unexplained")
+    if fit.s >= MIN_S and gain >= MIN_R2_GAIN:
+        vote: Verdict = "stiction"
+    elif fit.s < MIN_S or gain < NO_R2_GAIN:
+        vote = "no_stiction"
+    else:
+        vote = "undetermined"
+    return Evidence("valve_travel", name, vote, weight, fit.s, why)
+
+
 def _bicoherence_vote(e: np.ndarray, dt: float) -> Evidence:
     """The bicoherence's vote (module docstring, rule 3): against stiction when the error is
     linear, else abstain."""
@@ -292,7 +321,7 @@ def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
     against = [e.key for e in evidence if e.vote == "no_stiction" and e.weight > 0]
     tally = (f"score {score:+.2g} of {total:g} (for: {', '.join(for_) or 'none'}; against: "
              f"{', '.join(against) or 'none'})")
-    if score >= DECIDE and (len(for_) >= 2 or "valve_fit" in for_):
+    if score >= DECIDE and (len(for_) >= 2 or any(k in for_ for k in SUFFICIENT)):
         return "stiction", abs(score) / total, score, tally
     if score <= -DECIDE:
         return "no_stiction", abs(score) / total, score, tally
@@ -328,11 +357,24 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     sign = 0.0 if not ctl.ok else (1.0 if ctl.action == "reverse" else -1.0)
     fit = fit_valve(data, lt, gain_sign=sign)
     evidence.append(_valve_fit_vote(fit))
+    travel = fit_travel(data)
+    if travel is not None:
+        evidence.append(_valve_travel_vote(travel))
     verdict, confidence, score, reason = verdict_of(evidence)
     if held:
         reason += (f"; {held} Bad (NaN, infinite or beyond ±1e12) sample(s) of SP, PV or OP "
                    "held at the last good value before the tests")
     stiction = model = rec = None
+    if verdict == "stiction" and travel is not None and travel.ok:
+        # measured on the stem: better than the estimate through the process
+        fit = replace(fit, s=travel.s, j=travel.j, resolution=travel.j,
+                      deadband=travel.s - travel.j,
+                      reason=f"{travel.reason} Process: {fit.reason}")
+        if not fit.ok:
+            stiction = {"s": travel.s, "j": travel.j, "resolution": travel.j,
+                        "deadband": travel.s - travel.j, "r2": travel.r2,
+                        "r2_linear": travel.r2_linear, "process": dict(fit.process),
+                        "reason": travel.reason}
     if verdict == "stiction" and fit.ok:
         model = model_pv(data, fit)
         stiction = {"s": fit.s, "j": fit.j, "resolution": fit.resolution,

@@ -69,6 +69,7 @@ misfit and lowers R².
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -215,6 +216,36 @@ def valve_position(op: FloatArray, s: float, j: float) -> FloatArray:
     YS[0] = block.ys
     run_rows(type(block).kernel, np.ones(n), block.p, block.x, U, US, Y, YS)
     return Y[:, names.index("position")].copy()
+
+
+
+def search_sj(cost: Callable[[float, float], float], op_range: float) -> tuple[float, float]:
+    """The (S, J) that minimise ``cost(S, J)``: a coarse grid over 0 ≤ J ≤ S ≤
+    :data:`S_RANGE_FACTOR`·``op_range`` (:data:`S_GRID` values of S, :data:`J_FRACTIONS` of
+    each), then a compass (pattern) search from the grid's best over its 8 neighbours at step
+    h, moving to the best and halving h when none is better, down to :data:`S_STEP_FLOOR`·
+    ``op_range`` (Hooke & Jeeves 1961). (0, 0), the linear valve, is a candidate."""
+    s_hi = S_RANGE_FACTOR * op_range
+    best_sj, best = (0.0, 0.0), cost(0.0, 0.0)
+    for s in np.linspace(0.0, s_hi, S_GRID)[1:]:
+        for f in J_FRACTIONS:
+            c = cost(float(s), float(f * s))
+            if c < best:
+                best_sj, best = (float(s), float(f * s)), c
+    h = s_hi / (S_GRID - 1)
+    while h >= S_STEP_FLOOR * op_range:
+        moved = False
+        s0, j0 = best_sj
+        for ds, dj in ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)):
+            s, j = s0 + ds * h, j0 + dj * h
+            if s < 0.0 or j < 0.0 or j > s or s > 2.0 * s_hi:
+                continue
+            c = cost(s, j)
+            if c < best:
+                best_sj, best, moved = (s, j), c, True
+        if not moved:
+            h /= 2.0
+    return best_sj
 
 
 # ----------------------------------------------------------------------------- process
@@ -559,31 +590,8 @@ def fit_valve(data: LoopData, loop_type: str = "self-regulating", *,
                 if integrating
                 else evaluate(s, j))
 
-    linear = evaluate(0.0, 0.0)
     r2_lin = 1.0 - output_error(0.0, 0.0).sse / sst
-    # coarse grid over 0 <= J <= S <= S_RANGE_FACTOR·range
-    s_hi = S_RANGE_FACTOR * op_range
-    best_sj, best = (0.0, 0.0), linear
-    for s in np.linspace(0.0, s_hi, S_GRID)[1:]:
-        for f in J_FRACTIONS:
-            proc = evaluate(float(s), float(f * s))
-            if proc.sse < best.sse:
-                best_sj, best = (float(s), float(f * s)), proc
-    # compass search: the 8 neighbours at step h, move to the best, halve h when none is better
-    h = s_hi / (S_GRID - 1)
-    while h >= S_STEP_FLOOR * op_range:
-        moved = False
-        s0, j0 = best_sj
-        for ds, dj in ((1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (-1, -1), (1, -1), (-1, 1)):
-            s, j = s0 + ds * h, j0 + dj * h
-            if s < 0.0 or j < 0.0 or j > s or s > 2.0 * s_hi:
-                continue
-            proc = evaluate(s, j)
-            if proc.sse < best.sse:
-                best_sj, best, moved = (s, j), proc, True
-        if not moved:
-            h /= 2.0
-    s, j = best_sj
+    s, j = search_sj(lambda s, j: evaluate(s, j).sse, op_range)
     best = output_error(s, j)
     r2 = 1.0 - best.sse / sst
     process = _process_dict(best, integrating, dt)
