@@ -10,14 +10,18 @@ that follows the OP through a first-order lag, and by an unrelated signal.
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.signal import lfilter
+from typer.testing import CliRunner
 
 from loopworks.analysis.loopdata import LoopData
 from loopworks.analysis.valve_travel import fit_travel
+from loopworks.cli import app
 
 
 def _backlash(op: np.ndarray, band: float) -> np.ndarray:
@@ -74,3 +78,22 @@ def test_no_position_no_measurement_and_an_unrelated_one_is_refused() -> None:
     # a valve that is not driven has nothing to show
     still = fit_travel(_record(np.full(400, 50.0), np.full(400, 50.0)))
     assert still is not None and not still.ok and "OP moves" in still.reason
+
+
+def test_the_report_draws_the_valve_against_its_recorded_position(tmp_path: Path) -> None:
+    # a sticky loop (the spec 5.1 loop, S 3 %, J 1 %) written with its stem position: the
+    # command finds the column by name and the report draws it with the fitted valve over it
+    from loopworks.analysis.synthetic import simulate_loop, write_csv
+
+    loop = simulate_loop(valve="choudhury", s=3.0, j=1.0, noise=0.02, kc=1.0, ti=10.0,
+                         sp_step=1.0, dt=0.5, sample_period=1.0, warmup=300.0,
+                         duration=2000.0, seed=4)
+    csv = tmp_path / "loop.csv"
+    write_csv(loop, csv, position=True)
+    run = CliRunner().invoke(app, ["diagnose", str(csv), "--json", "-o", str(tmp_path / "r")])
+    assert run.exit_code == 0, run.output
+    doc = json.loads(run.stdout)
+    assert doc["verdict"] == "stiction" and doc["indices"]["valve_travel"] == pytest.approx(
+        3.0, rel=0.3)
+    assert (tmp_path / "r" / "valve_travel.png").stat().st_size > 10_000
+    assert "valve_travel.png" in (tmp_path / "r" / "report.html").read_text()

@@ -1,9 +1,10 @@
 """The report of ``loopworks diagnose -o DIR``: ``report.html`` with the verdict, the data's
 quality, the evidence table, the stiction estimate and the recommendation, and its plots:
 ``trends.png`` (SP and PV, OP over time), ``pv_op.png`` (PV against OP, with the fitted valve
-and process model's PV over it when the data supports a stiction estimate) and, with a
-recommendation, ``recommendation.png`` (the predicted PV variability against valve travel of
-each option)."""
+and process model's PV over it when the data supports a stiction estimate),
+``valve_travel.png`` when the record has the valve position (position against OP, with the
+valve fitted to it) and, with a recommendation, ``recommendation.png`` (the predicted PV
+variability against valve travel of each option)."""
 
 from __future__ import annotations
 
@@ -71,6 +72,32 @@ def pv_op(result: Diagnosis, data: LoopData, path: Path) -> Path:
     return path
 
 
+def travel(data: LoopData, path: Path) -> Path | None:
+    """The recorded valve position against OP (when the record has one), with the valve
+    fitted to it (:mod:`loopworks.analysis.valve_travel`) over the data: a sticky valve's
+    position stays flat while the OP crosses the stick band, then jumps."""
+    if data.position is None:
+        return None
+    from loopworks.analysis.valve_travel import fit_travel, model_position
+
+    fit = fit_travel(data)
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
+    ax.plot(data.op, data.position, lw=0.6, color="0.6", label="data")
+    ax.plot(data.op, data.position, ".", ms=2, color="tab:green")
+    if fit is not None and fit.ok:
+        ax.plot(data.op, model_position(data, fit), lw=0.9, color="tab:red", alpha=0.8,
+                label=f"fitted valve (S = {fit.s:.3g} %, J = {fit.j:.3g} %)")
+    ax.set_xlabel("OP (%)")
+    ax.set_ylabel("valve position")
+    ax.set_title("valve position against OP" + ("" if fit is None or fit.ok else
+                                                  ": no valve fitted (see the evidence)"))
+    ax.legend(loc="best")
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
 def recommendation(result: Diagnosis, path: Path) -> Path | None:
     """Each option's predicted PV standard deviation against its valve travel."""
     rec = result.recommendation
@@ -110,9 +137,10 @@ def write_report(result: Diagnosis, data: LoopData, directory: Path) -> Path:
     """report.html and its plots in ``directory`` (created)."""
     directory.mkdir(parents=True, exist_ok=True)
     images = [trends(data, directory / "trends.png"), pv_op(result, data, directory / "pv_op.png")]
-    rec_png = recommendation(result, directory / "recommendation.png")
-    if rec_png is not None:
-        images.append(rec_png)
+    for extra in (travel(data, directory / "valve_travel.png"),
+                  recommendation(result, directory / "recommendation.png")):
+        if extra is not None:
+            images.append(extra)
     (directory / "diagnosis.json").write_text(
         json.dumps(result.to_json(), indent=2, ensure_ascii=False), encoding="utf-8")
     rows = "".join(f"<tr><td>{html.escape(e.method)}</td><td>{e.vote}</td>"

@@ -144,3 +144,24 @@ def fit_travel(data: LoopData) -> TravelFit | None:
     return TravelFit(s, j, r2, r2_lin, True, f"on the recorded position: S = {s:.3g} %, J = "
                      f"{j:.3g} % (deadband {s - j:.3g} %, resolution {j:.3g} %); R² "
                      f"{r2:.3f} of the position against {r2_lin:.3f} for a linear valve.")
+
+
+def model_position(data: LoopData, fit: TravelFit) -> FloatArray:
+    """The position the fitted valve gives for the recorded OP, in the position's units
+    (α·x(S, J) + β, module docstring); NaN where OP or position is not finite, or everywhere
+    when ``fit.ok`` is False or the record has no position."""
+    out = np.full(len(data), math.nan)
+    if data.position is None or not fit.ok:
+        return out
+    op = np.asarray(data.op, dtype=np.float64)
+    pos = np.asarray(data.position, dtype=np.float64)
+    use = np.isfinite(op) & np.isfinite(pos)
+    held = np.where(np.isfinite(op), op, np.nan)
+    for k in range(len(held)):
+        if not np.isfinite(held[k]):
+            held[k] = held[k - 1] if k > 0 else float(op[use][0])
+    x = valve_position(held, fit.s, fit.j)[use]
+    A = np.column_stack([x, np.ones(len(x))])
+    theta, *_ = np.linalg.lstsq(A, pos[use], rcond=None)
+    out[use] = A @ theta
+    return out
