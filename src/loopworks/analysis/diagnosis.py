@@ -261,13 +261,19 @@ def _valve_fit_vote(fit: ValveFit) -> Evidence:
         return Evidence("valve_fit", name, "undetermined", WEIGHTS["valve_fit"], fit.s,
                         f"{why}; S above {MAX_S:g} % is not a valve a loop runs with, more "
                         "likely a model that fits something else (abstains)")
-    if fit.s >= MIN_S and gain >= MIN_R2_GAIN:
-        vote: Verdict = "stiction"
-    elif fit.s < MIN_S or gain < NO_R2_GAIN:
-        vote = "no_stiction"
-    else:
-        vote = "undetermined"
-    return Evidence("valve_fit", name, vote, WEIGHTS["valve_fit"], fit.s, why)
+    return Evidence("valve_fit", name, _fit_vote(fit.s, gain), WEIGHTS["valve_fit"], fit.s,
+                    why)
+
+
+def _fit_vote(s: float, gain: float) -> Verdict:
+    """A fitted valve's vote (rule 3): stiction when S ≥ :data:`MIN_S` and the stiction
+    explains at least :data:`MIN_R2_GAIN` of what a linear valve leaves unexplained (``gain``);
+    no stiction when S is below :data:`MIN_S` or ``gain`` below :data:`NO_R2_GAIN`."""
+    if s >= MIN_S and gain >= MIN_R2_GAIN:
+        return "stiction"
+    if s < MIN_S or gain < NO_R2_GAIN:
+        return "no_stiction"
+    return "undetermined"
 
 
 def _valve_travel_vote(fit: TravelFit) -> Evidence:
@@ -280,13 +286,7 @@ def _valve_travel_vote(fit: TravelFit) -> Evidence:
     gain = (fit.r2 - fit.r2_linear) / max(1.0 - fit.r2_linear, 1e-12)
     why = (f"{fit.reason} The valve's stiction explains {gain:.1%} of what a linear valve "
            "leaves unexplained")
-    if fit.s >= MIN_S and gain >= MIN_R2_GAIN:
-        vote: Verdict = "stiction"
-    elif fit.s < MIN_S or gain < NO_R2_GAIN:
-        vote = "no_stiction"
-    else:
-        vote = "undetermined"
-    return Evidence("valve_travel", name, vote, weight, fit.s, why)
+    return Evidence("valve_travel", name, _fit_vote(fit.s, gain), weight, fit.s, why)
 
 
 def _bicoherence_vote(e: np.ndarray, dt: float) -> Evidence:
