@@ -78,7 +78,7 @@ from loopworks.analysis.area_ratio import area_ratio
 from loopworks.analysis.bicoherence import bicoherence_test
 from loopworks.analysis.curve_fit import curve_fit_loop
 from loopworks.analysis.horch import horch_test
-from loopworks.analysis.loopdata import LoopData, bad, read_csv
+from loopworks.analysis.loopdata import LoopData, bad, hold_last, read_csv
 from loopworks.analysis.oscillation import Oscillation, regularity
 from loopworks.analysis.quality import Quality, check_quality
 from loopworks.analysis.seized import CONFIDENCE as SEIZED_CONFIDENCE
@@ -405,19 +405,6 @@ def _seized_diagnosis(data: LoopData, loop_type: LoopType, quality: Quality,
                      evidence, 1.0, seized.reason + gate, None, rec)
 
 
-def _hold(x: np.ndarray) -> np.ndarray:
-    """x with each non-finite sample replaced by the last finite one before it (the first
-    finite one for a leading stretch): a historian's hold."""
-    good = np.isfinite(x)
-    if good.all() or not good.any():
-        return x
-    idx = np.where(good, np.arange(len(x)), 0)
-    np.maximum.accumulate(idx, out=idx)
-    first = int(np.argmax(good))
-    idx[:first] = first
-    return np.asarray(x[idx], dtype=np.float64)
-
-
 def _bad_as_nan(data: LoopData) -> LoopData:
     """The record with every Bad sample of SP, PV, OP and valve position (infinite, or beyond
     ±1e12: :func:`~loopworks.analysis.loopdata.bad`) as NaN, the reader's Bad value, so the
@@ -440,7 +427,7 @@ def _hold_bad(data: LoopData) -> tuple[LoopData, int]:
     count = int(bad.sum())
     if count == 0:
         return data, 0
-    return replace(data, sp=_hold(data.sp), pv=_hold(data.pv), op=_hold(data.op)), count
+    return replace(data, sp=hold_last(data.sp), pv=hold_last(data.pv), op=hold_last(data.op)), count
 
 
 def _recommendation(data: LoopData, fit: ValveFit, ctl: ControllerFit, model: np.ndarray,

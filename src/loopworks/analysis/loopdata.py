@@ -447,3 +447,16 @@ def _uniform(t: FloatArray, values: dict[str, FloatArray]) -> tuple[FloatArray,
             f"{grid[-1]:g} s, {len(t)} samples to {m}, each grid time taking the last sample "
             f"at or before it (zero-order hold, as historians store values).")
     return grid, {role: v[idx] for role, v in values.items()}, note
+
+
+def hold_last(x: FloatArray) -> FloatArray:
+    """x with each non-finite sample replaced by the last finite one before it (the first
+    finite one for a leading stretch): a historian's hold."""
+    good = np.isfinite(x)
+    if good.all() or not good.any():
+        return x
+    idx = np.where(good, np.arange(len(x)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    first = int(np.argmax(good))
+    idx[:first] = first
+    return np.asarray(x[idx], dtype=np.float64)

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from loopworks.analysis.loopdata import LoopData
+from loopworks.analysis.loopdata import LoopData, hold_last
 from loopworks.analysis.valve_fit import (
     MIN_OP_RANGE,
     MIN_SAMPLES,
@@ -107,10 +107,7 @@ def fit_travel(data: LoopData) -> TravelFit | None:
     if int(use.sum()) < MIN_SAMPLES:
         return TravelFit(nan, nan, nan, nan, False, f"{int(use.sum())} samples with a finite "
                          f"OP and position: at least {MIN_SAMPLES} are needed.")
-    op_held = op.copy()
-    for k in range(len(op_held)):  # hold a Bad OP at its last finite value
-        if not np.isfinite(op_held[k]):
-            op_held[k] = op_held[k - 1] if k > 0 else float(op[use][0])
+    op_held = hold_last(op)  # a Bad OP held at its last finite value
     op_range = float(op[use].max() - op[use].min())
     if op_range < MIN_OP_RANGE:
         return TravelFit(nan, nan, nan, nan, False, f"OP moves over {op_range:.3g} % only: a "
@@ -156,11 +153,7 @@ def model_position(data: LoopData, fit: TravelFit) -> FloatArray:
     op = np.asarray(data.op, dtype=np.float64)
     pos = np.asarray(data.position, dtype=np.float64)
     use = np.isfinite(op) & np.isfinite(pos)
-    held = np.where(np.isfinite(op), op, np.nan)
-    for k in range(len(held)):
-        if not np.isfinite(held[k]):
-            held[k] = held[k - 1] if k > 0 else float(op[use][0])
-    x = valve_position(held, fit.s, fit.j)[use]
+    x = valve_position(hold_last(op), fit.s, fit.j)[use]
     A = np.column_stack([x, np.ones(len(x))])
     theta, *_ = np.linalg.lstsq(A, pos[use], rcond=None)
     out[use] = A @ theta
