@@ -90,7 +90,7 @@ from loopworks.analysis.valve_fit import (
     fit_valve,
     model_pv,
 )
-from loopworks.analysis.valve_travel import TravelFit, fit_travel
+from loopworks.analysis.valve_travel import TravelFit, fit_travel, model_position
 from loopworks.errors import InputError
 
 #: each method's weight in the verdict (rule 4)
@@ -174,6 +174,10 @@ class Diagnosis:
     recommendation: dict[str, Any] | None = None
     #: the fitted model's PV over the record (the report's PV-OP plot), not in the JSON
     model_pv: np.ndarray | None = field(default=None, repr=False)
+    #: the valve measured on the recorded position (None without one), and that fitted
+    #: valve's position over the record (the report's valve-travel plot), not in the JSON
+    travel: TravelFit | None = field(default=None, repr=False)
+    model_position: np.ndarray | None = field(default=None, repr=False)
 
     @property
     def indices(self) -> dict[str, float]:
@@ -383,8 +387,10 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
                     "reason": f"{fit.reason} {SAMPLED.format(dt=data.dt)}"}
         if recommend:
             rec = _recommendation(data, fit, ctl, model, samples)
+    position = (model_position(data, travel) if travel is not None and travel.ok
+                else None)
     return Diagnosis(verdict, confidence, lt, data.source, quality, osc, evidence, score,
-                     reason, stiction, rec, model)
+                     reason, stiction, rec, model, travel, position)
 
 
 def _seized_diagnosis(data: LoopData, loop_type: LoopType, quality: Quality,

@@ -72,21 +72,19 @@ def pv_op(result: Diagnosis, data: LoopData, path: Path) -> Path:
     return path
 
 
-def travel(data: LoopData, path: Path) -> Path | None:
+def travel(result: Diagnosis, data: LoopData, path: Path) -> Path | None:
     """The recorded valve position against OP (when the record has one), with the valve
-    fitted to it (:mod:`loopworks.analysis.valve_travel`) over the data: a sticky valve's
-    position stays flat while the OP crosses the stick band, then jumps."""
+    the diagnosis fitted to it (:mod:`loopworks.analysis.valve_travel`) over the data: a
+    sticky valve's position stays flat while the OP crosses the stick band, then jumps."""
     if data.position is None:
         return None
-    from loopworks.analysis.valve_travel import fit_travel, model_position
-
-    fit = fit_travel(data)
+    fit = result.travel
     plt = _plt()
     fig, ax = plt.subplots(figsize=(7, 6), layout="constrained")
     ax.plot(data.op, data.position, lw=0.6, color="0.6", label="data")
     ax.plot(data.op, data.position, ".", ms=2, color="tab:green")
-    if fit is not None and fit.ok:
-        ax.plot(data.op, model_position(data, fit), lw=0.9, color="tab:red", alpha=0.8,
+    if fit is not None and fit.ok and result.model_position is not None:
+        ax.plot(data.op, result.model_position, lw=0.9, color="tab:red", alpha=0.8,
                 label=f"fitted valve (S = {fit.s:.3g} %, J = {fit.j:.3g} %)")
     ax.set_xlabel("OP (%)")
     ax.set_ylabel("valve position")
@@ -137,7 +135,7 @@ def write_report(result: Diagnosis, data: LoopData, directory: Path) -> Path:
     """report.html and its plots in ``directory`` (created)."""
     directory.mkdir(parents=True, exist_ok=True)
     images = [trends(data, directory / "trends.png"), pv_op(result, data, directory / "pv_op.png")]
-    for extra in (travel(data, directory / "valve_travel.png"),
+    for extra in (travel(result, data, directory / "valve_travel.png"),
                   recommendation(result, directory / "recommendation.png")):
         if extra is not None:
             images.append(extra)
