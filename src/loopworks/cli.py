@@ -277,13 +277,18 @@ def replay(
 
 
 def _pairs(items: list[str] | None, option: str) -> dict[str, str]:
-    """NAME=VALUE options into a dict (names lower-cased)."""
+    """NAME=VALUE options into a dict (names lower-cased); a name given twice (in any letter
+    case) is an error, not the last one silently winning."""
     values: dict[str, str] = {}
     for item in items or []:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
             _fail(f"{option} {item!r}: expected NAME=VALUE")
-        values[name.strip().lower()] = value.strip()
+        key = name.strip().lower()
+        if key in values:
+            _fail(f"{option} {item!r}: '{key}' is given twice ({key} = {values[key]!r} "
+                  "before); give it once")
+        values[key] = value.strip()
     return values
 
 
@@ -449,10 +454,15 @@ def read_params_file(path: Path, kind: str) -> dict[str, Any]:
     if given_kind is not None and str(given_kind).lower() != kind:
         raise FileFormatError(f"{path}: kind = {given_kind!r} does not match the block kind "
                               f"{kind!r}")
+    seen: dict[str, str] = {}
     for key, value in table.items():
         if isinstance(value, dict | list):
             raise FileFormatError(f"{path}: '{key}' is a table or array: expected a flat table "
                                   "of parameter = value")
+        if key.lower() in seen:
+            raise FileFormatError(f"{path}: '{key}' and '{seen[key.lower()]}' are one parameter "
+                                  "(names are read in any letter case): give it once")
+        seen[key.lower()] = key
     return table
 
 

@@ -266,3 +266,25 @@ def test_autotune_process_gain_names_a_parameter_before_the_test_runs() -> None:
     with pytest.raises(FileFormatError, match=r"\[autotune\]: process_gain entry 'pid\.gainn': "
                                               r"pid has no parameter 'gainn'"):
         parse_scenario(text, "bad.toml")
+
+
+def test_a_parameter_given_twice_in_two_letter_cases_is_an_error(tmp_path: Path) -> None:
+    """Names are read in any letter case, so `k = 1.0` and `K = 5.0` in one block were one
+    parameter, the last silently winning (found by a user's run); now a located error. The
+    same for a --params file and for -p given twice."""
+    from typer.testing import CliRunner
+
+    from loopworks.cli import app
+
+    text = GOOD.replace("k = 1.0\n", "k = 1.0\nK = 5.0\n")
+    with pytest.raises(FileFormatError, match=r"\[blocks.pid\]: 'K' and 'k' are one "
+                                              r"parameter .* give it once"):
+        parse_scenario(text)
+    params = tmp_path / "p.toml"
+    params.write_text("k = 1.0\nK = 5.0\n")
+    csv = tmp_path / "in.csv"
+    csv.write_text("dt,sp,pv\n1,50,40\n1,50,41\n")
+    run = CliRunner().invoke(app, ["replay", "pid", str(csv), "--params", str(params)])
+    assert run.exit_code == 2 and "'K' and 'k' are one parameter" in run.output, run.output
+    run = CliRunner().invoke(app, ["replay", "pid", str(csv), "-p", "k=1", "-p", "K=5"])
+    assert run.exit_code == 2 and "'k' is given twice" in run.output, run.output

@@ -287,3 +287,65 @@ def test_a_relay_the_output_limits_would_clip_is_refused(tmp_path: Path) -> None
     assert data["process_type"] == "self_regulating"
     assert data["process_gain"] == pytest.approx(1.0, rel=0.02)
     assert data["time_constant"] == pytest.approx(10.0, rel=0.05)
+
+
+CASCADE_LOOP = """
+[simulation]
+dt = 0.5
+duration = 20
+
+[blocks.primary]
+kind = "pid"
+mode = "MAN"        # the primary holds the secondary's setpoint during its test
+man_out = 60.0
+
+[blocks.secondary]
+kind = "pid"
+k = 2.0
+ti = 10.0
+mode = "CAS"
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 10.0
+dead_time = 2.0
+
+[blocks.outer]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 300.0
+
+[wires]
+"secondary.cas_sp" = "primary.out"
+"process.u" = "secondary.out"
+"secondary.pv" = "process.y"
+"outer.u" = "process.y"
+"primary.pv" = "outer.y"
+"""
+
+
+def test_a_cascade_secondary_is_relay_tested_around_its_cascade_setpoint() -> None:
+    """Found by a user's run of `tune examples/cascade.toml --loop secondary`: in CAS the
+    secondary works to cas_sp (the primary's output, held at 60 here), but the relay switched around
+    its unused sp input (0), never crossed it and reported "no oscillation". The relay now
+    takes the setpoint the controller works to in its mode; spec 3.2's plant reads K = 1."""
+    from loopworks.sim.tune import tune_loop
+
+    sc = parse_scenario(CASCADE_LOOP)
+    report = tune_loop(sc.module, "secondary", sc.dt, start=300.0)
+    assert report.run.outcome == "converged"
+    assert report.run.test.sp == pytest.approx(60.0, abs=0.5)
+    assert report.identification.process_gain == pytest.approx(1.0, rel=0.05)
+
+
+def test_a_bias_ratio_above_one_is_refused_as_in_autotune() -> None:
+    """`tune --bias-ratio 2` ran and reported a gain 30 % off; [autotune] bias_ratio refuses
+    it (gt 0, le 1): the relay test itself now checks the range for both."""
+    from loopworks.errors import InputError
+    from loopworks.sim.tune import check_relay_test
+
+    sc = parse_scenario(LOOP)
+    for ratio in (2.0, 0.0, float("nan")):
+        with pytest.raises(InputError, match=r"bias_ratio = .* not allowed: allowed \(0, 1\]"):
+            check_relay_test(sc.module, "pid", sc.dt, bias_ratio=ratio)

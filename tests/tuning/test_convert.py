@@ -316,3 +316,41 @@ def test_settings_beyond_double_precision_are_refused_with_the_values() -> None:
     with pytest.raises(ParameterError, match=r"beyond what the conversion can compute .*"
                                              r"sample_time = 1e-320"):
         convert("e2.pid", {}, "e2.pid", sample_time=1e-320)
+
+
+@pytest.mark.parametrize("to_kind, target, name", [
+    ("pid", {"zz": "1"}, "zz"), ("pid", {"k": "5"}, "k"),
+    ("s5.pid", {"arithmetic": "bogus"}, "arithmetic"), ("ge.pid_isa", {"form": "series"}, "form"),
+    ("ge.pid_ind", {"word8": "3"}, "word8"), ("e2.pid", {"kp": "2"}, "kp")])
+def test_a_target_setting_the_target_does_not_take_is_refused(
+        to_kind: str, target: dict[str, str], name: str) -> None:
+    """Found by a user's run of `convert -t`: a name the target's realisation never reads
+    (unknown, another vendor's, or a parameter the conversion computes) was silently
+    ignored, so `-t k=5` left k at 2. It is an error listing the settings it takes."""
+    with pytest.raises(ParameterError, match=rf"target setting '{name}' = .* is not one it "
+                                             r"takes: allowed .*"):
+        convert("pid", {"k": 2.0, "ti": 10.0}, to_kind, sample_time=1.0, target=target)
+
+
+def test_ge_arithmetic_must_be_native_or_float() -> None:
+    """`-t arithmetic=bogus` read as native; it is one of native, float (spec: GE words)."""
+    with pytest.raises(ParameterError, match=r"'arithmetic' = 'bogus' is not allowed: "
+                                             r"expected one of native, float"):
+        convert("pid", {"k": 2.0, "ti": 10.0}, "ge.pid_ind", sample_time=1.0,
+                target={"arithmetic": "bogus"})
+
+
+def test_an_integral_rounded_to_a_zero_word_is_refused() -> None:
+    """A PI whose integral word rounds to 0 became a P-only controller with exit 0 (GE's
+    independent form: word 8 = 1000·Kp/Ti; S5: TI = R·TA/Ti): refused as ge.pid_isa's
+    word 8 already was. Kp = 2: word 8 = 2000/Ti >= 0.5 up to Ti = 4000 s; S5 with R = 1024
+    (scale exact) and TA = 1 s: TI = 1024/Ti >= 0.5 up to 2048 s."""
+    with pytest.raises(ParameterError, match=r"'ti' = 50000 s is out of range: allowed up "
+                                             r"to 4000 s .* or inf"):
+        convert("pid", {"k": 2.0, "ti": 50000.0}, "ge.pid_ind", sample_time=1.0)
+    assert convert("pid", {"k": 2.0, "ti": 3900.0}, "ge.pid_ind",
+                   sample_time=1.0).params["word8"] == 1
+    with pytest.raises(ParameterError, match=r"'ti' = 100000 s is out of range: allowed up "
+                                             r"to 2048 s .* or inf"):
+        convert("pid", {"k": 2.0, "ti": 100000.0}, "s5.pid", sample_time=1.0)
+    assert convert("pid", {"k": 2.0, "ti": 2000.0}, "s5.pid", sample_time=1.0).params["ti"] == 1

@@ -104,6 +104,12 @@ class Controller(metaclass=ABCMeta):
         return cls.ACTION.direct_acting(params)
 
     @classmethod
+    def setpoint_input(cls, inputs: Mapping[str, float]) -> str:
+        """The input the controller takes its setpoint from, given its current input values
+        (by name): the ``sp`` role, unless a cascade mode switches it to another input."""
+        return cls.ROLES.sp
+
+    @classmethod
     def incremental(cls, params: Mapping[str, Any]) -> str | None:
         """None when the output is a position (the output value itself); else why it is an
         increment (a velocity algorithm whose actuator integrates), naming the parameter."""

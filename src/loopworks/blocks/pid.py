@@ -380,6 +380,11 @@ class PID(Controller, Block):
     HANDOVER: ClassVar[Handover] = Handover((("track", "active"), ("track_value", "out")))
 
     @classmethod
+    def setpoint_input(cls, inputs: Mapping[str, float]) -> str:
+        """``cas_sp`` in CAS mode (the mode input's value 2), else ``sp``."""
+        return "cas_sp" if inputs.get("mode") == CAS else "sp"
+
+    @classmethod
     def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
         """``out_lo``..``out_hi``."""
         return float(params["out_lo"]), float(params["out_hi"])

@@ -209,6 +209,13 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         if not isinstance(table, dict) or "kind" not in {k.lower() for k in table}:
             raise FileFormatError(f"{source}: [blocks.{name}]: expected a table with "
                                   "kind = \"...\"")
+        seen: dict[str, str] = {}
+        for key in table:
+            if key.lower() in seen:
+                raise FileFormatError(f"{source}: [blocks.{name}]: '{key}' and "
+                                      f"'{seen[key.lower()]}' are one parameter (names are "
+                                      "read in any letter case): give it once")
+            seen[key.lower()] = key
         tables[name] = {k.lower(): v for k, v in table.items()}
     variants: dict[str, dict[str, dict[str, Any]]] = {}
     if not sc.compare:

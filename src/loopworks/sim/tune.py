@@ -169,6 +169,11 @@ def _relay_setup(module: Module, loop: str, dt: float, start: float | None,
         "stable_cycles": stable_cycles, "max_deviation": max_deviation,
         "biased_stage": biased}
     if biased:
+        if not 0.0 < bias_ratio <= 1.0:
+            raise InputError(f"bias_ratio = {bias_ratio!r} is not allowed: allowed (0, 1] "
+                             "(d_down/d of the second stage, as [autotune] bias_ratio)")
+        if not math.isfinite(offset):
+            raise InputError(f"offset = {offset!r} is not allowed: must be finite")
         relay_params["amplitude_down"] = bias_ratio * d
         relay_params["offset"] = offset
     if ctrl.direct_acting(ctrl.params):
@@ -235,6 +240,8 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
     wires[f"{RELAY}.u_in"] = f"{loop}.{out_port}"
     wires[f"{RELAY}.pv"] = pv_src
     sp_value: float | None = None
+    # the setpoint the loop works to now (a cascade secondary's comes from its primary)
+    sp_port = iface.setpoint_input({name: float(ctrl.u[i]) for name, i in ctrl._in_index.items()})
     if working_sp is not None:
         wires[f"{RELAY}.sp"] = f"{loop}.{working_sp}"
     elif f"{loop}.{sp_port}" in module.wires:

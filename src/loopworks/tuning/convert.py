@@ -330,10 +330,42 @@ def to_ideal(kind: str, params: Mapping[str, Any], *, sample_time: float | None 
     return law.ideal, exact, _note(list(law.notes) + why, exact)
 
 
-def _from_law(kind: str, law: DiscreteLaw, dt: float | None, ctx: dict[str, Any]) -> Conversion:
+class _Read(dict[str, Any]):
+    """A context that remembers every name looked up in it (``get``, ``in``, ``[]``), given
+    or not: what a controller's ``from_law`` reads is the list of its target settings."""
+
+    def __init__(self, values: Mapping[str, Any]) -> None:
+        super().__init__(values)
+        self.read: set[str] = set()
+
+    def get(self, key: str, default: Any = None) -> Any:  # type: ignore[override]
+        self.read.add(key)
+        return super().get(key, default)
+
+    def __contains__(self, key: object) -> bool:
+        self.read.add(str(key))
+        return super().__contains__(key)
+
+    def __getitem__(self, key: str) -> Any:
+        self.read.add(key)
+        return super().__getitem__(key)
+
+
+def _from_law(kind: str, law: DiscreteLaw, dt: float | None, ctx: dict[str, Any], *,
+              strict: bool = False) -> Conversion:
+    """The ``kind`` block realising ``law``; ``strict``: every name of ``ctx`` must be a target
+    setting the block's ``from_law`` reads (the user's ``-t``), else a ParameterError that
+    lists them (a context made from a block's own parameters carries others)."""
     cls = _controller(kind)
     kind = cls.kind
-    made = cls.from_law(law, dt if dt is not None else law.dt, ctx)
+    read = _Read(ctx)
+    made = cls.from_law(law, dt if dt is not None else law.dt, read)
+    unused = sorted(set(ctx) - read.read)
+    if strict and unused:
+        raise ParameterError(
+            f"{kind}: target setting '{unused[0]}' = {ctx[unused[0]]!r} is not one it takes: "
+            "allowed " + (", ".join(sorted(read.read)) or "none")
+            + " (the other parameters are what the conversion computes)")
     block_params = {k: v for k, v in made.params.items() if k not in cls.LAW_CONTEXT}
     create_block(kind, jit=False, **block_params)  # the target block accepts them (ranges, words)
     spans = {k: v for k, v in ctx.items() if k in cls.LAW_CONTEXT and "span" in k}
@@ -375,7 +407,7 @@ def convert(from_kind: str, params: Mapping[str, Any], to_kind: str, *,
     dt = None if sample_time is None else number("sample_time", sample_time)
     law = _law_of(from_kind, params, dt, None)
     ctx = {str(k).lower(): v for k, v in (target or {}).items()}
-    return _from_law(to_kind, law, dt, ctx)
+    return _from_law(to_kind, law, dt, ctx, strict=True)
 
 
 @_computable

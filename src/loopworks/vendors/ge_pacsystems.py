@@ -961,7 +961,11 @@ class GEPIDBlock(Controller, Block):
             dt = number("sample_period", context["sample_period"], kind=kind)
         pv_span, cv_span = cls.spans(context)
         k = ideal.kc * cv_span / pv_span
-        native = str(context.get("arithmetic", "native")).lower() != "float"
+        arithmetic = str(context.get("arithmetic", "native")).lower()
+        if arithmetic not in ("native", "float"):
+            raise ParameterError(f"{kind}: parameter 'arithmetic' = {arithmetic!r} is not "
+                                 "allowed: expected one of native, float")
+        native = arithmetic == "native"
         out: dict[str, ParamValue] = {}
         if cls.IS_ISA:
             w6 = word("word6", k * 100.0, kind)
@@ -981,6 +985,11 @@ class GEPIDBlock(Controller, Block):
             w6 = word("word6", kp * 100.0, kind)
             w7 = word("word7", kd * 100.0, kind)
             w8 = word("word8", ki * 1000.0, kind)
+            if ideal.ti != math.inf and w8 == 0:
+                raise ParameterError(
+                    f"{kind}: parameter 'ti' = {ideal.ti:g} s is out of range: allowed up to "
+                    f"{2000.0 * kp:g} s (word 8 = 1000·Kp/Ti >= 0.5, so the integral is not "
+                    "rounded away) or inf")
             if native:
                 out.update(kp=w6 / 100.0, ki=w8 / 1000.0, kd=w7 / 100.0)
             else:

@@ -666,6 +666,11 @@ class S5PID(Controller, Block):
             td_c = r * ideal.td * (1.0 - d) / (d * dt)
         k_word = word("k", big_k * scale, kind)
         td_word = word("td", td_c * scale, kind)
+        if ideal.ti < math.inf and word("ti", ti_c * scale, kind, 9999.0) == 0:
+            raise ParameterError(
+                f"s5.pid: parameter 'ti' = {ideal.ti:g} s is out of range: allowed up to "
+                f"{2.0 * r_word * dt:g} s (TI = R·TA/Ti >= 0.5 word, so the integral is not "
+                "rounded away) or inf")
         out: dict[str, ParamValue] = {
             "k": -k_word if ideal.direct else k_word, "r": r_word,
             "ti": word("ti", ti_c * scale, kind, 9999.0), "td": td_word,
