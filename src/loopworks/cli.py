@@ -155,12 +155,13 @@ def _g(value: Any) -> str:
 
 
 def _check_report_directory(output: Path) -> None:
-    """Before a run: ``output`` is an existing directory, or one that can be created (its
-    nearest existing ancestor is a writable directory)."""
+    """Before a run: ``output`` is an existing writable directory, or one that can be made
+    (tried: made and removed again, so a run that fails leaves nothing), so a place the report
+    cannot go is one error line before the work, not a traceback after it."""
     if output.exists():
         if not output.is_dir():
-            _fail(f"-o {output}: exists and is not a directory: the report is a directory "
-                  "(report.html, metrics.json, plots); choose another name")
+            _fail(f"-o {output}: exists and is not a directory: the report is a directory; "
+                  "choose another name")
         if not os.access(output, os.W_OK | os.X_OK):
             _fail(f"-o {output}: the directory is not writable")
         return
@@ -171,6 +172,13 @@ def _check_report_directory(output: Path) -> None:
         _fail(f"-o {output}: cannot create the report directory: {parent} is a file")
     if not os.access(parent, os.W_OK | os.X_OK):
         _fail(f"-o {output}: cannot create the report directory: {parent} is not writable")
+    made = [d for d in [output.absolute(), *output.absolute().parents] if not d.exists()]
+    try:
+        output.mkdir(parents=True)
+    except OSError as exc:
+        _fail(f"-o {output}: cannot create the report directory: {exc.strerror or exc}")
+    for d in made:  # deepest first
+        d.rmdir()
 
 
 @app.command()
@@ -298,6 +306,17 @@ def _json_safe(value: Any) -> Any:
         return "nan" if math.isnan(value) else ("inf" if value > 0 else "-inf")
     if isinstance(value, dict):
         return {k: _json_safe(v) for k, v in value.items()}
+    return value
+
+
+def _json_null(value: Any) -> Any:
+    """NaN and infinities as null (JSON's n/a), recursively."""
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _json_null(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_null(v) for v in value]
     return value
 
 
@@ -544,20 +563,23 @@ def sweep(
     sweep_report.write_summary(result, output, title, command, metric)
     chosen = sweep_report._metric(result, metric)
     rows = sweep_report.summary_table(result, chosen)
-    if as_json:
-        typer.echo(json.dumps(_json_safe({
+    finite = any(math.isfinite(x) for row in rows for x in row[1:])
+    if as_json:  # a metric with no value (n/a) is null, as in simulate's metrics.json
+        typer.echo(json.dumps(_json_null({
             "instances": len(result), "design": result.design, "varied": result.varied,
             "seconds": result.seconds, "metric": chosen,
             "variants": {v: {"median": a, "p5": b, "p95": c, "best": d}
                          for v, a, b, c, d in rows},
-            "best": result.best(chosen), "output": str(output)}), indent=2))
+            "best": result.best(chosen) if finite else None, "output": str(output)}),
+            indent=2))
         return
     table = Table(title=escape(f"{title}: {result.design}, {len(result)} runs in "
                                f"{result.seconds:.1f} s"))
     for col in ("variant", f"{chosen}: median", "5 %", "95 %", "best"):
         table.add_column(escape(col), justify="right")
     for v, a, b, c, d in rows:
-        table.add_row(escape(v), *(f"{x:.4g}" for x in (a, b, c, d)))
+        table.add_row(escape(v), *(f"{x:.4g}" if math.isfinite(x) else "n/a"
+                                   for x in (a, b, c, d)))
     console.print(table)
     console.print(f"wrote {output / 'results.parquet'}, results.csv and summary.html",
                   markup=False)

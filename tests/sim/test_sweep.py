@@ -197,6 +197,9 @@ def test_monte_carlo_is_reproducible_and_processes_agree(scenario: Path) -> None
     (["pid.k=-1,1"], "instance 0: pid.k = -1"),
     (["pid.k=1,2", "PID.K=3"], "a name is varied twice"),
     (["pid.sp=uniform(0,1)", "pid.mode=choice(AUTO,BOGUS)"], "pid.mode = 'BOGUS'"),
+    # a wired input: the constant was taken and silently never applied (found by a user)
+    (["pid.pv=0,100"], "--vary pid.pv: the input is wired from 'tx.pv' in variant 'base': "
+                       "an input takes a wire or a constant, not both"),
 ])
 def test_unknown_names_and_bad_values_fail_before_running(scenario: Path, vary: list[str],
                                                           message: str) -> None:
@@ -303,3 +306,56 @@ def test_trajectories_only_for_the_points_asked(scenario: Path) -> None:
         assert result.columns[name][row] == pytest.approx(metrics[name], rel=1e-12), name
     with pytest.raises(InputError, match="--trajectory 3: no such point"):
         sweep(scenario, {"pid.k": "1,2,3"}, trajectories=[3])
+
+
+def test_a_choice_input_varied_by_name_and_by_code_is_one_column(scenario: Path) -> None:
+    """`--vary pid.mode=AUTO,1` (both valid: a name and its code) ran and then crashed in
+    pyarrow (a column of str and int) with nothing written; the column is now text."""
+    result = sweep(scenario, ["pid.mode=AUTO,1"], variant="base", workers=1)
+    assert result.columns["pid.mode"] == ["AUTO", "1"]
+    assert result.to_arrow().num_rows == 2
+
+
+def test_a_metric_with_no_value_is_null_in_json_and_na_in_the_table(scenario: Path,
+                                                                     tmp_path: Path) -> None:
+    """No setpoint step here, so "overshoot %" is n/a in every run: --json crashed in best()
+    (KeyError) and wrote "nan" strings; the table printed nan. Now null, and n/a."""
+    args = ["sweep", str(scenario), "--vary", "pid.k=0.5,1", "--workers", "1", "-q",
+            "--metric", "overshoot %", "-o", str(tmp_path / "a")]
+    done = CliRunner().invoke(app, [*args, "--json"])
+    assert done.exit_code == 0, done.output
+    data = json.loads(done.stdout)
+    assert data["best"] is None
+    assert data["variants"]["base"] == {"median": None, "p5": None, "p95": None, "best": None}
+    done = CliRunner().invoke(app, [*args[:-1], str(tmp_path / "b")])
+    assert done.exit_code == 0, done.output
+    assert "n/a" in done.output and "nan" not in done.output
+
+
+def test_a_wrong_scheduler_address_or_workers_with_it_fail_before_running(
+        scenario: Path) -> None:
+    """`--scheduler notaurl` was a ValueError traceback from distributed, after the local
+    warm-up runs; `--workers 2 --scheduler ...` silently dropped --workers."""
+    def ran(done: int, total: int) -> None:
+        pytest.fail("it ran")
+
+    for address in ("notaurl", "http://127.0.0.1:8786"):
+        with pytest.raises(InputError, match=r"not a scheduler address .* expected "
+                                             r"tcp://HOST:PORT"):
+            sweep(scenario, ["pid.k=1,2"], scheduler=address, progress=ran)
+    with pytest.raises(InputError, match=r"--workers 2 with --scheduler: give one"):
+        sweep(scenario, ["pid.k=1,2"], workers=2, scheduler="tcp://127.0.0.1:1", progress=ran)
+
+
+def test_a_report_directory_that_cannot_be_made_is_refused_before_the_run(
+        scenario: Path) -> None:
+    """`-o /proc/x` passed the writability check (root may write anywhere, by os.access)
+    and failed in mkdir after the run with a traceback; sweep, diagnose and simulate now
+    make the directory first."""
+    plant = Path(__file__).resolve().parents[1] / "data" / "plant-loops" / "plant03.csv"
+    for args in (["sweep", str(scenario), "--vary", "pid.k=1,2"], ["simulate", "-q"],
+                 ["diagnose", str(plant)]):
+        done = CliRunner().invoke(app, [*args, "-o", "/proc/loopworks-nowhere"])
+        assert done.exit_code == 2, (args, done.output)
+        assert done.output.startswith("error: -o /proc/loopworks-nowhere: cannot create the "
+                                      "report directory"), done.output

@@ -37,17 +37,20 @@ def run_on_cluster(address: str, text: str, source: str, jobs: Sequence[Job],
     total = len(jobs)
     if total == 0:
         return []
-    run_jobs(text, source, jobs[:1])  # warm-up here: builds and compiles (or loads) the plan
-    start = time.perf_counter()
-    first = run_jobs(text, source, jobs[:1])
-    per = max(time.perf_counter() - start, 1e-6)
-    size = max(1, math.ceil(CHUNK_SECONDS / per))
-    chunks = [list(jobs[i:i + size]) for i in range(1, total, size)]
     try:
         client = Client(address, timeout="10s")  # type: ignore[no-untyped-call]
     except OSError as exc:
         raise InputError(f"--scheduler {address}: cannot reach the scheduler: {exc}") from None
-    with client:
+    except (ValueError, TypeError) as exc:  # distributed's parse of the address
+        raise InputError(f"--scheduler {address!r}: not a scheduler address ({exc}): expected "
+                         "tcp://HOST:PORT, as the scheduler prints it") from None
+    with client:  # connected first: a wrong address is an error before any work
+        run_jobs(text, source, jobs[:1])  # warm-up here: builds and compiles (or loads) the plan
+        start = time.perf_counter()
+        first = run_jobs(text, source, jobs[:1])
+        per = max(time.perf_counter() - start, 1e-6)
+        size = max(1, math.ceil(CHUNK_SECONDS / per))
+        chunks = [list(jobs[i:i + size]) for i in range(1, total, size)]
         futures = [client.submit(run_jobs, text, source, chunk, pure=False) for chunk in chunks]
         index = {f.key: k for k, f in enumerate(futures)}
         results: list[list[dict[str, float]] | None] = [None] * len(chunks)

@@ -422,7 +422,10 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, str] | Iterable[str], 
                                      "point": [j.point for j in jobs],
                                      "seed": [j.seed for j in jobs]}
     for name in names:
-        columns[name] = [j.changes[name] for j in jobs]
+        values = [j.changes[name] for j in jobs]
+        if any(isinstance(v, str) for v in values):  # a choice input's names and codes mixed
+            values = [v if isinstance(v, str) else f"{v:g}" for v in values]
+        columns[name] = values
     for m in metric_names:
         columns[m] = [row.get(m, math.nan) for row in metrics]
     grid_axes = [a for a in axes if not a.sampled]
@@ -453,6 +456,13 @@ def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:
         raise InputError(f"--vary {axis.name}: '{fname}' is not a parameter or input of "
                          f"{block} ({cls.kind}); parameters: {', '.join(sorted(params))}; "
                          f"inputs: {', '.join(sorted(inputs))}")
+    if fname in inputs and fname not in params:
+        for v in variants:
+            source = sc.variants[v].wires.get(f"{block}.{fname}")
+            if source is not None:
+                raise InputError(f"--vary {axis.name}: the input is wired from '{source}'"
+                                 + (f" in variant '{v}'" if len(variants) > 1 else "")
+                                 + ": an input takes a wire or a constant, not both")
 
 
 def _check_value(sc: Any, name: str, value: Value, variants: list[str], where: str) -> None:
@@ -494,6 +504,10 @@ def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
     total = len(jobs)
     if scheduler is not None:
         from loopworks.sim.cluster import run_on_cluster
+
+        if workers is not None:
+            raise InputError(f"--workers {workers} with --scheduler: give one of them (a "
+                             "--scheduler sweep runs on the cluster's workers)")
 
         return run_on_cluster(scheduler, text, source, jobs, progress)
     n = 1 if workers is None else workers  # one process: the batch runs on every core
