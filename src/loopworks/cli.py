@@ -589,7 +589,7 @@ def sweep(
 @_user_errors
 def diagnose(
     data: Annotated[Path, typer.Argument(help="historian CSV of one loop (t, sp, pv, op)")],
-    columns: Annotated[str | None, typer.Option(
+    columns: Annotated[list[str] | None, typer.Option(
         "--columns", metavar="ROLE=COLUMN,...", help="map the file's columns: "
         "sp=FIC101.SV,pv=FIC101.PV,op=FIC101.MV (roles t, sp, pv, op, position, mode)")] = None,
     loop_type: Annotated[str, typer.Option(
@@ -618,7 +618,8 @@ def diagnose(
         _fail(f"--loop-type {loop_type}: {exc}")
     if output is not None:
         _check_report_directory(output)
-    mapping = parse_columns(columns) if columns else None
+    # repeated --columns add up (a role mapped twice is parse_columns' error)
+    mapping = parse_columns(",".join(columns)) if columns else None
     loop = read_csv(data, mapping, duplicates="last")
     result = run_diagnosis(loop, loop_type)
     if output is not None:
@@ -631,8 +632,6 @@ def diagnose(
     console = Console()
     console.print(f"{data}: {len(loop)} samples every {loop.dt:g} s, {loop_type} loop",
                   markup=False)
-    if loop.resampled:
-        console.print(loop.resampled, markup=False)
     for line in (*result.quality.reasons, *result.quality.notes):
         console.print(f"  quality: {line}", markup=False)
     osc = result.oscillation

@@ -106,6 +106,8 @@ def test_every_plant_file_gets_a_diagnosis(entry: dict[str, str], tmp_path: Path
         assert key in doc
     assert doc["verdict"] in ("stiction", "no_stiction", "undetermined")
     assert 0.0 <= doc["confidence"] <= 1.0
+    if doc["recommendation"] is not None:  # the documented keys, a seized valve's too
+        assert {"recommended", "summary", "options", "rule"} <= set(doc["recommendation"])
     assert (out / "report.html").exists() and (out / "pv_op.png").stat().st_size > 10_000
     if not doc["quality"]["passed"]:
         # a gate failure is never a guess: undetermined, unless the frozen PV is itself the
@@ -291,3 +293,32 @@ def test_an_unknown_loop_type_is_named_with_the_choices() -> None:
         loop_type_of("tank")
     with pytest.raises(InputError, match="'tank'"):
         diagnose(_loop(np.ones(400), np.ones(400)), "tank")
+
+
+def test_how_the_record_was_made_regular_is_in_the_json_and_the_report(tmp_path: Path) -> None:
+    """The reader's note (a repeated time stamp dropped, irregular sampling resampled) was
+    printed by the text output only; --json and report.html lost it. It is now the quality's
+    first note. plant07 has repeated time stamps (test_loopdata)."""
+    out = tmp_path / "r"
+    run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant07.csv"), "--json", "-o",
+                                   str(out)])
+    assert run.exit_code == 0, run.output
+    note = json.loads(run.stdout)["quality"]["notes"][0]
+    assert "repeated time stamp" in note and "dropped" in note
+    assert "rows with a repeated time stamp dropped" in (out / "report.html").read_text()
+
+
+def test_repeated_columns_options_add_up_and_samples_are_checked(tmp_path: Path) -> None:
+    """`--columns sp=A --columns pv=B,op=C` kept only the last; `diagnose(samples=0)` was
+    taken and the summary blamed an option "--samples" diagnose does not have."""
+    text = (PLANT / "plant01.csv").read_text().replace("t,", "time,", 1)
+    header = text.splitlines()[0]
+    renamed = header.replace("sp", "SV1").replace("pv", "PV1").replace("op", "MV1")
+    path = tmp_path / "tags.csv"
+    path.write_text(text.replace(header, renamed, 1))
+    run = CliRunner().invoke(app, ["diagnose", str(path), "--columns", "sp=SV1", "--columns",
+                                   "pv=PV1,op=MV1", "--json"])
+    assert run.exit_code == 0, run.output
+    for samples in (0, -1, 2.5, True):
+        with pytest.raises(InputError, match=r"samples = .*: expected a whole number >= 1"):
+            diagnose(PLANT / "plant01.csv", samples=samples)  # type: ignore[arg-type]

@@ -279,3 +279,20 @@ def test_loopdata_refuses_bad_times(t: list[float], words: str) -> None:
 def test_loopdata_refuses_unequal_lengths() -> None:
     with pytest.raises(InputError, match=r"LoopData\.pv: 2 values, t has 3"):
         LoopData(t=np.arange(3.0), sp=np.zeros(3), pv=np.zeros(2), op=np.zeros(3))
+
+
+def test_mode_codes_and_words(tmp_path: Path) -> None:
+    """loopworks' pid codes MAN 0, AUTO 1, CAS 2 (cascade is automatic) and DeltaV's mode
+    words; DeltaV's MODE codes (AUTO = 4, MAN = 3: what a simulate CSV of deltav.pid's
+    mode_actual holds) were read as "manual" for the whole record; another number is now a
+    located error, not a guess (found by a user's run)."""
+    rows = "".join(f"{k},1,2,3,{m}\n" for k, m in enumerate(
+        ["0", "1", "2", "AUTO", "Cas", "rcas", "MAN", "oos", "IMAN", "lo", "ROUT", ""]))
+    data = read_csv(write(tmp_path, "t,sp,pv,op,mode\n" + rows))
+    assert data.mode is not None
+    assert data.mode[:11].tolist() == [0, 1, 1, 1, 1, 1, 0, 0, 0, 0, 0]
+    assert np.isnan(data.mode[11])  # an empty cell: a Bad value
+    for code in ("4", "3", "-1", "0.5"):
+        with pytest.raises(FileFormatError, match=rf"line 3, column 'mode': '{code}' is not a "
+                                                  r"mode: 0 \(manual\), 1 \(automatic\), 2 "):
+            read_csv(write(tmp_path, f"t,sp,pv,op,mode\n0,1,2,3,1\n1,1,2,3,{code}\n"))

@@ -343,6 +343,9 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     letter case (:func:`~loopworks.analysis.loop_type_of`). ``recommend``: simulate the
     options for a sticky valve (``samples`` draws of the fit's uncertainty each)."""
     lt = loop_type_of(loop_type)
+    if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
+        raise InputError(f"samples = {samples!r}: expected a whole number >= 1 (the draws of "
+                         "the fit's uncertainty each option is simulated over)")
     if not isinstance(data, LoopData):
         data = read_csv(data, columns, duplicates="last")
     data = _bad_as_nan(data)
@@ -403,10 +406,10 @@ def _seized_diagnosis(data: LoopData, loop_type: LoopType, quality: Quality,
                          "stiction", 1.0, seized.op_travel, seized.reason)]
     gate = ("" if quality.passed else " (the record fails the quality gate, "
             + "; ".join(quality.reasons) + ", and that is the finding)")
-    rec: dict[str, Any] = {"recommended": None, "options": [], "summary": (
+    rec = _no_options(
         f"no compensator moves a valve that has not moved over {seized.op_travel:.3g} % of OP "
         "travel: put the loop in manual, check the block valves and the transmitter, then "
-        "stroke the valve and repair or replace it.")}
+        "stroke the valve and repair or replace it.")
     return Diagnosis("stiction", SEIZED_CONFIDENCE, loop_type, data.source, quality, None,
                      evidence, 1.0, seized.reason + gate, None, rec)
 
@@ -443,29 +446,34 @@ def _recommendation(data: LoopData, fit: ValveFit, ctl: ControllerFit, model: np
     from loopworks.analysis.recommend import recommend
 
     if not ctl.ok or not math.isfinite(ctl.ti_s):
-        return {"recommended": None, "options": [], "summary": "the controller could not be "
-                f"identified from the data ({ctl.reason}), so the options cannot be "
-                "simulated. Repair or replace the valve at the next opportunity."}
+        return _no_options("the controller could not be identified from the data "
+                           f"({ctl.reason}), so the options cannot be simulated. Repair or "
+                           "replace the valve at the next opportunity.")
     residual = data.pv - model
     noise = float(np.nanstd(residual)) if np.isfinite(residual).any() else 0.0
     try:
         out = recommend(fit.s, fit.j, fit.process, ctl.kc, ctl.ti_s, noise, data.dt,
                         samples=samples)
     except InputError as exc:
-        return {"recommended": None, "options": [], "summary": f"the fitted loop cannot be "
-                f"simulated ({exc}). Repair or replace the valve at the next opportunity."}
+        return _no_options(f"the fitted loop cannot be simulated ({exc}). Repair or replace "
+                           "the valve at the next opportunity.")
     out["controller"] = {"kc": ctl.kc, "ti_s": ctl.ti_s, "r2": ctl.r2, "action": ctl.action}
     out.pop("scenario", None)
     base = next((o for o in out.get("options", []) if o["name"] == "none"), None)
     recorded = float(np.nanstd(data.sp - data.pv))
     if base is not None and not base["pv_std"] <= REPRODUCE_FACTOR * recorded:
-        return {"recommended": None, "options": [], "controller": out["controller"],
-                "summary": (
+        return _no_options((
                     f"the fitted loop does not reproduce the record: run as it is, its PV "
                     f"varies {base['pv_std']:.3g} (std) against {recorded:.3g} in the record, "
                     f"more than {REPRODUCE_FACTOR:g} times as much (the identified PI, Kc = "
                     f"{ctl.kc:.3g} and Ti = {ctl.ti_s:.3g} s, or the process does not match "
                     "the plant: a derivative action, a filter, a cascade or a gain off), so "
                     "no option is predicted from it. Repair or replace the valve at the next "
-                    "opportunity.")}
+                    "opportunity."), controller=out["controller"])
     return out
+
+
+def _no_options(summary: str, **extra: Any) -> dict[str, Any]:
+    """A recommendation with no option simulated: the JSON's keys (docs/diagnose.md), no
+    option recommended, ``rule`` null, and the ``summary`` that says what to do instead."""
+    return {"recommended": None, "options": [], "summary": summary, "rule": None, **extra}

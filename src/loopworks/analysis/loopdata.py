@@ -7,8 +7,9 @@ reads a historian export with the csv module and numpy (no pandas):
 * a header row; the columns are found by name in any letter case: time ``t``, ``time``,
   ``timestamp`` or ``datetime``; setpoint ``sp``, ``setpoint`` or ``sv``; process variable
   ``pv``; controller output ``op``, ``mv``, ``out`` or ``output``; valve stem position
-  ``position`` or ``valve`` (optional); ``mode`` (optional: 1 = automatic, 0 = manual, or the
-  words auto/automatic/cas/cascade and man/manual). Tag names are mapped explicitly with
+  ``position`` or ``valve`` (optional); ``mode`` (optional: 1 = automatic, 0 = manual, 2 =
+  cascade (automatic), loopworks' pid codes, or the words of :data:`MODE_WORDS`; any other
+  number is a located error, not a guess). Tag names are mapped explicitly with
   ``columns={"sp": "FIC101.SV", ...}`` (:func:`parse_columns` reads the same from the text
   ``sp=FIC101.SV,pv=FIC101.PV``); roles not mapped are still looked for by name;
 * the time column holds seconds (numbers) or ISO 8601 time stamps (``2024-03-01 12:00:10``,
@@ -68,9 +69,14 @@ MEANING = {
     "t": "time", "sp": "setpoint", "pv": "process variable", "op": "controller output",
     "position": "valve stem position", "mode": "controller mode",
 }
-#: mode words (lower case) and the mode they mean: 1 automatic (cascade is automatic), 0 manual
-MODE_WORDS = {"auto": 1.0, "automatic": 1.0, "cas": 1.0, "cascade": 1.0,
-              "man": 0.0, "manual": 0.0}
+#: mode words (lower case) and the mode they mean: 1 automatic (cascade and remote cascade
+#: are automatic), 0 not (manual; DeltaV's out of service, initialisation manual, local
+#: override and remote output)
+MODE_WORDS = {"auto": 1.0, "automatic": 1.0, "cas": 1.0, "cascade": 1.0, "rcas": 1.0,
+              "man": 0.0, "manual": 0.0, "oos": 0.0, "iman": 0.0, "lo": 0.0, "rout": 0.0}
+#: mode codes and the mode they mean: loopworks' pid's (MAN 0, AUTO 1, CAS 2); any other
+#: number is refused, not guessed (DeltaV's MODE codes, AUTO = 4, are another numbering)
+MODE_CODES = {0.0: 0.0, 1.0: 1.0, 2.0: 1.0}
 #: intervals within this fraction of the median interval are regular (text rounding, not
 #: irregular sampling): no resampling
 REGULAR_TOLERANCE = 1e-6
@@ -344,10 +350,14 @@ def _values(cells: list[str], lines: npt.NDArray[np.int64], source: str, name: s
     out = np.empty(len(cells))
     for k, cell in enumerate(cells):
         value = _number(cell)
-        if value is None and role == "mode":
-            value = MODE_WORDS.get(cell.strip().lower())
+        if role == "mode" and cell.strip().lower() not in _MISSING:
+            value = (MODE_WORDS.get(cell.strip().lower()) if value is None
+                     else MODE_CODES.get(value))
         if value is None:
-            what = "a number or a mode word (auto, man, cas)" if role == "mode" else "a number"
+            what = ("a mode: 0 (manual), 1 (automatic), 2 (cascade) or a mode word (auto, cas, "
+                    "rcas; man, oos, iman, lo, rout); a code of another numbering (DeltaV's "
+                    "MODE, AUTO = 4) is not guessed: write its name" if role == "mode"
+                    else "a number")
             if cell.strip().lower() in ("inf", "+inf", "-inf", "infinity", "-infinity"):
                 what = "a finite number"
             raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': {cell!r} is "

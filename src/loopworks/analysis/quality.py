@@ -140,7 +140,8 @@ def check_quality(data: LoopData, *,
     saturation limits (the OP's own extremes when None)."""
     n = len(data)
     reasons: list[str] = []
-    notes: list[str] = []
+    # how the reader made the record regular (resampling, repeated time stamps), first
+    notes: list[str] = [data.resampled] if data.resampled else []
     if n < MIN_SAMPLES:
         reasons.append(f"the record has {n} samples: at least {MIN_SAMPLES} are needed")
     nan_fraction = _nan_check(data, reasons, notes)
