@@ -263,3 +263,53 @@ def test_many_rows_in_any_memory_layout_give_each_row_its_own_figures() -> None:
             for name, value in figures.items():
                 got = float(together[name][i])
                 assert got == value or (math.isnan(got) and math.isnan(value)), (i, name)
+
+
+BAD_SENSOR = """
+[simulation]
+dt = 0.1
+duration = 20.0
+
+[blocks.pid]
+kind = "pid"
+k = 1.0
+ti = 20.0
+sp = 50.0
+
+[blocks.process]
+kind = "process.first_order"
+gain = 2.0
+time_constant = 20.0
+
+[blocks.sensor]
+kind = "sensor.transmitter"
+failure = "{failure}"
+failure_start = 5.0
+failure_end = 10.0
+
+[wires]
+"process.u" = "pid.out"
+"sensor.y" = "process.y"
+"pid.pv" = "sensor.pv"
+"""
+
+
+@pytest.mark.parametrize("failure", ["bad", "nan"])
+def test_a_bad_measurement_makes_the_pv_figures_na(failure: str) -> None:
+    """docs/metrics.md: a figure is n/a when a sample of the window is Bad. A transmitter
+    failed "bad" holds its last value with Bad status (a finite number), and the metrics were
+    computed from it as if measured (IAE 434.6, found by a user's run); "nan" gave n/a, but
+    its final error was still a number (only the last sample was read). Both are now n/a;
+    the controller output, never Bad here, keeps its figures."""
+    from loopworks.sim.scenario import parse_scenario
+
+    sc = parse_scenario(BAD_SENSOR.format(failure=failure))
+    result = sc.module.run(sc.duration, sc.dt)
+    assert ((result["pid.pv.ST"] & 0xC0) == 0).sum() == 50  # 5 s of 0.1 s scans
+    m = result.metrics("pid")
+    for name in ("IAE", "ISE", "mean |e|", "final error", "PV std", "PV peak to peak"):
+        assert math.isnan(m[name]), name
+    assert math.isfinite(m["output travel"]) and m["output travel"] > 0.0
+    healthy = parse_scenario(BAD_SENSOR.format(failure="none"))
+    m = healthy.module.run(healthy.duration, healthy.dt).metrics("pid")
+    assert all(math.isfinite(m[name]) for name in ("IAE", "final error", "PV std"))

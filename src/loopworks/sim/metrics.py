@@ -397,7 +397,8 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
             "overshoot %": over,
             "rise time s": rise,
             "settling time s (2 %)": settle,
-            "final error": e[:, -1],
+            # n/a when a sample of the window is Bad, as the table says (not only the last)
+            "final error": np.where(np.isfinite(e).all(axis=1), e[:, -1], math.nan),
             "PV std": _per_row(np.std, pv) if spread else np.full(len(pv), math.nan),
             "PV peak to peak": np.ptp(pv, axis=1) if spread else np.full(len(pv), math.nan),
         }

@@ -74,10 +74,24 @@ class SimResult:
             loop = loops[0]
         if valve is None:
             valve = self.valve_of(loop)
-        position = self.values[f"{valve}.position"] if valve is not None else None
-        command = self.values.get(f"{valve}.op") if valve is not None else None
-        return loop_metrics(self.t, self.working_sp(loop), self.pv(loop), self.out(loop),
-                            position=position, window=window, command=command)
+        position = self.usable(f"{valve}.position") if valve is not None else None
+        command = (self.usable(f"{valve}.op") if valve is not None
+                   and f"{valve}.op" in self.values else None)
+        roles = self._roles_of(loop)
+        return loop_metrics(self.t, self.working_sp(loop), self.usable(f"{loop}.{roles.pv}"),
+                            self.usable(f"{loop}.{roles.out}"), position=position,
+                            window=window, command=command)
+
+    def usable(self, name: str) -> np.ndarray:
+        """Signal ``name`` with its Bad-status samples as NaN (a held or last value with Bad
+        status is no measurement: the metrics read it as the Bad value it is, n/a); the values
+        as recorded when the run kept no status (a sweep's batch)."""
+        values = self[name]
+        st = self.status.get(name)
+        if st is None:
+            return values
+        bad = (np.asarray(st).astype(np.int64) & 0xC0) == 0  # quality Bad (blocks.status)
+        return np.where(bad, np.nan, values) if bad.any() else values
 
     def pv(self, loop: str) -> np.ndarray:
         """The PV controller ``loop`` saw (its PV role's input: ``pv``, S5's ``x``)."""
