@@ -247,8 +247,8 @@ def test_round_trips_exact_pairs() -> None:
                     back_ctx = dict(_TARGET_CONTEXT.get(src_kind, {}))
                     if src_kind == "s5.pid":
                         back_ctx["r"] = params["r"]
-                    if src_kind == "pid" and "form" in params:
-                        back_ctx["form"] = params["form"]
+                    if src_kind == "pid":  # a pid converted to a pid keeps its form
+                        back_ctx["form"] = params.get("form", "ideal")
                     if src_kind == "e2.pid":
                         back_ctx["throttling_range"] = params["throttling_range"]
                     back = convert(tgt_kind, there.params, src_kind, sample_time=1.0,
@@ -354,3 +354,20 @@ def test_an_integral_rounded_to_a_zero_word_is_refused() -> None:
                                              r"to 2048 s .* or inf"):
         convert("pid", {"k": 2.0, "ti": 100000.0}, "s5.pid", sample_time=1.0)
     assert convert("pid", {"k": 2.0, "ti": 2000.0}, "s5.pid", sample_time=1.0).params["ti"] == 1
+
+
+def test_a_kind_converted_to_itself_keeps_its_own_settings() -> None:
+    """docs/conversion.md: every kind is exact with itself. s5.pid k = 1200, r = 1000, ti =
+    50 at TA = 1 s became r = 1024 (the target's default), k = 1172 and ti = 51 words, not
+    exact (found by a user's run); the source's given target settings (S5's r, a pid's or
+    DeltaV's form) are now the target's, unless -t says otherwise."""
+    src = {"k": 1200, "r": 1000, "ti": 50}
+    out = convert("s5.pid", src, "s5.pid", sample_time=1.0)
+    assert out.exact and (out.params["k"], out.params["r"], out.params["ti"]) == (1200, 1000, 50)
+    assert convert("s5.pid", src, "s5.pid", sample_time=1.0, target={"r": 1024}).params["r"] \
+        == 1024
+    series = convert("pid", {"k": 2.0, "ti": 10.0, "td": 1.0, "form": "series"}, "pid")
+    assert series.exact and series.params["form"] == "series"
+    dv = convert("deltav.pid", {"gain": 2.0, "reset": 10.0, "rate": 1.0, "form": "series"},
+                 "deltav.pid", sample_time=1.0)
+    assert dv.exact and dv.params["form"] == "series"

@@ -54,6 +54,7 @@ for the typical causes the term bound:
 from __future__ import annotations
 
 import cmath
+import contextlib
 import functools
 import math
 from collections.abc import Callable, Mapping
@@ -407,7 +408,31 @@ def convert(from_kind: str, params: Mapping[str, Any], to_kind: str, *,
     dt = None if sample_time is None else number("sample_time", sample_time)
     law = _law_of(from_kind, params, dt, None)
     ctx = {str(k).lower(): v for k, v in (target or {}).items()}
+    cls = _controller(to_kind)
+    if _controller(from_kind) is cls:  # to itself: with the source's own settings when exact
+        try:
+            kept = _from_law(to_kind, law, dt, {**_own_settings(cls, law, dt, params), **ctx},
+                             strict=True)
+        except LoopworksError:
+            kept = None
+        if kept is not None and kept.exact:
+            return kept
     return _from_law(to_kind, law, dt, ctx, strict=True)
+
+
+def _own_settings(cls: type[Controller], law: DiscreteLaw, dt: float | None,
+                  params: Mapping[str, Any]) -> dict[str, Any]:
+    """The target settings (the names ``cls.from_law`` reads) that ``params`` of a block of
+    the same kind give, or its defaults: an S5's R and scale, a pid's form. A conversion of a
+    kind to itself keeps them when that makes it exact (docs/conversion.md: every kind is
+    exact with itself), and else takes the target's defaults (a default that is no setting,
+    GE's sample period 0 = "the loop's", is not one to keep)."""
+    probe = _Read({})
+    with contextlib.suppress(LoopworksError):  # what is missing is named in the real run
+        cls.from_law(law, dt if dt is not None else law.dt, probe)
+    given = {p.name: p.default for p in block_class(cls.kind).PARAMS if p.default is not None}
+    given.update({str(k).strip().lower(): v for k, v in params.items()})
+    return {name: given[name] for name in probe.read if name in given}
 
 
 @_computable
