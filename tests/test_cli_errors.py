@@ -181,3 +181,30 @@ def test_replay_time_that_overflows(tmp_path: Path) -> None:
                      [[1e308, 50, 40], [1e308, 50, 40], [1e308, 50, 40]])
     assert_user_error(invoke("replay", "pid", str(path)), "line 4",
                       "the accumulated time overflows")
+
+
+def test_replay_refuses_to_write_over_its_input(tmp_path: Path) -> None:
+    """`replay pid in.csv -o in.csv` overwrote the record it read (found by a user)."""
+    from typer.testing import CliRunner
+
+    from loopworks.cli import app
+
+    path = tmp_path / "in.csv"
+    text = "dt,sp,pv\n1,50,40\n1,50,41\n"
+    path.write_text(text)
+    run = CliRunner().invoke(app, ["replay", "pid", str(path), "-o", str(path)])
+    assert run.exit_code == 2 and "is the input file" in run.output, run.output
+    assert path.read_text() == text
+
+
+def test_a_file_with_another_separator_is_named_so(tmp_path: Path) -> None:
+    """A semicolon-separated export read as one column named 't;op;pv;sp', and the error
+    said only that no time column was found."""
+    from loopworks.analysis.loopdata import read_csv
+    from loopworks.errors import FileFormatError
+
+    path = tmp_path / "semi.csv"
+    path.write_text("t;op;pv;sp\n0;1;2;3\n")
+    with pytest.raises(FileFormatError, match=r"line 1: the header 't;op;pv;sp' is one "
+                                              r"column: the file seems separated by ';'"):
+        read_csv(path)

@@ -257,6 +257,10 @@ def replay(
     from loopworks.sim.replay import replay as run_replay
 
     cls = block_class(kind)
+    if output is not None and output.exists() and input_csv.exists() \
+            and output.resolve() == input_csv.resolve():
+        _fail(f"-o {output}: is the input file: the replay would overwrite the record it "
+              "reads; choose another output")
     values: dict[str, Any] = {}
     if params is not None:
         values.update(read_params_file(params, cls.kind))

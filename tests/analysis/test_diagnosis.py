@@ -322,3 +322,11 @@ def test_repeated_columns_options_add_up_and_samples_are_checked(tmp_path: Path)
     for samples in (0, -1, 2.5, True):
         with pytest.raises(InputError, match=r"samples = .*: expected a whole number >= 1"):
             diagnose(PLANT / "plant01.csv", samples=samples)  # type: ignore[arg-type]
+
+
+def test_the_python_function_takes_the_columns_as_text_too() -> None:
+    """`diagnose(path, columns="sp=SP")` was an AttributeError ('str' has no 'items')."""
+    text = diagnose(PLANT / "plant03.csv", "level", columns="sp=sp,pv=pv,op=op", recommend=False)
+    mapped = diagnose(PLANT / "plant03.csv", "level", columns={"sp": "sp", "pv": "pv",
+                                                               "op": "op"}, recommend=False)
+    assert text.verdict == mapped.verdict and text.score == mapped.score

@@ -288,3 +288,11 @@ def test_a_parameter_given_twice_in_two_letter_cases_is_an_error(tmp_path: Path)
     assert run.exit_code == 2 and "'K' and 'k' are one parameter" in run.output, run.output
     run = CliRunner().invoke(app, ["replay", "pid", str(csv), "-p", "k=1", "-p", "K=5"])
     assert run.exit_code == 2 and "'k' is given twice" in run.output, run.output
+
+
+def test_a_scenario_with_a_byte_order_mark_loads(tmp_path: Path) -> None:
+    """A Windows editor's UTF-8 byte-order mark made the file "invalid TOML: Invalid statement
+    (at line 1, column 1)" (found by a user); replay's CSVs already took it."""
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + GOOD.encode())
+    assert load_scenario(path).module.blocks.keys() == parse_scenario(GOOD).module.blocks.keys()

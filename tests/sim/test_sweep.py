@@ -88,6 +88,7 @@ def test_specs() -> None:
     nm = parse_vary("process.gain=normal(1,0.1)")
     assert nm.at(0.5) == pytest.approx(1.0)
     assert nm.at(0.8413447460685429) == pytest.approx(1.1)  # Φ(1)
+    assert parse_vary("pid.k=2:2:1") == Axis("pid.k", values=(2.0,))
     ch = parse_vary("comp.kind=choice(a,b,c)")
     assert [ch.at(u) for u in (0.0, 0.34, 0.99)] == ["a", "b", "c"]
 
@@ -105,6 +106,10 @@ def test_specs() -> None:
     ("pid.k=1,,2", "an empty value"),
     ("pid.k=1:3", "a range is a:b:n, three parts"),
     ("pid.k=1:2:3:4", "a range is a:b:n, three parts"),
+    # given values silently dropped (found by a user): an empty choice, b of a:b:1
+    ("pid.mode=choice(AUTO,,MAN)", "an empty value in choice()"),
+    ("pid.mode=choice(AUTO,MAN,)", "an empty value in choice()"),
+    ("pid.k=1:2:1", "a:b:1 is one value, a = 1, and drops b = 2"),
 ])
 def test_a_bad_spec_is_a_located_error(text: str, message: str) -> None:
     with pytest.raises(InputError, match=re.escape(message)) as err:
@@ -359,3 +364,12 @@ def test_a_report_directory_that_cannot_be_made_is_refused_before_the_run(
         assert done.exit_code == 2, (args, done.output)
         assert done.output.startswith("error: -o /proc/loopworks-nowhere: cannot create the "
                                       "report directory"), done.output
+
+
+def test_the_python_api_takes_one_spec_or_a_list_of_values(scenario: Path) -> None:
+    """`sweep(S, "pid.k=1,2")` read the string one character at a time, and
+    `vary={"pid.k": [1, 2]}` failed on '[1'; both mean what they say."""
+    one = sweep(scenario, "pid.k=1,2", variant="base", workers=1)
+    listed = sweep(scenario, {"pid.k": [1, 2]}, variant="base", workers=1)
+    assert one.columns["pid.k"] == listed.columns["pid.k"] == [1, 2]
+    same_table(one.columns, listed.columns)

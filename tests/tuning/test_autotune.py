@@ -349,3 +349,16 @@ def test_a_bias_ratio_above_one_is_refused_as_in_autotune() -> None:
     for ratio in (2.0, 0.0, float("nan")):
         with pytest.raises(InputError, match=r"bias_ratio = .* not allowed: allowed \(0, 1\]"):
             check_relay_test(sc.module, "pid", sc.dt, bias_ratio=ratio)
+
+
+def test_half_a_scan_of_rounding_is_not_a_warning() -> None:
+    """A dead time of 2 s at a 0.2 s scan has half a scan, 0.1 s = 5 %, of uncertainty; read
+    from the run's times it was 0.10000000000000142 and warned "uncertain by more than 5 %"
+    (found by a user's run of tune on examples/compensators_side_by_side.toml)."""
+    from loopworks.sim.tune import tune_loop
+
+    root = Path(__file__).resolve().parents[2]
+    sc = load_scenario(root / "examples" / "compensators_side_by_side.toml")
+    report = tune_loop(sc.module, "pid_none", sc.dt)
+    assert report.identification.dead_time == pytest.approx(2.0, abs=0.11)
+    assert not [w for w in report.identification.warnings if w.startswith("dead_time")]

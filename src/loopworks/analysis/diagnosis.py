@@ -78,7 +78,7 @@ from loopworks.analysis.area_ratio import area_ratio
 from loopworks.analysis.bicoherence import bicoherence_test
 from loopworks.analysis.curve_fit import curve_fit_loop
 from loopworks.analysis.horch import horch_test
-from loopworks.analysis.loopdata import LoopData, bad, hold_last, read_csv
+from loopworks.analysis.loopdata import LoopData, bad, hold_last, parse_columns, read_csv
 from loopworks.analysis.oscillation import Oscillation, regularity
 from loopworks.analysis.quality import Quality, check_quality
 from loopworks.analysis.seized import CONFIDENCE as SEIZED_CONFIDENCE
@@ -333,7 +333,7 @@ def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
 
 
 def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
-             columns: Mapping[str, str] | None = None, *, recommend: bool = True,
+             columns: Mapping[str, str] | str | None = None, *, recommend: bool = True,
              samples: int = 24) -> Diagnosis:
     """Diagnose one loop (module docstring) from ``data``: a :class:`LoopData`, or the path
     of a historian CSV (read by :func:`~loopworks.analysis.loopdata.read_csv` with
@@ -347,6 +347,8 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
         raise InputError(f"samples = {samples!r}: expected a whole number >= 1 (the draws of "
                          "the fit's uncertainty each option is simulated over)")
     if not isinstance(data, LoopData):
+        if isinstance(columns, str):  # the CLI's text form, "sp=FIC101.SV,pv=..."
+            columns = parse_columns(columns)
         data = read_csv(data, columns, duplicates="last")
     data = _bad_as_nan(data)
     quality = check_quality(data)

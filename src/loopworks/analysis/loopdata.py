@@ -228,6 +228,12 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
     names = [h.strip() for h in header]
     lower = [h.lower() for h in names]
     present = ", ".join(repr(h) for h in names)
+    if len(names) == 1:  # one column: another separator, most likely
+        sep = next((c for c in ";\t|" if c in names[0]), None)
+        if sep is not None:
+            raise FileFormatError(f"{source}, line {line}: the header {names[0]!r} is one "
+                                  f"column: the file seems separated by {sep!r}; a historian "
+                                  "CSV here is comma-separated (export it so, or convert it)")
     found: dict[str, int] = {}
     for role, column in mapping.items():
         hits = [i for i, h in enumerate(names) if h == column]

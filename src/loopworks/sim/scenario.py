@@ -182,7 +182,7 @@ def load_scenario(path: str | Path | None = None) -> Scenario:
         return parse_scenario(text, f"<built-in {DEFAULT_SCENARIO}>")
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        text = p.read_text(encoding="utf-8-sig")  # a byte-order mark (Windows editors) too
     except OSError as exc:
         raise FileFormatError(f"{p}: cannot read the scenario: {exc.strerror}") from None
     except UnicodeDecodeError as exc:

@@ -130,9 +130,11 @@ def parse_vary(text: str) -> Axis:
             raise InputError(f"{where}: unknown distribution '{call.group(1)}': expected one "
                              "of " + ", ".join(DISTRIBUTIONS))
         if kind == "choice":
-            items = tuple(_item(p) for p in parts if p.strip())
-            if len(items) < 1:
+            if not inner.strip():
                 raise InputError(f"{where}: choice() needs at least one value")
+            items = tuple(_item(p) for p in parts)
+            if any(v == "" for v in items):
+                raise InputError(f"{where}: an empty value in choice()")
             return Axis(name, distribution=kind, args=items)
         if len(parts) != 2:
             raise InputError(f"{where}: {kind}() takes two numbers, got {len(parts)}")
@@ -151,6 +153,9 @@ def parse_vary(text: str) -> Axis:
         if not n_text.isdigit() or int(n_text) < 1:
             raise InputError(f"{where}: in a:b:n, n = '{n_text}' must be a whole number >= 1")
         n = int(n_text)
+        if n == 1 and a != b:
+            raise InputError(f"{where}: a:b:1 is one value, a = {a:g}, and drops b = {b:g}: "
+                             "give n >= 2, or the one value")
         values = (a,) if n == 1 else tuple(float(v) for v in np.linspace(a, b, n))
         return Axis(name, values=values)
     if ":" in spec:
@@ -362,7 +367,7 @@ class SweepResult:
         return figures(self, directory or Path("."), metric)
 
 
-def sweep(scenario: str | Path | None, vary: Mapping[str, str] | Iterable[str], *,
+def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] | str, *,
           samples: int = 100, seed: int | None = None, variant: str | None = None,
           workers: int | None = None, scheduler: str | None = None,
           progress: Callable[[int, int], None] | None = None,
@@ -378,7 +383,9 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, str] | Iterable[str], 
     before anything runs."""
     from loopworks.sim.scenario import load_scenario, run_autotune
 
-    texts = [f"{k}={v}" for k, v in vary.items()] if isinstance(vary, Mapping) else list(vary)
+    texts = ([f"{k}=" + (",".join(map(str, v)) if isinstance(v, list | tuple) else str(v))
+              for k, v in vary.items()] if isinstance(vary, Mapping)
+             else [vary] if isinstance(vary, str) else list(vary))  # one "NAME=SPEC" too
     if not texts:
         raise InputError("nothing to vary: give at least one --vary NAME=SPEC")
     axes = [parse_vary(t) for t in texts]

@@ -604,7 +604,10 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
               "process_gain": k_static, "integrating_gain": kv, "time_constant": time_constant}
     for key, est in values.items():
         spread = unc.get(key)
-        if est is not None and spread is not None and spread > SPREAD_WARNING * abs(est):
+        # (1 + 1e-9): half a scan of 0.2 s read from the run's times is 0.10000000000000142,
+        # not "more than 5 %" of a dead time of 2 s
+        if est is not None and spread is not None \
+                and spread > SPREAD_WARNING * abs(est) * (1.0 + 1e-9):
             warnings.append(f"{key} = {est:.4g} ± {spread:.2g} ({100 * spread / abs(est):.0f} "
                             f"%): uncertain by more than {100 * SPREAD_WARNING:.0f} % (the "
                             "spread of the per-cycle estimates; for times, at least half a scan)")
