@@ -373,3 +373,9 @@ def test_the_python_api_takes_one_spec_or_a_list_of_values(scenario: Path) -> No
     listed = sweep(scenario, {"pid.k": [1, 2]}, variant="base", workers=1)
     assert one.columns["pid.k"] == listed.columns["pid.k"] == [1, 2]
     same_table(one.columns, listed.columns)
+
+
+def test_a_seed_that_is_not_a_whole_number_is_refused(scenario: Path) -> None:
+    """`sweep(..., seed=1.5)` ran as seed 1 (found by a user)."""
+    with pytest.raises(InputError, match=r"--seed 1.5: expected a whole number"):
+        sweep(scenario, ["pid.k=1,2"], seed=1.5, workers=1)  # type: ignore[arg-type]

@@ -401,6 +401,8 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
         variants = [variant]
     for axis in axes:
         _check_axis(sc, axis, variants)
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
+        raise InputError(f"--seed {seed!r}: expected a whole number")
     sweep_seed = (sc.seed if sc.seed is not None else 0) if seed is None else int(seed)
     points = design(axes, samples, sweep_seed)
     for i, point in enumerate(points):
