@@ -560,6 +560,21 @@ def test_arw_bit4_back_calculation_versus_hold(make: Make) -> None:
     assert results == [4000.0, 3600.0]
 
 
+@pytest.mark.parametrize("hold", [False, True])
+def test_manual_below_the_clamp_returns_to_auto_without_a_bump(make: Make, hold: bool) -> None:
+    """spec 1.7 step 9 [V]: in Manual the integral is set so the block reproduces the Manual
+    Command, and the first Auto solution changes CV only by the new integral increment plus any
+    change of P or D. Kp 1 (P = SP - PV = 1000), Ki 0, clamps 4000..20000: Manual 8000 sets
+    I = 7000; Manual 1000 asks I = 0, CV clamped to 4000, and I = 3000 reproduces it. Back in
+    Auto nothing changed: CV 4000. With bit 4 (hold) the clamp in Manual kept I = 7000, and
+    Auto jumped to 8000 (found by an independent reference; bit 4 holds an Auto integral)."""
+    pid = make(kp=1.0, ki=0.0, lower_clamp=4000, upper_clamp=20000, sample_period=0.1,
+               arw_hold=hold)
+    assert solve(pid, 0.1, sp=1000, pv=0, man=1, manual_command=8000)[0] == 8000.0
+    assert solve(pid, 0.2, sp=1000, pv=0, man=1, manual_command=1000)[0] == 4000.0
+    assert [solve(pid, 0.1 * k, sp=1000, pv=0, man=0)[0] for k in (3, 4)] == [4000.0, 4000.0]
+
+
 def test_derivative_filter_bit5(make: Make) -> None:
     """spec 1.3 bit 5 [?]: a first-order lag on D. Kd 1.00, SP step 50, dt 0.1 s, Tf 0.1 s:
     raw D = 500, filtered 500*(1 - e^-1) = 316.06 -> 316; then 316.06*e^-1 = 116.27 -> 116."""

@@ -210,7 +210,9 @@ Options for the spec's [A]/[?] points
   td/10 (ISA), s: the filter law is unknown [?, spec 1.3]; this is a first-order lag on the D
   term, D_f += (1 - exp(-dt/Tf))·(D - D_f).
 * ``arw_hold`` (Config bit 4): "hold" = the integral keeps its previous value while the output
-  is clamped [third-party source only, spec 1.3 / 8].
+  is clamped in Auto [third-party source only, spec 1.3 / 8]; in Manual the integral is set to
+  reproduce the (clamped) Manual Command (spec 1.7 step 9 [V]), so the return to Auto is
+  bumpless.
 * ``override_sp_pv`` = true: with Override (word 15 bit 0) set, words 16/18 replace the SP/PV
   operands, besides word-15 bits 1/3/4 replacing MAN/UP/DN [A, spec 1.4]; false = only the
   discrete inputs are replaced.
@@ -589,8 +591,8 @@ def ge_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     # 11. clamps and anti-windup (Config bit 4)
     if out > p[P.upper] or out < p[P.lower]:
         out = p[P.upper] if out > p[P.upper] else p[P.lower]
-        if p[P.arw_hold] != 0.0:
-            total = total_prev
+        if p[P.arw_hold] != 0.0 and not man:  # in Manual the integral is set (step 9), not
+            total = total_prev                # accumulated: bit 4 has nothing to hold
         else:
             total = clamp(out - pterm - dterm - bias, -INT32_MAX, INT32_MAX) * units
     # store the integral as words 21-22 (whole counts) and 27 (remainder)
