@@ -344,10 +344,16 @@ def test_a_wrong_scheduler_address_or_workers_with_it_fail_before_running(
     def ran(done: int, total: int) -> None:
         pytest.fail("it ran")
 
-    for address in ("notaurl", "http://127.0.0.1:8786"):
+    import threading
+
+    threads = threading.active_count()
+    for address in ("notaurl", "http://127.0.0.1:8786", "tcp://127.0.0.1:99999"):
         with pytest.raises(InputError, match=r"not a scheduler address .* expected "
                                              r"tcp://HOST:PORT"):
             sweep(scenario, ["pid.k=1,2"], scheduler=address, progress=ran)
+    # refused before a Client was made: no event-loop thread left behind (one that was
+    # left kept a CI test worker from exiting)
+    assert threading.active_count() == threads
     with pytest.raises(InputError, match=r"--workers 2 with --scheduler: give one"):
         sweep(scenario, ["pid.k=1,2"], workers=2, scheduler="tcp://127.0.0.1:1", progress=ran)
 

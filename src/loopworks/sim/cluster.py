@@ -27,11 +27,9 @@ def run_on_cluster(address: str, text: str, source: str, jobs: Sequence[Job],
                    progress: Callable[[int, int], None] | None = None
                    ) -> list[dict[str, float]]:
     """Every job's metrics, in job order, computed on the Dask scheduler at ``address``."""
-    try:
-        from distributed import Client, as_completed
-    except ImportError:
-        raise InputError(f"--scheduler {address}: running on a Dask cluster needs the cluster "
-                         "extra: pip install \"loopworks[cluster]\"") from None
+    check_address(address)
+    from distributed import Client, as_completed
+
     from loopworks.sim.sweep import run_jobs
 
     total = len(jobs)
@@ -41,9 +39,6 @@ def run_on_cluster(address: str, text: str, source: str, jobs: Sequence[Job],
         client = Client(address, timeout="10s")  # type: ignore[no-untyped-call]
     except OSError as exc:
         raise InputError(f"--scheduler {address}: cannot reach the scheduler: {exc}") from None
-    except (ValueError, TypeError) as exc:  # distributed's parse of the address
-        raise InputError(f"--scheduler {address!r}: not a scheduler address ({exc}): expected "
-                         "tcp://HOST:PORT, as the scheduler prints it") from None
     with client:  # connected first: a wrong address is an error before any work
         run_jobs(text, source, jobs[:1])  # warm-up here: builds and compiles (or loads) the plan
         start = time.perf_counter()
@@ -64,3 +59,24 @@ def run_on_cluster(address: str, text: str, source: str, jobs: Sequence[Job],
             if progress is not None:
                 progress(done, total)
     return [*first, *(row for part in results if part is not None for row in part)]
+
+
+def check_address(address: str) -> None:
+    """Before anything runs: Dask is installed (else how to get it) and ``address`` is a
+    scheduler's address (a malformed one is an InputError here, before a Client is made: a
+    Client that fails to parse its address leaves its event-loop thread behind)."""
+    try:
+        from distributed.comm.addressing import get_address_host_port, parse_address
+    except ImportError:
+        raise InputError(f"--scheduler {address}: running on a Dask cluster needs the cluster "
+                         "extra: pip install \"loopworks[cluster]\"") from None
+
+    try:
+        scheme, _ = parse_address(address)
+        if scheme != "inproc":  # an in-process cluster's address has no port
+            _, port = get_address_host_port(address)
+            if not 0 < port < 65536:
+                raise ValueError(f"port {port} is not 1..65535")
+    except (ValueError, TypeError) as exc:
+        raise InputError(f"--scheduler {address!r}: not a scheduler address ({exc}): expected "
+                         "tcp://HOST:PORT, as the scheduler prints it") from None

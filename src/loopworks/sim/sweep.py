@@ -392,6 +392,13 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     names = [a.name for a in axes]
     if len(set(n.lower() for n in names)) != len(names):
         raise InputError("a name is varied twice: " + ", ".join(names))
+    if scheduler is not None:
+        from loopworks.sim.cluster import check_address
+
+        check_address(scheduler)
+        if workers is not None:
+            raise InputError(f"--workers {workers} with --scheduler: give one of them (a "
+                             "--scheduler sweep runs on the cluster's workers)")
     sc = load_scenario(scenario)
     variants = list(sc.variants)
     if variant is not None:
@@ -513,10 +520,6 @@ def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
     total = len(jobs)
     if scheduler is not None:
         from loopworks.sim.cluster import run_on_cluster
-
-        if workers is not None:
-            raise InputError(f"--workers {workers} with --scheduler: give one of them (a "
-                             "--scheduler sweep runs on the cluster's workers)")
 
         return run_on_cluster(scheduler, text, source, jobs, progress)
     n = 1 if workers is None else workers  # one process: the batch runs on every core
