@@ -1059,6 +1059,23 @@ def test_retuning_in_auto_is_bumpless(make: Make, algorithm: str) -> None:
     assert out(blk, 1.0, sp=50.0, pv=40.0) == approx(before + 5.0)
 
 
+@pytest.mark.parametrize("algorithm", ["positional", "velocity"])
+@pytest.mark.parametrize("change", [{"action": "direct"}, {"c": 0.0}, {"c": 1.0}])
+def test_a_new_action_or_derivative_weight_does_not_kick_the_derivative(
+        make: Make, algorithm: str, change: dict[str, Any]) -> None:
+    """Found by a user: at rest (SP = PV = 50, output 4), set_params(action="direct") or a
+    new c drove the output to 100 on the next scan: the derivative memory s·(c·SP - PV)
+    kept the old s and c, a step of 50-100 in d, kd·Δd/(Tf + dt) = 2·100/0.2 = 1000. With
+    e = 0 nothing should move (P and the integral are bumpless already)."""
+    blk = make(k=2.0, ti=10.0, td=1.0, c=0.5, algorithm=algorithm)
+    for _ in range(20):
+        out(blk, 0.1, sp=50.0, pv=40.0)
+    for _ in range(600):
+        before = out(blk, 0.1, sp=50.0, pv=50.0)
+    blk.set_params(**change)
+    assert out(blk, 0.1, sp=50.0, pv=50.0) == pytest.approx(before, abs=1e-9)
+
+
 def test_retuning_can_bump_when_asked(make: Make) -> None:
     """retune = textbook: the vendor-neutral textbook law, P jumps with K (20 -> 40)."""
     blk = make(k=2.0, ti=8.0, retune="textbook")

@@ -138,3 +138,27 @@ def test_equal_limits_give_that_output() -> None:
     assert pid(0.0, dt=0.1) == 2.0
     with pytest.raises(ValueError, match="lower limit must be less than upper limit"):
         pid.output_limits = (3.0, 1.0)
+
+
+@pytest.mark.parametrize("change", ["flip", "d_on_error", "d_on_measurement"])
+def test_a_derivative_changed_between_calls_matches_simple_pid(change: str) -> None:
+    """Found by a random comparison (6 of 300 sessions): tunings that flip the sign, or
+    differential_on_measurement toggled, kicked loopworks' D by Kd·(c·SP - PV)/dt (the kernel's
+    derivative memory kept the old sign and weighting); simple-pid keeps its last input and
+    last error and has no kick. Hand values: Kp 1, Ki 1, Kd 1, SP 5, dt 0.1, inputs 1, 2, 3:
+    flipped to (-1, -1, -1), D = -Kd·Δe/dt with Δe = -1... = 10 in simple-pid's own form."""
+    first = {"flip": True, "d_on_error": True, "d_on_measurement": False}[change]
+    for cls in (simple_pid.PID, PID):
+        c = cls(1, 1 if change == "flip" else 0, 1, setpoint=5, sample_time=None,
+                differential_on_measurement=first)
+        c(1.0, dt=0.1)
+        c(2.0, dt=0.1)
+        if change == "flip":
+            c.tunings = (-1, -1, -1)
+        else:
+            c.differential_on_measurement = not first
+        got = (c(3.0, dt=0.1), c.components)
+        if cls is simple_pid.PID:
+            want = got
+    assert got[0] == pytest.approx(want[0], rel=1e-12)
+    assert got[1] == pytest.approx(want[1], rel=1e-12)

@@ -80,6 +80,16 @@ def test_events_set_an_input_at_their_time() -> None:
     assert (result["pid.sp"][result.t >= 5.0] == 20.0).all()
 
 
+def test_an_event_may_be_a_table_or_a_tuple_and_anything_else_is_named() -> None:
+    """`Module(..., events=[dict(t=..., set=..., value=...)])` (a scenario's [[events]] row)
+    was a bare AttributeError ('dict' object has no attribute 't'; found by a user)."""
+    for ev in ({"t": 5.0, "set": "pid.sp", "value": 20.0}, (5.0, "pid.sp", 20.0)):
+        result = closed_loop(events=[ev]).run(duration=10.0, dt=DT)  # type: ignore[list-item]
+        assert (result["pid.sp"][result.t >= 5.0] == 20.0).all()
+    with pytest.raises(InputError, match=r"event \{'when': 5.0\}: expected Event"):
+        closed_loop(events=[{"when": 5.0}])  # type: ignore[list-item]
+
+
 def test_mode_events_take_names() -> None:
     m = closed_loop(events=[Event(2.0, "pid.mode", "MAN"), Event(2.0, "pid.man_out", 7.0)])
     result = m.run(duration=4.0, dt=DT)

@@ -468,15 +468,27 @@ class PID(Controller, Block):
 
         (the correction of DiscretePIDs.jl ``set_K!``; Åström & Hägglund 2006, sec. 3.5,
         bumpless parameter changes). The integral and derivative gains act on increments, so
-        their changes need no correction."""
+        their changes need no correction.
+
+        In any ``retune`` mode, the derivative's memory d_{k-1} = s·(c·SP - PV) is restated
+        for a new action or c at the same SP and PV, so the next scan differentiates the signal,
+        not the change of its definition (a flip of the action was a kick of
+        2·kd·(c·SP - PV)/(Tf + dt), enough to drive the output to a limit; simple-pid keeps
+        its last input and last error, and changes its D form without one)."""
         old = self.p.copy()
         super().set_params(**changes)
-        if self.params["retune"] != "bumpless" or self.x[X.init] != 0.0 or self.x[X.first] != 0.0:
+        if self.x[X.init] != 0.0 or self.x[X.first] != 0.0:
             return
         mode = self.u[U.mode]
         if mode not in (AUTO, CAS):
             return
         sp, pv = self.u[U.cas_sp if mode == CAS else U.sp], self.u[U.pv]
+        d_old = old[P.sign] * (old[P.c] * sp - pv)
+        d_new = self.p[P.sign] * (self.p[P.c] * sp - pv)
+        if math.isfinite(d_old) and math.isfinite(d_new):
+            self.x[X.d_prev] += d_new - d_old
+        if self.params["retune"] != "bumpless":
+            return
         p_old = old[P.sign] * old[P.kp] * (old[P.b] * sp - pv)
         p_new = self.p[P.sign] * self.p[P.kp] * (self.p[P.b] * sp - pv)
         if math.isfinite(p_old) and math.isfinite(p_new):

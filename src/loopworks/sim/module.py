@@ -68,6 +68,24 @@ class Event:
     value: Any
 
 
+def _event(ev: Any) -> Event:
+    """An :class:`Event`; also from a mapping with ``t``, ``set`` (or ``target``) and
+    ``value`` (a scenario's ``[[events]]`` table) or a ``(t, target, value)`` tuple; anything
+    else is an InputError that shows it."""
+    if isinstance(ev, Event):
+        return ev
+    if isinstance(ev, Mapping):
+        keys = {str(k).lower(): v for k, v in ev.items()}
+        target = keys.get("set", keys.get("target"))
+        if set(keys) <= {"t", "set", "target", "value"} and "t" in keys and "value" in keys \
+                and isinstance(target, str):
+            return Event(float(keys["t"]), target, keys["value"])
+    elif isinstance(ev, tuple | list) and len(ev) == 3 and isinstance(ev[1], str):
+        return Event(float(ev[0]), ev[1], ev[2])
+    raise InputError(f"event {ev!r}: expected Event(t, target, value), a (t, target, value) "
+                     "tuple or a {t, set, value} table")
+
+
 def _split(ref: str, what: str) -> tuple[str, str]:
     if ref.count(".") < 1:
         raise InputError(f"{what} '{ref}' must be written 'block.port'")
@@ -146,7 +164,8 @@ class Module:
     def __init__(self, blocks: Mapping[str, Block], wires: Mapping[str, str] | None = None,
                  inputs: Mapping[str, Mapping[str, Any]] | None = None,
                  order: Sequence[str] | None = None,
-                 events: Sequence[Event] | None = None) -> None:
+                 events: Sequence[Event | Mapping[str, Any] | tuple[float, str, Any]] | None
+                 = None) -> None:
         self.blocks: dict[str, Block] = dict(blocks)
         # per parameter an event changed since the last reset: its value before the run's
         # first event on it and the value the events left (reset() sets it back)
@@ -180,7 +199,7 @@ class Module:
             name: b._in_index["clock"] for name, b in self.blocks.items()
             if "clock" in b._in_index and f"{name}.clock" not in self.wires
             and "clock" not in self.constants.get(name, {})}
-        self.events: list[Event] = sorted(events or [], key=lambda e: e.t)
+        self.events: list[Event] = sorted((_event(e) for e in events or []), key=lambda e: e.t)
         for ev in self.events:
             if not math.isfinite(ev.t) or ev.t < 0.0:
                 raise InputError(f"event at t = {ev.t!r} s: t must be finite and >= 0")
