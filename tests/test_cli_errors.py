@@ -208,3 +208,32 @@ def test_a_file_with_another_separator_is_named_so(tmp_path: Path) -> None:
     with pytest.raises(FileFormatError, match=r"line 1: the header 't;op;pv;sp' is one "
                                               r"column: the file seems separated by ';'"):
         read_csv(path)
+
+
+def test_live_commands_check_duration_and_ports_before_starting() -> None:
+    """Found by a user: `serve --duration nan` crash-looped its controller six times and
+    exited 0; a port beyond 65535 or in use was a traceback (for serve after the device and
+    the controller had started; `serve --faceplate` then ran without its faceplate)."""
+    import socket
+
+    from typer.testing import CliRunner
+
+    from loopworks.cli import app
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        used = busy.getsockname()[1]
+        for args, message in (
+                (["serve", "--duration", "nan"], "--duration nan: expected plant seconds > 0"),
+                (["device", "--duration", "-5"], "--duration -5.0: expected plant seconds"),
+                (["serve", "--opcua-port", "70000"], "--opcua-port 70000: allowed 1..65535"),
+                (["faceplate", "--port", "70000"], "--port 70000: allowed 1..65535"),
+                (["serve", "--opcua-port", str(used)], f"cannot listen on 127.0.0.1:{used}"),
+                (["serve", "--faceplate", "--faceplate-port", str(used)],
+                 f"--faceplate-port {used}: cannot listen"),
+                (["device", "--modbus-port", str(used)], f"--modbus-port {used}: cannot listen"),
+                (["faceplate", "--port", str(used)], f"--port {used}: cannot listen")):
+            run = CliRunner().invoke(app, args)
+            assert run.exit_code == 2, (args, run.output)
+            assert run.output.startswith("error: ") and message in run.output, run.output

@@ -781,6 +781,31 @@ def users_add(
     typer.echo(f"{'added' if new else 'updated'} user {name} ({role}) in {file}")
 
 
+def _check_port(option: str, port: int | None, host: str = "127.0.0.1") -> None:
+    """Before anything starts: ``port`` is 0 (any free port) or 1..65535, and free on
+    ``host`` (a port in use is one error line, not a traceback after the other servers
+    started)."""
+    import socket
+
+    if port is None or port == 0:
+        return
+    if not 0 < port < 65536:
+        _fail(f"{option} {port}: allowed 1..65535, or 0 for any free port")
+    try:
+        with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
+            probe.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+            probe.bind((host, port))
+    except OSError as exc:
+        _fail(f"{option} {port}: cannot listen on {host}:{port} ({exc.strerror or exc})")
+
+
+def _check_duration(duration: float | None) -> None:
+    """A live run's --duration: positive and finite (no option: until Ctrl-C)."""
+    if duration is not None and not 0.0 < duration < math.inf:
+        _fail(f"--duration {duration}: expected plant seconds > 0 and finite (leave it out "
+              "to run until Ctrl-C)")
+
+
 @app.command()
 @_user_errors
 def device(
@@ -820,6 +845,9 @@ def device(
     from loopworks.live.split import split_scenario
     from loopworks.sim.scenario import load_scenario
 
+    _check_duration(duration)
+    _check_port("--modbus-port", modbus_port, host)
+    _check_port("--opcua-port", opcua_port)
     sc = load_scenario(scenario)
     split = split_scenario(sc, variant)
     regmap = map_of(sc, split)
@@ -915,6 +943,11 @@ def serve(
     from loopworks.live import supervisor
     from loopworks.live.serve import describe
 
+    _check_duration(duration)
+    _check_port("--opcua-port", opcua_port, host)
+    if faceplate:
+        _check_port("--faceplate-port", faceplate_port)
+
     supervisor.log_to_stderr()
 
     def ready(info: dict[str, Any]) -> None:
@@ -970,6 +1003,13 @@ def faceplate(
 
     if not opcua_url.startswith("opc.tcp://"):
         _fail(f"OPCUA_URL {opcua_url!r}: expected opc.tcp://HOST:PORT/PATH")
+    try:
+        import socket
+
+        socket.getaddrinfo(host, None)
+    except OSError:
+        _fail(f"--host {host}: not an address of this machine or a name that resolves")
+    _check_port("--port", port, host)
     try:
         from loopworks.live.faceplate import run
     except ImportError as exc:

@@ -211,6 +211,12 @@ def test_login_and_an_operators_changes_as_that_user(setup: Setup) -> None:
     assert status == 409 and answer["code"] == "BadNodeIdUnknown"
     status, answer = b.call("/api/loop/pid/write", {"name": "MODE", "value": "SLEEP"})
     assert status == 409 and answer["code"] == "BadOutOfRange"
+    # a JSON boolean is no number: false was taken as 0 and put the loop out of service
+    # (found by a user); refused before it reaches the controller
+    count = len(setup.ctl.writes)
+    for value in (False, True):
+        assert b.call("/api/loop/pid/write", {"name": "MODE", "value": value})[0] == 422
+    assert len(setup.ctl.writes) == count
     assert b.call("/api/logout", {})[0] == 200
     status, answer = b.call("/api/loop/pid/write", {"name": "SP", "value": 63})
     assert status == 409 and answer["code"] == "BadUserAccessDenied"  # anonymous again

@@ -460,9 +460,15 @@ class Block:
         }
 
     def load_state(self, saved: Mapping[str, Any]) -> None:
-        """Restore what :meth:`state_dict` saved. The kind and state names must match."""
+        """Restore what :meth:`state_dict` saved. The kind and state names must match. The
+        saved parameters that differ from this block's are set first (a retuning by an
+        operator or an event before the save is part of what resumes)."""
         if saved.get("kind") != self.kind:
             raise InputError(f"saved state is for kind {saved.get('kind')!r}, not {self.kind!r}")
+        changed = {k: v for k, v in (saved.get("params") or {}).items()
+                   if k not in self.given or not _same(self.given[k], v)}
+        if changed:
+            self.set_params(**changed)
         try:
             x = layout.pack(self.STATES, saved["state"], f"{self.kind}: saved state",
                             self.params)
@@ -494,3 +500,10 @@ class Block:
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in self.given.items())
         return f"create_block({self.kind!r}{', ' if args else ''}{args})"
+
+
+def _same(a: Any, b: Any) -> bool:
+    """Two given parameter values are the same (NaN equal to NaN)."""
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b)

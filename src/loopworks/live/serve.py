@@ -197,7 +197,7 @@ class LiveController:
         if saved.get("layout") != self.key:
             raise InputError(f"{path}: the checkpoint is of another controller module "
                              f"(layout {saved.get('layout')!r}, this one {self.key!r}); "
-                             "remove it or give another --checkpoint")
+                             "remove it or give another --state-dir")
         self.module.load_state(saved["module"])
         self.scans = int(saved.get("scans", 0))
         self.resumed = True

@@ -46,7 +46,7 @@ from asyncua.ua.uaerrors import UaStatusCodeError
 from fastapi import FastAPI, HTTPException, Request
 from fastapi.responses import HTMLResponse, JSONResponse, Response, StreamingResponse
 from fastapi.staticfiles import StaticFiles
-from pydantic import BaseModel, Field
+from pydantic import BaseModel, Field, StrictFloat, StrictInt, StrictStr
 
 from loopworks.live.faceplate.link import Link, WriteError, flatten, is_link_error, status_name
 from loopworks.live.tasks import cancel_and_wait
@@ -67,7 +67,8 @@ class Login(BaseModel):
 
 class Change(BaseModel):
     name: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_]+$")
-    value: float | str
+    # strict: a JSON true/false is no number (false was taken as 0 and put a loop in OOS)
+    value: StrictInt | StrictFloat | StrictStr
 
 
 @dataclass
