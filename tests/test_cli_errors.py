@@ -237,3 +237,36 @@ def test_live_commands_check_duration_and_ports_before_starting() -> None:
             run = CliRunner().invoke(app, args)
             assert run.exit_code == 2, (args, run.output)
             assert run.output.startswith("error: ") and message in run.output, run.output
+
+
+def test_a_password_that_is_not_utf8_is_one_error_line(tmp_path: Path) -> None:
+    """`printf '\\xff\\xfe\\n' | loopworks users add FILE NAME` was a UnicodeEncodeError
+    traceback (found by a user); nothing is written."""
+    import subprocess
+    import sys
+
+    path = tmp_path / "users.toml"
+    run = subprocess.run([sys.executable, "-m", "loopworks", "users", "add", str(path), "bin"],
+                         input=b"\xff\xfe\n", capture_output=True, timeout=120)
+    assert run.returncode == 2, run.stderr
+    assert run.stderr.decode().startswith("error: the password read from standard input is "
+                                          "not UTF-8 text") and not path.exists()
+
+
+def test_serve_exits_nonzero_when_it_gave_up_on_its_controller(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A controller that died six times within a minute made serve log "giving up" and exit
+    0 (found by a user with --duration nan, now refused up front): it is an error exit."""
+    from typer.testing import CliRunner
+
+    from loopworks.cli import app
+    from loopworks.live import supervisor
+
+    async def gave_up(*args: object, **kwargs: object) -> dict[str, object]:
+        return {"stats": None, "io": None, "checkpoint": "state/checkpoint.json",
+                "gave_up": True}
+
+    monkeypatch.setattr(supervisor, "run", gave_up)
+    monkeypatch.setattr(supervisor, "log_to_stderr", lambda: None)
+    run = CliRunner().invoke(app, ["serve", "--opcua-port", "0"])
+    assert run.exit_code == 2 and "died too often" in run.output, run.output

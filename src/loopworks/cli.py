@@ -760,7 +760,12 @@ def _read_password(name: str) -> str:
             _fail("the two passwords differ: nothing written")
         return first
     line = sys.stdin.readline() if sys.stdin is not None else ""
-    return line.removesuffix("\n").removesuffix("\r")
+    password = line.removesuffix("\n").removesuffix("\r")
+    try:
+        password.encode("utf-8")
+    except UnicodeEncodeError:  # bytes that are not UTF-8 on standard input
+        _fail("the password read from standard input is not UTF-8 text: nothing written")
+    return password
 
 
 @users_app.command("add")
@@ -984,6 +989,8 @@ def serve(
     stats = done["stats"]
     typer.echo(("stopped: " + describe(stats) if stats else "stopped")
                + f"; checkpoint {done['checkpoint']}")
+    if done.get("gave_up"):  # the controller kept dying: not a clean stop
+        _fail("the controller process died too often (see the log above): gave up")
 
 
 @app.command()

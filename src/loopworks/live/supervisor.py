@@ -210,6 +210,8 @@ class ControllerProcess:
         self.stats: dict[str, Any] = {}
         self.io: dict[str, Any] = {}
         self.restarts: list[float] = []
+        #: True when the controller died too often and the supervisor gave up (serve exits 1)
+        self.gave_up = False
         self._ids = itertools.count()
         self._pending: dict[int, asyncio.Future[tuple[str | None, str]]] = {}
 
@@ -299,6 +301,7 @@ class ControllerProcess:
             if len(self.restarts) > MAX_RESTARTS:
                 log.error("the controller process died %d times within a minute: giving up",
                           len(self.restarts))
+                self.gave_up = True
                 return
             log.error("the controller process died (exit code %s): restarting it from its "
                       "checkpoint", self.proc.exitcode)
@@ -428,4 +431,5 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
         if dev_proc is not None and dev_proc.is_alive():
             dev_proc.terminate()
             dev_proc.join(10)
-    return {"stats": ctl.stats, "io": ctl.io, "checkpoint": state_dir / "checkpoint.json"}
+    return {"stats": ctl.stats, "io": ctl.io, "checkpoint": state_dir / "checkpoint.json",
+            "gave_up": ctl.gave_up}
