@@ -265,33 +265,16 @@ def test_many_rows_in_any_memory_layout_give_each_row_its_own_figures() -> None:
                 assert got == value or (math.isnan(got) and math.isnan(value)), (i, name)
 
 
-BAD_SENSOR = """
-[simulation]
-dt = 0.1
-duration = 20.0
+def _bad_sensor(failure: str) -> str:
+    """tests/test_cli.py's loop with a transmitter between the process and the pid that fails
+    with ``failure`` from 5 to 10 s."""
+    from tests.test_cli import SCENARIO
 
-[blocks.pid]
-kind = "pid"
-k = 1.0
-ti = 20.0
-sp = 50.0
-
-[blocks.process]
-kind = "process.first_order"
-gain = 2.0
-time_constant = 20.0
-
-[blocks.sensor]
-kind = "sensor.transmitter"
-failure = "{failure}"
-failure_start = 5.0
-failure_end = 10.0
-
-[wires]
-"process.u" = "pid.out"
-"sensor.y" = "process.y"
-"pid.pv" = "sensor.pv"
-"""
+    wired = SCENARIO.replace('"pid.pv" = "process.y"',
+                             '"sensor.y" = "process.y"\n"pid.pv" = "sensor.pv"')
+    assert wired != SCENARIO
+    return wired + (f'\n[blocks.sensor]\nkind = "sensor.transmitter"\nfailure = "{failure}"\n'
+                    "failure_start = 5.0\nfailure_end = 10.0\n")
 
 
 @pytest.mark.parametrize("failure", ["bad", "nan"])
@@ -303,13 +286,13 @@ def test_a_bad_measurement_makes_the_pv_figures_na(failure: str) -> None:
     the controller output, never Bad here, keeps its figures."""
     from loopworks.sim.scenario import parse_scenario
 
-    sc = parse_scenario(BAD_SENSOR.format(failure=failure))
+    sc = parse_scenario(_bad_sensor(failure))
     result = sc.module.run(sc.duration, sc.dt)
     assert ((result["pid.pv.ST"] & 0xC0) == 0).sum() == 50  # 5 s of 0.1 s scans
     m = result.metrics("pid")
     for name in ("IAE", "ISE", "mean |e|", "final error", "PV std", "PV peak to peak"):
         assert math.isnan(m[name]), name
     assert math.isfinite(m["output travel"]) and m["output travel"] > 0.0
-    healthy = parse_scenario(BAD_SENSOR.format(failure="none"))
+    healthy = parse_scenario(_bad_sensor("none"))
     m = healthy.module.run(healthy.duration, healthy.dt).metrics("pid")
     assert all(math.isfinite(m[name]) for name in ("IAE", "final error", "PV std"))
