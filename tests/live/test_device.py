@@ -172,15 +172,24 @@ def test_fault_hold_keeps_the_last_value_and_nan_is_refused(
 
     async def body(device: Device, client: Client) -> None:
         await hold_op(client, 62.5, 5.0)
-        for _ in range(3):
-            await write_op(client, math.nan)
+        codes = []
+        for value in (math.nan, math.inf, math.nan):
+            rr = await client.write_registers(OP, encode_f32(value), device_id=1)
+            codes.append(rr.exception_code if rr.isError() else None)
             await asyncio.sleep(0.02)
+        # illegal data value, and the register keeps what the plant uses (a user found the
+        # write acknowledged and NaN read back)
+        seen["codes"] = codes
+        rr = await client.read_holding_registers(OP, count=2, device_id=1)
+        seen["register"] = decode_f32(rr.registers)
         seen["nan"] = (device.applied("valve.op"), set(device.faulted))
         await asyncio.sleep(0.4)  # NaN writes are no writes: the fault timer runs on
         seen["hold"] = (device.applied("valve.op"), set(device.faulted))
 
     with caplog.at_level(logging.INFO, logger="loopworks.device"):
         serve(body, fstate_time=0.3)
+    assert seen["codes"] == [3, 3, 3]
+    assert seen["register"] == 62.5
     assert seen["nan"] == (62.5, set())
     assert seen["hold"] == (62.5, {"valve.op"})
     messages = [r.getMessage() for r in caplog.records if r.name == "loopworks.device"]

@@ -19,8 +19,9 @@ fault action applies: ``"hold"`` (the default: keep the last value written) or a
 (``fault_actions={"valve.op": 0.0}``). It is logged once; the next good write ends it (also
 logged). A non-finite value written (NaN, ±inf) is refused: the plant input keeps its last
 value, the refusal is logged, and it does not count as a write for the fault timer (a Bad
-setpoint is no setpoint). Writes to the device's output registers are answered with the
-Modbus exception "illegal data address".
+setpoint is no setpoint); over Modbus it is answered with the exception "illegal data value"
+and the register keeps the value the plant uses. Writes to the device's output registers are
+answered with the Modbus exception "illegal data address".
 
 **Other protocols.** :meth:`Device.write_input` is a write to a device input by another
 protocol than Modbus (the OPC UA server of :mod:`loopworks.live.device_opcua`): it counts for
@@ -222,6 +223,17 @@ class Device:
                 log.warning("%s: a client wrote register %d, which is not a device input: "
                             "refused (illegal data address)", self._stamp(), foreign[0])
             return ExcCodes.ILLEGAL_ADDRESS
+        for point in self.regmap.inputs:  # a whole point written: its value must be finite
+            first = point.address - address
+            if first >= 0 and first + point.count <= count:
+                value = point.decode([int(r) for r in set_values[first:first + point.count]])
+                if not math.isfinite(value):
+                    if point.name not in self._refusing:  # once per run of refusals
+                        self._refusing.add(point.name)
+                        log.warning("%s: %s: refused the non-finite value %r written (illegal "
+                                    "data value); the plant keeps %g", self._stamp(),
+                                    point.name, value, self.values[point.name])
+                    return ExcCodes.ILLEGAL_VALUE
         now = time.monotonic()
         for r in touched:
             self._written[self._owner[r]] = now
