@@ -330,3 +330,17 @@ def test_the_python_function_takes_the_columns_as_text_too() -> None:
     mapped = diagnose(PLANT / "plant03.csv", "level", columns={"sp": "sp", "pv": "pv",
                                                                "op": "op"}, recommend=False)
     assert text.verdict == mapped.verdict and text.score == mapped.score
+
+
+def test_a_report_directory_keeps_no_plot_of_an_earlier_diagnosis(tmp_path: Path) -> None:
+    """Reusing -o: valve_travel.png and recommendation.png of an earlier sticky diagnosis
+    stayed beside a later report that has neither (found by a user)."""
+    out = tmp_path / "r"
+    out.mkdir()
+    for name in ("valve_travel.png", "recommendation.png", "mine.txt"):
+        (out / name).write_text("earlier")
+    run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant03.csv"), "--loop-type",
+                                   "level", "-o", str(out)])
+    assert run.exit_code == 0, run.output
+    assert not (out / "valve_travel.png").exists() and not (out / "recommendation.png").exists()
+    assert (out / "trends.png").exists() and (out / "mine.txt").read_text() == "earlier"

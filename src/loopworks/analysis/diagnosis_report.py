@@ -135,10 +135,13 @@ def write_report(result: Diagnosis, data: LoopData, directory: Path) -> Path:
     """report.html and its plots in ``directory`` (created)."""
     directory.mkdir(parents=True, exist_ok=True)
     images = [trends(data, directory / "trends.png"), pv_op(result, data, directory / "pv_op.png")]
-    for extra in (travel(result, data, directory / "valve_travel.png"),
-                  recommendation(result, directory / "recommendation.png")):
+    for name, extra in (("valve_travel.png", travel(result, data, directory / "valve_travel.png")),
+                        ("recommendation.png", recommendation(result,
+                                                              directory / "recommendation.png"))):
         if extra is not None:
             images.append(extra)
+        else:  # an earlier report's plot in this directory is not this diagnosis's
+            (directory / name).unlink(missing_ok=True)
     (directory / "diagnosis.json").write_text(
         json.dumps(result.to_json(), indent=2, ensure_ascii=False), encoding="utf-8")
     rows = "".join(f"<tr><td>{html.escape(e.method)}</td><td>{e.vote}</td>"
