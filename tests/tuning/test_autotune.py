@@ -362,3 +362,25 @@ def test_half_a_scan_of_rounding_is_not_a_warning() -> None:
     report = tune_loop(sc.module, "pid_none", sc.dt)
     assert report.identification.dead_time == pytest.approx(2.0, abs=0.11)
     assert not [w for w in report.identification.warnings if w.startswith("dead_time")]
+
+
+LAG_LOOP = CLIPPED_LOOP.replace("sp = {sp}", "sp = 50.0\nbias = 50.0").replace(
+    "time_constant = 10.0", "time_constant = {T}").replace("dt = 0.5", "dt = 0.1")
+
+
+def test_a_lag_dominant_plant_read_as_integrating_says_so() -> None:
+    """Found by an independent relay analysis: FOPDT K 1, L 2 s, T 50 s (T/L 25) moves the two
+    stages' mean outputs by under 1 % of d and was reported integrating without a word (a
+    defensible model at the relay's frequency, as SIMC treats T > 8 L, but a silent one). The
+    warning says what it is and how to measure K and T; T 20 s stays self-regulating, K 1."""
+    from loopworks.sim.tune import tune_loop
+
+    for t, kind in ((20.0, "self_regulating"), (50.0, "integrating")):
+        sc = parse_scenario(LAG_LOOP.format(T=t))
+        idn = tune_loop(sc.module, "pid", sc.dt).identification
+        assert idn.process_type == kind
+        lag = [w for w in idn.warnings if "lag-dominant" in w]
+        if kind == "integrating":
+            assert lag and "under 1% of d" in lag[0], idn.warnings
+        else:
+            assert not lag and idn.process_gain == pytest.approx(1.0, rel=0.01)

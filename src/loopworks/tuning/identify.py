@@ -152,6 +152,10 @@ MIN_DEAD_TIME_SCANS = 2
 #: Relative half-range of the per-cycle estimates above which a quantity gets a warning (the
 #: "≤ 5 % spread" of stable cycles, plant-and-tuning 3.4 item 4).
 SPREAD_WARNING = 0.05
+#: below this share of the relay amplitude d, the two stages' mean outputs are the same and
+#: the process is taken as integrating (an integrator's mean input is its load, whatever the
+#: relay) [ours: a lag-dominant FOPDT, T/L 25, shifts it by 0.97 % of d; T/L 20 by more]
+LAG_DOMINANT_SHIFT = 0.01
 #: Relative half-range above which the FOPDT through the ultimate point (symmetric relay only)
 #: is dropped: τ = tan(π - θ·ωu)/ωu is ill-conditioned as θ·ωu nears π/2 (lag-dominant
 #: plants), and a K known to ±25 % does not determine settings whose gain scales with 1/K.
@@ -539,7 +543,16 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
             mean_du, mean_dy = means_bia.u - means_sym.u, means_bia.pv - means_sym.pv
             du_cyc, dy_cyc = means_bia.u_cycles - means_sym.u, means_bia.pv_cycles - means_sym.pv
         if process == "auto":
-            kind = "integrating" if abs(mean_du) < 0.01 * max(d_up, d_down) else "self_regulating"
+            kind = ("integrating" if abs(mean_du) < LAG_DOMINANT_SHIFT * max(d_up, d_down)
+                    else "self_regulating")
+            if kind == "integrating":
+                notes.append(
+                    f"the two stages' mean outputs differ by {abs(mean_du):.3g}, under "
+                    f"{LAG_DOMINANT_SHIFT:.0%} of d: an integrating process, or a "
+                    "self-regulating one so lag-dominant (T above about 25 L) that the relay "
+                    "cannot tell it from one; it is tuned as integrating, as SIMC treats T > "
+                    "8 L (process='self_regulating' and a larger offset measure its K and T)")
+                warnings.append(notes[-1])
         if kind == "self_regulating":
             k_static = mean_dy / mean_du
             with np.errstate(divide="ignore", invalid="ignore"):
