@@ -96,7 +96,9 @@ class ChoudhuryValve:
 
 def loop_28(comp: Block | None, duration: float = 6000.0,
             model_step: Callable[[float], float] | None = None) -> dict[str, Any]:
-    """Spec 2.8: FOPDT K = 1, T = 10 s, L = 2 s (exact ZOH, 10-sample delay), ideal PI
+    """Spec 2.8: FOPDT K = 1, T = 10 s, L = 2 s (exact ZOH: pv_k = a·pv_{k-1} + (1 - a)·
+    y_{k-11}, the 10-sample dead time and the hold's one sample; an auditor's loop with a
+    10-sample recurrence matched the table at L = 2.2 s, the same thing), ideal PI
     Kc = 1, Ti = 10 s, e = SP - PV, Ts = 0.2 s, valve S = 3 %, J = 1 %, all at 50 %, SP + 1 % at
     t = 20 s; metrics on the second half: PV σ, mean |e|, valve travel Σ|Δy|, reversals."""
     ts, kc, ti = 0.2, 1.0, 10.0
