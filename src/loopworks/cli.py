@@ -313,17 +313,6 @@ def _json_safe(value: Any) -> Any:
     return value
 
 
-def _json_null(value: Any) -> Any:
-    """NaN and infinities as null (JSON's n/a), recursively."""
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, dict):
-        return {k: _json_null(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_null(v) for v in value]
-    return value
-
-
 def _fmt_value(value: Any) -> str:
     return f"{value:.6g}" if isinstance(value, float) else str(value)
 
@@ -523,7 +512,6 @@ def sweep(
 ) -> None:
     """Run a scenario over a grid or a Monte Carlo of parameter values; write the results table
     and a summary with plots."""
-    import json
     import time
 
     from rich.console import Console
@@ -569,13 +557,15 @@ def sweep(
     rows = sweep_report.summary_table(result, chosen)
     finite = any(math.isfinite(x) for row in rows for x in row[1:])
     if as_json:  # a metric with no value (n/a) is null, as in simulate's metrics.json
-        typer.echo(json.dumps(_json_null({
+        from loopworks.sim.report import json_text
+
+        typer.echo(json_text({
             "instances": len(result), "design": result.design, "varied": result.varied,
             "seconds": result.seconds, "metric": chosen,
             "variants": {v: {"median": a, "p5": b, "p95": c, "best": d}
                          for v, a, b, c, d in rows},
             "best": result.best(chosen) if finite else None, "output": str(output)}),
-            indent=2))
+            nl=False)
         return
     table = Table(title=escape(f"{title}: {result.design}, {len(result)} runs in "
                                f"{result.seconds:.1f} s"))
