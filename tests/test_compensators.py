@@ -649,3 +649,61 @@ def test_docstring_python_example() -> None:
     assert outs == pytest.approx([50.0, 52.6, 52.6, 48.9], abs=1e-12)
 
 
+
+
+ORDER_LOOP = """
+[simulation]
+dt = 0.2
+duration = 2.0
+
+[blocks.valve]
+kind = "valve.choudhury"
+s = 3.0
+j = 1.0
+y0 = 50.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 10.0
+dead_time = 2.0
+u0 = 50.0
+
+[blocks.pid]
+kind = "pid"
+k = 1.0
+ti = 10.0
+bias = 50.0
+sp = 50.0
+
+[blocks.comp]
+kind = "{kind}"
+{extra}
+
+[wires]
+"valve.op" = "comp.{out_port}"
+"comp.{in_port}" = "pid.out"
+"process.u" = "valve.position"
+"pid.pv" = "process.y"
+"""
+
+
+@pytest.mark.parametrize(("kind", "in_port", "out_port", "extra"), [
+    ("compensator.knocker", "op_in", "op_out", ""),
+    ("compensator.constant_reinforcement", "op_in", "op_out", ""),
+    ("compensator.two_move", "op_in", "op_out", ""),
+    ("deltav.stick_slip", "signal_in", "signal_out", "comp_start = 0.0")])
+def test_a_compensator_scanned_after_its_valve_passes_the_controller_through_at_start(
+        kind: str, in_port: str, out_port: str, extra: str) -> None:
+    """spec 2.1: x = u_PID + u_c. With the compensator declared after the valve, the valve's
+    first scan read the compensator's placeholder output 0 (its initial pass-through of the
+    default op_in): the valve stepped to 1 % and stuck at 49 (found by an independent
+    reference). The module's start settling (issue 11 point 8) now lets the compensator pass
+    the settled controller output (the pid's bias, 50) through before the first scan."""
+    from loopworks.sim.scenario import parse_scenario
+
+    sc = parse_scenario(ORDER_LOOP.format(kind=kind, in_port=in_port, out_port=out_port,
+                                          extra=extra))
+    result = sc.module.run(sc.duration, sc.dt)
+    assert result["valve.op"][0] == 50.0
+    assert (result["valve.position"] == 50.0).all()

@@ -334,6 +334,15 @@ class Block:
         self.y[:] = self.initial_outputs()
         self.ys[:] = st.GOOD_NC
 
+    def publish_pass_through(self, out_port: str, in_port: str) -> None:
+        """Before the first scan, once a module has settled its wires (``publish_start``):
+        the initial outputs again from the inputs latched now, ``out_port`` with the status
+        of ``in_port`` (a compensator or a DeltaV stick-slip block passes its input through
+        before it has run, so a valve scanned before it reads the controller's output, not a
+        placeholder 0)."""
+        self.y[:] = self.initial_outputs()
+        self.ys[self._out_index[out_port]] = self.us[self._in_index[in_port]]
+
     def step(self, dt: float, **inputs: Any) -> Outputs:
         """Advance one scan of ``dt`` seconds. Inputs are floats, :class:`Signal` pairs
         ``(value, status)``, or for enumerated inputs their names (``mode="MAN"``)."""

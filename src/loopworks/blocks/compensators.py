@@ -334,6 +334,10 @@ class Knocker(Block):
     def initial_outputs(self) -> list[float]:
         return [pass_through(self.u[KU.op_in]), 0.0]
 
+    def publish_start(self) -> None:
+        """op_in, settled by the module before the first scan, passed through."""
+        self.publish_pass_through("op_out", "op_in")
+
     def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         if prm["interval"] <= prm["pulse_width"]:
@@ -392,6 +396,10 @@ class ConstantReinforcement(Block):
 
     def initial_outputs(self) -> list[float]:
         return [pass_through(self.u[CU.op_in]), 0.0]
+
+    def publish_start(self) -> None:
+        """op_in, settled by the module before the first scan, passed through."""
+        self.publish_pass_through("op_out", "op_in")
 
     def coefficients(self) -> dict[str, Any]:
         return {"alpha": self.params["alpha"]}
@@ -617,5 +625,11 @@ class TwoMove(Block):
 
     def reset(self) -> None:
         super().reset()
+        if not math.isfinite(self.y[TY.target]):
+            self.ys[TY.target] = BAD
+
+    def publish_start(self) -> None:
+        """op_in (and sp), settled by the module before the first scan: passed through."""
+        self.publish_pass_through("op_out", "op_in")
         if not math.isfinite(self.y[TY.target]):
             self.ys[TY.target] = BAD

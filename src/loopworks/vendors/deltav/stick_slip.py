@@ -452,6 +452,10 @@ class StickSlip(Block):
         internal dither at its first scan."""
         return [0.0] * self.n_x
 
+    def publish_start(self) -> None:
+        """SIGNAL_IN, settled by the module before the first scan, passed through."""
+        self.publish_pass_through("signal_out", "signal_in")
+
     def initial_outputs(self) -> list[float]:
         """Before the first scan (issue 11 point 8): SIGNAL_OUT passes SIGNAL_IN through (no
         kick, no dither yet), the other outputs show the seed's defaults (0; SGGN1 reads
