@@ -117,7 +117,9 @@ loop-performance definitions of the plant-and-tuning spec, section 4.1.
 
 A figure the data cannot support is **n/a** in tables and `null` in `metrics.json`, never a
 number: the last column says when. The step figures (overshoot, rise and settling time) are
-taken from the last setpoint change in the window to its end; the response's final value y∞ is
+taken from the last setpoint change in the window to its end (with no `metrics_window` and no
+setpoint change, the run's start is that change: the start-up from the initial PV to SP; in a
+window without a change, a regulatory one, they are n/a); the response's final value y∞ is
 the mean PV over the last 5 % of that stretch (at least 2 samples). The response has *settled*
 when every one of those samples lies within ±2 % of the step around y∞ and y∞ lies within ±2 %
 of the step of the setpoint; overshoot and settling time are given only for a settled response.
