@@ -187,7 +187,9 @@ class Diagnosis:
     def to_json(self) -> dict[str, Any]:
         """The JSON object of ``loopworks diagnose --json`` (docs/diagnose-json.md)."""
         osc = self.oscillation
-        return dict(_clean({
+        from loopworks.sim.report import json_safe
+
+        return dict(json_safe({
             "source": self.source,
             "loop_type": self.loop_type,
             "verdict": self.verdict,
@@ -206,19 +208,6 @@ class Diagnosis:
             "stiction": self.stiction,
             "recommendation": self.recommendation,
         }))
-
-
-def _clean(value: Any) -> Any:
-    """NaN and infinities as None (JSON null), recursively."""
-    if isinstance(value, float | np.floating):
-        return float(value) if math.isfinite(value) else None
-    if isinstance(value, Mapping):
-        return {str(k): _clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_clean(v) for v in value]
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
 
 
 def _battery(data: LoopData, loop_type: LoopType, osc: Oscillation) -> list[Evidence]:

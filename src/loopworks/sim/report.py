@@ -28,7 +28,7 @@ import math
 import os
 import sys
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -47,14 +47,15 @@ HEADLINE = (("PV std", "PV std"), ("valve travel", "stem travel"),
 _WINDOW_COLOUR = "#fff2b3"
 
 
-def _finite(value: Any) -> Any:
-    """``value`` with every non-finite float (at any depth) replaced by None."""
-    if isinstance(value, dict):
-        return {str(k): _finite(v) for k, v in value.items()}
+def json_safe(value: Any) -> Any:
+    """``value`` with every non-finite float (at any depth) replaced by None (JSON's null), numpy
+    scalars and arrays as Python values, mappings' keys as text."""
+    if isinstance(value, Mapping):
+        return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, list | tuple):
-        return [_finite(v) for v in value]
+        return [json_safe(v) for v in value]
     if isinstance(value, np.ndarray):
-        return [_finite(v) for v in value.tolist()]
+        return [json_safe(v) for v in value.tolist()]
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, float) and not math.isfinite(value):
@@ -64,7 +65,7 @@ def _finite(value: Any) -> Any:
 
 def json_text(data: Any) -> str:
     """Strict JSON (RFC 8259: no NaN or Infinity), indented; non-finite floats become null."""
-    return json.dumps(_finite(data), indent=2, allow_nan=False) + "\n"
+    return json.dumps(json_safe(data), indent=2, allow_nan=False) + "\n"
 
 
 def metric_key(variant: str, loop: str, loops: list[str]) -> str:
