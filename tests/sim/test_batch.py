@@ -45,13 +45,15 @@ def _compare(sc, variant: str, instances, seeds, duration: float | None = None) 
     record = template.signals()
     batch = Batch(template, record)
     batch.load(instances, seeds)
-    R = batch.run(duration or sc.duration, sc.dt)
+    R, RS = batch.run(duration or sc.duration, sc.dt)
     for i, (changes, seed) in enumerate(zip(instances, seeds, strict=True)):
         module = sc.build(variant, changes, seed)
         result = module.run(duration or sc.duration, sc.dt)
         for j, name in enumerate(record):
             np.testing.assert_allclose(R[i, j], result.values[name], rtol=1e-12, atol=1e-12,
                                        err_msg=f"{variant} instance {i} {changes}: {name}")
+            np.testing.assert_array_equal(RS[i, j], result.status[name],
+                                          err_msg=f"{variant} instance {i}: {name} status")
 
 
 @pytest.mark.parametrize("path", EXAMPLES, ids=[p.stem for p in EXAMPLES])
@@ -182,7 +184,28 @@ def test_rows_are_independent_of_the_batch_they_run_in() -> None:
     batch = Batch(template, ["pid.out", "pi.out", "sensor.pv"])
     instances = [{"pid.gain": 0.5 + 0.1 * i} for i in range(9)]
     batch.load(instances, list(range(9)))
-    whole = batch.run(sc.duration, sc.dt)
+    whole, whole_status = batch.run(sc.duration, sc.dt)
     batch.load(instances[::-1][:4], list(range(9))[::-1][:4])
-    part = batch.run(sc.duration, sc.dt)
+    part, part_status = batch.run(sc.duration, sc.dt)
     np.testing.assert_array_equal(part, whole[::-1][:4])
+    np.testing.assert_array_equal(part_status, whole_status[::-1][:4])
+
+
+def test_a_bad_measurement_is_na_in_a_sweep_as_in_one_run() -> None:
+    """A transmitter failed "bad" holds a finite value with Bad status; one run's metrics read
+    those samples as no measurement (PV figures n/a, docs/metrics.md). The batch recorded
+    values only, so a sweep scored the held value as measured (a finite IAE where `simulate`
+    of the same values says n/a): it now records the statuses too."""
+    from loopworks.sim.scenario import parse_scenario
+
+    text = PARAM_EVENTS.replace('seed = 3\n', 'seed = 3\nfailure = "bad"\n'
+                                'failure_start = 100.0\nfailure_end = 110.0\n')
+    sc = parse_scenario(text)
+    jobs = [Job(i, "base", {"pid.gain": g}, 5 + i) for i, g in enumerate((0.5, 1.0))]
+    rows = run_jobs(sc.text, sc.source, jobs)
+    for job, row in zip(jobs, rows, strict=True):
+        expected = sc.build("base", job.changes, job.seed).run(sc.duration, sc.dt).metrics("pid")
+        assert math.isnan(expected["IAE"]) and math.isfinite(expected["output travel"])
+        got = {k.split(": ", 1)[1]: v for k, v in row.items() if k.startswith("pid: ")}
+        for name, value in expected.items():
+            assert got[name] == pytest.approx(value, rel=1e-12, abs=1e-12, nan_ok=True), name

@@ -26,11 +26,11 @@ Three entry points are generated from the same layout:
 * ``rows(dts, F, S, U, US, Y, YS)``: one block over rows of inputs (``replay``);
 * ``call(dt, p, x, u, us, y, ys)``: one scan of one block on its own seven arrays, for kinds
   whose sizes vary per instance (one compiled function for all sizes);
-* ``batch(F, S, dt, k0, m, R, IR, at)``: m scans of N instances of a module at once
+* ``batch(F, S, dt, k0, m, R, IR, RS, IS, at)``: m scans of N instances of a module at once
   (``loopworks.sim.batch``): instance i's buffers are row i of ``F`` (N × the module's floats)
   and ``S``; the instances run in parallel (``numba.prange``, one thread per core, each
   instance's scans in one thread), scan k at t = (k0 + k)·dt, recording
-  R[i, j, at + k] = F[i, IR[j]] (values only).
+  R[i, j, at + k] = F[i, IR[j]] and its status RS[i, j, at + k] = S[i, IS[j]].
 
 Where the cache lives: ``LOOPWORKS_CACHE_DIR`` if set, else the platform's user cache
 directory (``$XDG_CACHE_HOME/loopworks`` or ``~/.cache/loopworks`` on Linux,
@@ -88,7 +88,7 @@ def step_signature(n_y: int) -> str:
 ROWS_SIGNATURE = ("none(float64[::1], float64[::1], int64[::1], float64[:, ::1], int64[:, ::1], "
                   "float64[:, ::1], int64[:, ::1])")
 BATCH_SIGNATURE = ("none(float64[:, ::1], int64[:, ::1], float64, int64, int64, "
-                   "float64[:, :, ::1], int64[::1], int64)")
+                   "float64[:, :, ::1], int64[::1], uint8[:, :, ::1], int64[::1], int64)")
 
 
 @dataclass(frozen=True)
@@ -402,7 +402,7 @@ def source(slots: Sequence[Slot], entries: Sequence[str],
         lines += inside
     if "batch" in entries:
         lines += ["", "", "@numba.njit(cache=CACHE, nogil=True, parallel=True)",
-                  "def batch(F0, S0, dt, k0, m, R, IR, at):",
+                  "def batch(F0, S0, dt, k0, m, R, IR, RS, IS, at):",
                   "    nf = F0.shape[1]",
                   "    ns = S0.shape[1]",
                   "    fa = F0.ctypes.data",
@@ -414,7 +414,8 @@ def source(slots: Sequence[Slot], entries: Sequence[str],
                   "            t = (k0 + k) * dt"]
         lines += _scan(slots, kernels, " " * 12)
         lines += ["            for j in range(IR.shape[0]):",
-                  "                R[i, j, at + k] = F[IR[j]]"]
+                  "                R[i, j, at + k] = F[IR[j]]",
+                  "                RS[i, j, at + k] = numba.uint8(S[IS[j]])"]
     if "call" in entries:
         (slot,) = slots
         lines += ["", "", deco, "def call(dt, p, x, u, us, y, ys):",

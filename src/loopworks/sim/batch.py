@@ -80,6 +80,7 @@ class Batch:
             raise InputError(f"record: no signal '{unknown[0]}'; signals: " + ", ".join(names))
         self.record = list(record)
         self._rec = np.ascontiguousarray(module._rec_f[[where[r] for r in record]])
+        self._rec_s = np.ascontiguousarray(module._rec_s[[where[r] for r in record]])
         #: the seed parameter of every seeded block as the template has it (its own seed)
         self.base_seeds = {n: int(b.params["seed"]) for n, b in module.blocks.items()
                            if "seed" in b.params}
@@ -163,17 +164,19 @@ class Batch:
             self.F[row] = m._F
             self.S[row] = m._S
 
-    def run(self, duration: float, dt: float) -> np.ndarray:
+    def run(self, duration: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
         """Run every row ``duration`` s in scans of ``dt`` (scan k at t = k·dt, as
-        :meth:`Module.run`); returns R with R[i, j] the record of signal ``record[j]`` of
-        instance i (values only: a Bad value is NaN or the value its block gave)."""
+        :meth:`Module.run`); returns (R, RS) with R[i, j] the record of signal ``record[j]``
+        of instance i and RS[i, j] its statuses (uint8, as :class:`SimResult` keeps them: a
+        Bad-status sample counts as no measurement in the metrics, as in a single run)."""
         m = self.module
         n = scan_count(duration, dt)
         for block in m.blocks.values():
             block.check_dt(dt)
         R = np.empty((self.F.shape[0], len(self.record), n))
+        RS = np.empty((self.F.shape[0], len(self.record), n), dtype=np.uint8)
         if self.F.shape[0] == 0:
-            return R
+            return R, RS
         batch = entry(m._slots, "batch", BATCH_SIGNATURE)
         m.t, m.k, m._next_event = 0.0, 0, 0
         done = 0
@@ -184,8 +187,8 @@ class Batch:
                 m._next_event += 1
             k_event = m._next_event_scan(dt)
             stop = n if k_event is None else min(n, max(done + 1, k_event))
-            batch(self.F, self.S, dt, done, stop - done, R, self._rec, done)
+            batch(self.F, self.S, dt, done, stop - done, R, self._rec, RS, self._rec_s, done)
             done = stop
             m.k = done
             m.t = done * dt
-        return R
+        return R, RS

@@ -299,16 +299,17 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
                     raise _refused(job, exc) from None
                 rows[k] = _metrics(result, sc.metrics_window)[0]
             continue
-        size = max(1, CHUNK_BYTES // max(1, len(record) * n * 8))
+        size = max(1, CHUNK_BYTES // max(1, len(record) * n * 9))  # a value and a status
         for at in range(0, len(members), size):
             chunk = members[at:at + size]
             try:
                 batch.load([jobs[k].changes for k in chunk], [jobs[k].seed for k in chunk])
             except InstanceError as exc:
                 raise _refused(jobs[chunk[exc.index]], exc) from None
-            R = batch.run(sc.duration, sc.dt)
+            R, RS = batch.run(sc.duration, sc.dt)
             values = {name: R[:, j] for j, name in enumerate(record)}
-            for k, row in zip(chunk, _metrics(SimResult(t, values, {}, **info),
+            status = {name: RS[:, j] for j, name in enumerate(record)}
+            for k, row in zip(chunk, _metrics(SimResult(t, values, status, **info),
                                               sc.metrics_window), strict=True):
                 rows[k] = row
     return rows
