@@ -296,3 +296,143 @@ def test_a_bad_measurement_makes_the_pv_figures_na(failure: str) -> None:
     healthy = parse_scenario(_bad_sensor("none"))
     m = healthy.module.run(healthy.duration, healthy.dt).metrics("pid")
     assert all(math.isfinite(m[name]) for name in ("IAE", "final error", "PV std"))
+
+
+# -- found by an independent reference of spec 4.1 (2026-12-06) ------------------------------
+
+
+def test_a_slow_oscillation_ending_inside_the_band_is_not_settled() -> None:
+    """A step response that keeps oscillating ±3 % of the step around the setpoint with a
+    100 s period, cut where its last 20 s lie inside the ±2 % band: the last 5 % of the
+    samples pass the tail test and y∞ is on the setpoint, but the PV left the band 370 s after
+    the step and stayed in for only 20 s. A settling time of 370 s (and an overshoot) was
+    printed; the record does not show a settled loop (spec 4.1: the last time |y − y∞|
+    leaves the band, which this record cannot place)."""
+    t = np.arange(0.0, 400.0, 0.1)
+    # leaves the band for the last time where |0.03·sin(ωt)| falls to 0.02, ~ 10 s before
+    # a zero crossing at 400 s (sin(2π·4) = 0): 0.03·sin(2π·(390.7/100)) = -0.0201
+    y = 1.0 + 0.03 * np.sin(2.0 * np.pi * t / 100.0) * np.minimum(1.0, t / 1.0)
+    y[t < 1.0] = 0.0
+    m = metrics.step_metrics(t, y, 1.0)
+    assert math.isnan(m.settling_time_s) and math.isnan(m.overshoot_pct)
+    # the same decaying to a quarter of the band by 200 s has settled: it stays inside 200 s
+    decay = 1.0 + 0.03 * np.sin(2.0 * np.pi * t / 100.0) * np.exp(-t / 100.0)
+    decay[t < 1.0] = 0.0
+    settled = metrics.step_metrics(t, decay, 1.0)
+    inside = np.abs(decay - decay[-200:].mean()) <= 0.02
+    last_out = t[np.flatnonzero(~inside)[-1] + 1]
+    assert settled.settling_time_s == pytest.approx(last_out)
+
+
+def test_a_window_starting_on_the_step_holds_the_step() -> None:
+    """metrics_window = [the step's time, end]: the setpoint changes on the window's first
+    scan against the scan before it. All step figures were n/a (no change inside the
+    window); they are the step's, as the same step seen with a window one scan earlier."""
+    t = np.arange(0.0, 100.0, 0.1)
+    sp = np.where(t >= 10.0, 60.0, 50.0)
+    pv = np.where(t >= 10.0, 60.0 - 10.0 * np.exp(-(t - 10.0) / 5.0), 50.0)
+    out = np.zeros_like(t)
+    at = metrics.loop_metrics(t, sp, pv, out, window=(10.0, 100.0))
+    early = metrics.loop_metrics(t, sp, pv, out, window=(9.9, 100.0))
+    assert at["step size"] == pytest.approx(10.0)
+    for name in ("step size", "rise time s", "settling time s (2 %)", "overshoot %"):
+        assert at[name] == pytest.approx(early[name], abs=1e-9), name
+    assert at["settling time s (2 %)"] == pytest.approx(5.0 * math.log(50.0), abs=0.11)
+    # a window that starts after the step (no change in it, none on its first scan): n/a
+    later = metrics.loop_metrics(t, sp, pv, out, window=(20.0, 100.0))
+    assert math.isnan(later["step size"])
+
+
+def test_itae_weighs_time_from_the_setpoint_change() -> None:
+    """Spec 4.1: ITAE = Σ t_k·|e_k|·Ts with t measured from the set-point change. A step at
+    t = 10 s with e = 1 for the 5 scans from it (then 0), and an error of 2 before it: the
+    samples before the change are not in the sum; ITAE = (0 + 1 + 2 + 3 + 4)·1·1 = 10 (it
+    was Σ t·|e| from t = 0: 2·(0 + ... + 9) + (10 + ... + 14) = 150). A regulatory window
+    (no change) still weighs from its start."""
+    t = np.arange(20.0)
+    sp = np.where(t >= 10.0, 6.0, 5.0)
+    pv = np.where(t >= 15.0, 6.0, np.where(t >= 10.0, 5.0, 3.0))
+    out = np.zeros_like(t)
+    assert metrics.loop_metrics(t, sp, pv, out)["ITAE"] == pytest.approx(10.0)
+    calm = metrics.loop_metrics(t, np.full(20, 5.0), np.full(20, 4.0), out, window=(5.0, 19.0))
+    assert calm["ITAE"] == pytest.approx(sum(range(15)))
+
+
+def test_output_travel_is_in_percent_of_the_output_span() -> None:
+    """docs/metrics.md: output travel in % of OUT span. A GE PID's CV is in counts (32000 =
+    100 %) and S5's Y in counts of 1000: 3200 counts up and down is 20 % of span, not 6400;
+    a 1-count jitter (0.003 %) is below the 0.05 % reversal threshold (it counted 8 turns)."""
+    t = np.arange(12.0)
+    cv = np.array([0.0, 3200, 3200, 0, 1, 0, 1, 0, 1, 0, 1, 0])
+    sp = pv = np.zeros(12)
+    m = metrics.loop_metrics(t, sp, pv, cv, out_span=32000.0)
+    assert m["output travel"] == pytest.approx(100.0 * (6400 + 8) / 32000)
+    assert m["output reversals"] == 1.0
+    assert metrics.loop_metrics(t, sp, pv, cv)["output reversals"] == 9.0  # % output: all
+
+
+@pytest.mark.parametrize(("kind", "span"), [("ge.pid_ind", 32000.0), ("s5.pid", 1000.0),
+                                            ("pid", 100.0), ("e2.pid", 100.0)])
+def test_each_controller_kind_names_its_output_span(kind: str, span: float) -> None:
+    from loopworks.blocks.controller import Controller
+    from loopworks.catalog import create_block
+
+    b = create_block(kind)
+    assert isinstance(b, Controller)
+    assert type(b).out_span(b.params) == span
+
+
+def test_deltav_output_span_is_out_scale() -> None:
+    """deltav.pid's OUT is in OUT_SCALE EU: a 0..10 scale makes 1 EU 10 % (spec 4.1)."""
+    from loopworks.catalog import create_block
+    from loopworks.vendors.deltav.pid import DeltaVPID
+
+    b = create_block("deltav.pid", out_scale_eu_0=0.0, out_scale_eu_100=10.0)
+    assert DeltaVPID.out_span(b.params) == 10.0
+
+
+GE_COUNTS = """
+[simulation]
+dt = 0.1
+duration = 200.0
+order = ["process", "pid"]
+
+[blocks.pid]
+kind = "ge.pid_ind"
+kp = 1.0
+ki = 0.1
+sp = 16000.0
+bias = 16000.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 10.0
+dead_time = 2.0
+u0 = 16000.0
+
+[wires]
+"process.u" = "pid.cv"
+"pid.pv" = "process.y"
+
+[[events]]
+t = 50.0
+set = "pid.sp"
+value = 19200.0
+"""
+
+
+def test_a_ge_loop_in_counts_scores_output_travel_in_percent() -> None:
+    """A GE PID_IND whose CV is in counts (found by an independent reference: 4614 printed
+    for 14.4 % of span): `simulate` and a sweep both give Σ|ΔCV|/32000·100."""
+    from loopworks.sim.scenario import parse_scenario
+    from loopworks.sim.sweep import Job, run_jobs
+
+    sc = parse_scenario(GE_COUNTS)
+    result = sc.module.run(sc.duration, sc.dt)
+    cv = np.asarray(result["pid.cv"])
+    expected = np.abs(np.diff(cv)).sum() / 320.0
+    assert 5.0 < expected < 100.0  # the step moved the CV by thousands of counts
+    assert result.metrics("pid")["output travel"] == pytest.approx(expected, rel=1e-12)
+    (row,) = run_jobs(sc.text, sc.source, [Job(0, "base", {"pid.kp": 1.0}, None)])
+    assert row["output travel"] == pytest.approx(expected, rel=1e-12)  # one loop: no prefix

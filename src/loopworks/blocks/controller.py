@@ -135,6 +135,12 @@ class Controller(metaclass=ABCMeta):
         ("pv_span", 100.0), ("out_span", 100.0))
 
     @classmethod
+    def out_span(cls, params: Mapping[str, Any]) -> float:
+        """The output's units of 100 % of its span (``SPANS``' default: 100 for an output in
+        %, the vendor's counts of 100 %): what output travel is scored against."""
+        return cls.SPANS[1][1]
+
+    @classmethod
     def spans(cls, context: Mapping[str, Any]) -> tuple[float, float]:
         """(pv_span, out_span): the port units that make 100 % of PV and of output span, from
         the context values (or parameters) in ``context`` (lower-case names): ``SPANS``."""

@@ -4,7 +4,9 @@ For samples k with scan time Ts and error e = SP - PV::
 
     IAE  = Σ |e_k|·Ts        ISE = Σ e_k²·Ts        ITAE = Σ t_k·|e_k|·Ts
 
-with t measured from the start of the analysed window. For a setpoint step of size
+with t measured from the setpoint change the step figures use (the samples before it not
+summed), or from the start of the window when it has none (a regulatory window: the
+disturbance's time is not known). For a setpoint step of size
 Δr = r - y_0 (r the setpoint, y_0 the PV at the step) and y_∞ the mean PV over the tail (the
 last 5 % of the samples after the step, at least 2)::
 
@@ -13,10 +15,20 @@ last 5 % of the samples after the step, at least 2)::
     settling time  = last time |y - y_∞| > band·|Δr| (band 2 %), measured from the step
     travel         = Σ |Δu_k|
 
-The response has settled when every tail sample is within band·|Δr| of y_∞ and y_∞ is within
-band·|Δr| of r; overshoot and settling time are figures of a settled response, NaN otherwise
-(a response still moving, oscillating, or stalled off the setpoint has no final value to
-measure them against). NaN marks every figure the data cannot support; the report writes it as
+The response has settled when every tail sample is within band·|Δr| of y_∞, y_∞ is within
+band·|Δr| of r, and the PV has stayed inside the band, up to the end of the record, for at
+least half as long as it took to get there (``STAY``: a slow oscillation whose last half
+period happens to lie inside the band is not settled); overshoot and settling time are figures
+of a settled response, NaN otherwise (a response still moving, oscillating, or stalled off the
+setpoint has no final value to measure them against).
+
+The controller output's travel is in % of its span (``out_span``: the output's units of 100 %,
+:meth:`Controller.out_span <loopworks.blocks.controller.Controller.out_span>`: 32000 counts for
+GE, 1000 for S5, OUT_SCALE for DeltaV, 100 otherwise), and its reversals ignore moves of at most
+0.05 % of it, so a PID in counts is scored as one in %. A reversal is a turn of the signal's
+moves, each move measured from the last point where the signal had moved more than the
+threshold (so a slow ramp of tiny steps counts as one move, and noise below the threshold as
+none). NaN marks every figure the data cannot support; the report writes it as
 null in JSON and n/a in tables. ``METRICS`` holds each figure's unit, definition and n/a rule
 (rendered as docs/metrics.md by ``markdown()``).
 """
@@ -51,7 +63,9 @@ METRICS: tuple[MetricInfo, ...] = (
                "e = working SP − PV", _INTEGRAL),
     MetricInfo("ISE", "PV units²·s", "integral of squared error Σe²·Ts", _INTEGRAL),
     MetricInfo("ITAE", "PV units·s²", "integral of time-weighted absolute error "
-               "Σ(t − t₀)·|e|·Ts, t₀ the start of the window", _INTEGRAL),
+               "Σ(t − t₀)·|e|·Ts from t₀ on, t₀ the setpoint change the step figures use "
+               "(spec 4.1: t from the set-point change), the start of the window when it has "
+               "none", _INTEGRAL),
     MetricInfo("mean |e|", "PV units", "mean absolute error over the window", _NONFINITE),
     MetricInfo("step size", "PV units", "the last setpoint step in the window: SP after it "
                "minus PV at it (Δr)",
@@ -66,27 +80,32 @@ METRICS: tuple[MetricInfo, ...] = (
                "±2 % of |Δr| of its final value y∞",
                "no step (step size n/a), or the response has not settled: a sample of the "
                "last 5 % of the response is outside the ±2 % band around y∞ (still moving, "
-               "oscillating, or noise larger than the band), or y∞ is more than 2 % of the "
-               "step away from the setpoint (stalled or creeping: read the final error)"),
+               "oscillating, or noise larger than the band), y∞ is more than 2 % of the "
+               "step away from the setpoint (stalled or creeping: read the final error), or "
+               "the PV stayed inside the band for less than half the time it took to get "
+               "there (the record is too short to show that it stays: a slow oscillation)"),
     MetricInfo("final error", "PV units", "SP − PV at the last scan of the window", _NONFINITE),
     MetricInfo("PV std", "PV units", "standard deviation of the PV over the window",
                "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("PV peak to peak", "PV units", "largest minus smallest PV in the window",
                "fewer than 2 samples in the window, or " + _NONFINITE),
-    MetricInfo("output travel", "% of OUT span", "controller output travel Σ|ΔOUT|",
+    MetricInfo("output travel", "% of OUT span", "controller output travel Σ|ΔOUT|, in % "
+               "of the output's span (GE counts: 32000 = 100 %, S5: 1000, DeltaV: "
+               "OUT_SCALE)",
                "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("output reversals", "count", "sign changes of the controller output's moves, "
-               "moves of at most 0.05 ignored", "fewer than 2 samples in the window, or "
-               + _NONFINITE),
+               "moves of at most 0.05 % of its span ignored",
+               "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("valve travel", "% of stem stroke", "stem travel Σ|Δy| of the valve position "
                "(the valve's wear)", "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("valve reversals", "count", "sign changes of the stem's moves, moves of at "
-               "most 0.05 ignored", "fewer than 2 samples in the window, or " + _NONFINITE),
+               "most 0.05 % of stroke ignored",
+               "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("valve-command travel", "% of span", "travel Σ|Δop| of the valve command: "
                "the signal wired to the valve's op input (what a compensator sends the "
                "positioner)", "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("valve-command reversals", "count", "sign changes of the valve command's "
-               "moves, moves of at most 0.05 ignored",
+               "moves, moves of at most 0.05 % ignored",
                "fewer than 2 samples in the window, or " + _NONFINITE),
 )
 
@@ -121,14 +140,20 @@ taken from the last setpoint change in the window to its end (with no `metrics_w
 setpoint change, the run's start is that change: the start-up from the initial PV to SP; in a
 window without a change, a regulatory one, they are n/a); the response's final value y∞ is
 the mean PV over the last 5 % of that stretch (at least 2 samples). The response has *settled*
-when every one of those samples lies within ±2 % of the step around y∞ and y∞ lies within ±2 %
-of the step of the setpoint; overshoot and settling time are given only for a settled response.
+when every one of those samples lies within ±2 % of the step around y∞, y∞ lies within ±2 %
+of the step of the setpoint, and the PV has stayed inside that band to the end for at least
+half as long as it took to get there (a record that ends in the quiet half period of a slow
+oscillation does not show a settled loop); overshoot and settling time are given only for a
+settled response. A window that starts on the scan of a setpoint change holds that step.
 
 Travel is the sum of the absolute moves of a signal over the window. Three travels show what a
 stiction compensator costs: the controller output (`output travel`), the valve command sent to
 the positioner (`valve-command travel`: the compensator adds its dither and kicks here) and the
-stem (`valve travel`, the wear). Reversals count the sign changes of a signal's moves, ignoring
-moves of at most 0.05 so that noise below the resolution is not counted.
+stem (`valve travel`, the wear). The controller output's travel is in % of its span, whatever
+its units (GE counts: 32000 = 100 %; S5: 1000; DeltaV: OUT_SCALE; the other kinds' outputs
+are in %). Reversals count the turns of a signal's moves, each move measured from the last
+point where the signal had moved by more than 0.05 % of its span, so that noise below the
+resolution is not counted and a slow ramp of small steps is one move.
 
 | metric | unit | definition | n/a when |
 |---|---|---|---|
@@ -196,6 +221,11 @@ def _first(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(mask.any(axis=1)), np.asarray(mask.argmax(axis=1))
 
 
+#: a response has settled only if the PV stayed inside the band, to the end of the record,
+#: for at least STAY times the time it took to get there (its settling time)
+STAY = 0.5
+
+
 def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
                band: float = 0.02) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`step_metrics` of each row i of ``y`` from sample ``start[i]`` on (the samples
@@ -235,12 +265,14 @@ def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
         yinf[same] = _per_row(np.mean, y[same, n - mi:])
     dev = np.abs(y - yinf[:, None])
     settled = ~(tail & (dev > tol[:, None])).any(axis=1) & (np.abs(r - yinf) <= tol)
-    peak = np.where(after, (y - yinf[:, None]) * sgn, -math.inf).max(axis=1)
-    over[sel] = np.where(settled, np.maximum(0.0, peak) / mag * 100.0, nan)
     outside = after & (dev > tol[:, None])
     any_out = outside.any(axis=1)
     last = n - 1 - outside[:, ::-1].argmax(axis=1)
     t_end = t[np.minimum(last + 1, n - 1)]
+    # stayed inside the band to the end for at least STAY times as long as it took to get in
+    settled &= ~any_out | (t[n - 1] - t_end >= STAY * (t_end - t[start]))
+    peak = np.where(after, (y - yinf[:, None]) * sgn, -math.inf).max(axis=1)
+    over[sel] = np.where(settled, np.maximum(0.0, peak) / mag * 100.0, nan)
     settle[sel] = np.where(settled, np.where(any_out, t_end - t[start], 0.0), nan)
     return size, over, rise, settle
 
@@ -350,13 +382,15 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
                  position: np.ndarray | None = None,
                  window: tuple[float, float] | None = None,
                  reversal_threshold: float = 0.05,
-                 command: np.ndarray | None = None) -> dict[str, Any]:
+                 command: np.ndarray | None = None,
+                 out_span: float = 100.0) -> dict[str, Any]:
     """The metrics table of one loop (``METRICS``, spec 4.1), over ``window`` = (t0, t1) s
     (default: the whole run): error integrals, step figures from the last setpoint change in
-    the window (none for a window without one), PV spread, controller output travel and
-    reversals, the valve stem's when ``position`` is given and the valve command's (the
-    signal wired to the valve's op input) when ``command`` is given. NaN marks a figure the
-    data cannot support.
+    the window (none for a window without one; a change on the window's first scan, against
+    the scan before it, is one), PV spread, controller output travel and reversals (in % of
+    ``out_span``, the output's units of 100 %), the valve stem's when ``position`` is given
+    and the valve command's (the signal wired to the valve's op input) when ``command`` is
+    given; ``reversal_threshold`` in % of span. NaN marks a figure the data cannot support.
 
     The signals are arrays over ``t``, each figure a float; or N × len(t) arrays, N
     instances of one loop (a sweep's batch), each figure an array of N."""
@@ -369,22 +403,28 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     position = rows(position) if position is not None else None
     command = rows(command) if command is not None else None
     ts = float(t[1] - t[0]) if len(t) > 1 else math.nan  # the scan period, before windowing
+    before = sp[:, :1]  # the setpoint on the scan before the window (none: the first scan's)
     if window is not None:
         keep = (t >= window[0]) & (t <= window[1])
         if not keep.any():
             raise ValueError(f"window {window} s holds no sample of the run "
                              f"({t[0]:g}..{t[-1]:g} s)")
+        first = int(np.argmax(keep))
+        before = sp[:, first - 1:first] if first > 0 else sp[:, first:first + 1]
         t, sp, pv, out = t[keep], sp[:, keep], pv[:, keep], out[:, keep]
         position = position[:, keep] if position is not None else None
         command = command[:, keep] if command is not None else None
     n = len(t)
     e = sp - pv
     ae = np.abs(e)
-    changed = np.diff(sp, axis=1) != 0.0
+    # changed[:, j]: the setpoint of scan j differs from the scan before it (the window's
+    # first scan against the one before the window)
+    changed = np.diff(np.concatenate([before, sp], axis=1), axis=1) != 0.0
     has_change = changed.any(axis=1)
-    last = changed[:, ::-1].argmax(axis=1) if n >= 2 else np.zeros(len(sp), dtype=np.int64)
-    start = np.where(has_change, n - 1 - last, 0)
+    start = np.where(has_change, n - 1 - changed[:, ::-1].argmax(axis=1), 0)
     size, over, rise, settle = _step_rows(t, pv, sp[:, -1], start)
+    # ITAE's t from the setpoint change (spec 4.1), the window's start without one
+    since = t[None, :] - t[start][:, None]
     if window is not None:  # a regulatory window (no setpoint change in it): no step figures
         for fig in (size, over, rise, settle):
             fig[~has_change] = math.nan
@@ -393,7 +433,7 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
         result: dict[str, np.ndarray] = {
             "IAE": _per_row(np.sum, ae) * ts,
             "ISE": _per_row(np.sum, e * e) * ts,
-            "ITAE": _per_row(np.sum, (t - t[0]) * ae) * ts,
+            "ITAE": _per_row(np.sum, np.where(since >= 0.0, since * ae, 0.0)) * ts,
             "mean |e|": _per_row(np.mean, ae),
             "step size": size,
             "overshoot %": over,
@@ -405,7 +445,7 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
             "PV peak to peak": np.ptp(pv, axis=1) if spread else np.full(len(pv), math.nan),
         }
     result["output travel"], result["output reversals"] = _signal_metrics(
-        out, reversal_threshold)
+        out * (100.0 / out_span), reversal_threshold)
     if position is not None:
         result["valve travel"], result["valve reversals"] = _signal_metrics(
             position, reversal_threshold)

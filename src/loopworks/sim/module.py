@@ -310,6 +310,13 @@ class Module:
         return [f"{name}.{port.name}" for name in self.order
                 for port in (*self.blocks[name].INPUTS, *self.blocks[name].OUTPUTS)]
 
+    def out_spans(self) -> dict[str, float]:
+        """Each controller's output units of 100 % (``Controller.out_span``), by name."""
+        from loopworks.blocks.controller import Controller
+
+        return {n: type(b).out_span(b.params) for n, b in self.blocks.items()
+                if isinstance(b, Controller)}
+
     def metric_signals(self) -> list[str]:
         """What :meth:`SimResult.metrics` reads of every controller: its SP, PV and OUT roles
         (and working or cascade setpoint, mode), and every valve's position and command."""
@@ -559,7 +566,7 @@ class Module:
                 status[names[i]] = RS[r, cols]
         return SimResult(t=T[1:], values=values, status=status,
                          kinds={n: self.blocks[n].kind for n in self.order},
-                         wires=dict(self.wires))
+                         wires=dict(self.wires), out_spans=self.out_spans())
 
     def _run_python(self, n: int, dt: float, t: np.ndarray, RF: np.ndarray, RS: np.ndarray,
                     rec_f: np.ndarray, rec_s: np.ndarray,

@@ -28,6 +28,8 @@ class SimResult:
     status: dict[str, np.ndarray]
     kinds: dict[str, str] = field(default_factory=dict)
     wires: dict[str, str] = field(default_factory=dict)
+    #: each controller's output units of 100 % (``Controller.out_span``; 100 when not given)
+    out_spans: dict[str, float] = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
         """``result["pid.out"]``; ``result["pid.out.ST"]`` gives the status array."""
@@ -80,7 +82,8 @@ class SimResult:
         roles = self._roles_of(loop)
         return loop_metrics(self.t, self.working_sp(loop), self.usable(f"{loop}.{roles.pv}"),
                             self.usable(f"{loop}.{roles.out}"), position=position,
-                            window=window, command=command)
+                            window=window, command=command,
+                            out_span=self.out_spans.get(loop, 100.0))
 
     def usable(self, name: str) -> np.ndarray:
         """Signal ``name`` with its Bad-status samples as NaN (a held or last value with Bad

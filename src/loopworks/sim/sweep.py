@@ -288,7 +288,7 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
         template = batch.module
         record = template.metric_signals()
         info = {"kinds": {b: template.blocks[b].kind for b in template.order},
-                "wires": dict(template.wires)}
+                "wires": dict(template.wires), "out_spans": template.out_spans()}
         if not template.compiled:  # interpreted: one module per instance
             for k in members:
                 job = jobs[k]

@@ -878,6 +878,11 @@ class DeltaVPID(Controller, Block):
             return float(params["out_lo_lim"]), float(params["out_hi_lim"])
         return float(params["out_scale_eu_0"]), float(params["out_scale_eu_100"])
 
+    @classmethod
+    def out_span(cls, params: Mapping[str, Any]) -> float:
+        """OUT_SCALE's span |EU at 100 % − EU at 0 %| (OUT is in OUT_SCALE's EU)."""
+        return abs(float(params["out_scale_eu_100"]) - float(params["out_scale_eu_0"]))
+
     # -- the discrete law (loopworks.blocks.law), both ways ---------------------------------
     LAW_PARAMS: ClassVar[tuple[str, ...]] = (
         "form", "structure", "gain", "reset", "rate", "alpha", "beta", "gamma",
