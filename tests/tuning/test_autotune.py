@@ -384,3 +384,19 @@ def test_a_lag_dominant_plant_read_as_integrating_says_so() -> None:
             assert lag and "under 1% of d" in lag[0], idn.warnings
         else:
             assert not lag and idn.process_gain == pytest.approx(1.0, rel=0.01)
+
+
+def test_a_second_stage_that_cannot_switch_is_told_apart() -> None:
+    """K = 1 with d = 5 and ε = 4.5: the symmetric stage cycles, the biased one (d_down =
+    2.5, K·d_down < ε) cannot bring the PV back through the band. The refusal said "no
+    oscillation (a larger --amplitude: 2d must move a sticky valve)", wrong advice for a
+    stage whose levels are the cause (found by an independent reference)."""
+    from loopworks.sim.tune import RelayTestRefused, tune_loop
+
+    sc = parse_scenario(LAG_LOOP.format(T=10.0).replace("dt = 0.1", "dt = 0.05"))
+    with pytest.raises(RelayTestRefused) as info:
+        tune_loop(sc.module, "pid", sc.dt, amplitude=5.0, hysteresis=4.5)
+    message = str(info.value)
+    assert "no_oscillation" in message and "second stage" in message
+    assert "--bias-ratio" in message and "larger --amplitude" not in message
+    assert info.value.run.stage.max() == 2.0  # the symmetric stage had converged

@@ -26,7 +26,7 @@ DT = 0.01
 
 
 def relay_loop(process: dict[str, Any], *, duration: float = 150.0, noise: float = 0.0,
-               **relay: Any) -> dict[str, np.ndarray]:
+               dt: float = DT, **relay: Any) -> dict[str, np.ndarray]:
     """Relay (centre 0) around a process at rest at 0, SP = 0; returns the record."""
     blocks = {
         "relay": loopworks.create_block("relay", out_lo=-100.0, out_hi=100.0, u0=0.0, **relay),
@@ -37,7 +37,7 @@ def relay_loop(process: dict[str, Any], *, duration: float = 150.0, noise: float
                               "relay.pv": "sensor.pv"},
                inputs={"relay": {"enable": 1.0, "sp": 0.0}},
                order=["sensor", "relay", "process"])
-    r = m.run(duration, DT)
+    r = m.run(duration, dt)
     return {"t": r.t, "pv": r["relay.pv"], "u": r["relay.out"], "relay": r["relay.relay"],
             "stage": r["relay.stage"], "phase": r["relay.phase"], "shift": r["relay.shift"]}
 
@@ -97,6 +97,22 @@ def test_integrating_plant_amplitude_period_and_gain(eps: float) -> None:
     assert idn.process_type == "integrating"
     assert idn.integrating_gain == pytest.approx(0.1, rel=0.02)
     assert idn.process_gain is None
+
+
+@pytest.mark.parametrize(("dt", "eps", "d_down"), [(0.5, 0.0, 1.0), (0.5, 0.05, 1.0),
+                                                   (0.25, 0.0, 1.0), (0.5, 0.0, 0.5)])
+def test_integrating_gain_on_a_coarse_scan(dt: float, eps: float, d_down: float) -> None:
+    """Kv = 0.1, L = 2 s relayed at scans of 0.5 s (L of four scans): the relay switches up
+    to a scan after the PV crossed ±ε, which lengthens a - ε and P/4 alike but not the time
+    from a switch to the PV's extremum, L. (a - ε)/(d·L) read Kv 0.125 here (found by an
+    independent reference); spec 3.2's a = ε + Kv·d·L with P = 4L + 4ε/(Kv·d), L eliminated,
+    gives 4a/(d·P) (2(d1 + d2)a/(d1·d2·P) under a biased relay, whose half periods are
+    L + (2ε + Kv·d2·L)/(Kv·d1) and its mirror)."""
+    rec = relay_loop(INTEGRATOR, hysteresis=eps, amplitude=1.0, amplitude_down=d_down,
+                     biased_stage=d_down != 1.0, stable_cycles=2, duration=300.0, dt=dt)
+    idn = _identify(rec, eps, d_down=d_down, process="integrating")
+    assert idn.dead_time == pytest.approx(2.0, abs=1e-9)  # L itself is read exactly
+    assert idn.integrating_gain == pytest.approx(0.1, rel=0.01)
 
 
 def test_biased_relay_gives_static_gain_dead_time_and_time_constant() -> None:

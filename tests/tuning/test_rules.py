@@ -308,3 +308,24 @@ def test_unknown_rule_lists_rules() -> None:
     with pytest.raises(ParameterError, match=r"'ziegler'.*zn, zn_step"):
         tune("ziegler", ULTIMATE)
     assert tune("ZN-Step", FOPDT).rule == "zn_step"
+
+
+def test_a_ku_pu_rule_on_a_hysteresis_point_is_marked() -> None:
+    """Spec 3.1: with hysteresis the relay point lies at π − arcsin(ε/a) of lag, not 180°;
+    its period is not Pu (spec 3.2 table, ε = 0.05: P 9.039 s against Pu 7.4415 s). Tyreus-
+    Luyben read it as the ultimate point silently (Ti 45 % long at ε = 0.5, found by an
+    independent reference): a rule reading pu says so; a point within 5° is not marked."""
+    a, eps = 0.22221, 0.05
+    phi = math.pi - math.asin(eps / a)  # 13.0° short of 180°
+    data = ProcessData(ku=5.881, pu=9.039, relay_phase_lag=phi)
+    for rule in ("tyreus_luyben", "zn"):
+        t = tune(rule, data, "PI")
+        assert "short of 180°" in t.note and f"{math.degrees(math.pi - phi):.1f}°" in t.note
+    assert tune("tyreus_luyben", data, "PI").ti == pytest.approx(2.2 * 9.039)  # still given
+    near = ProcessData(ku=7.0, pu=7.4, relay_phase_lag=math.pi - math.radians(4.0))
+    assert tune("tyreus_luyben", near, "PI").note == ""
+    assert tune("tyreus_luyben", ProcessData(ku=7.0, pu=7.4), "PI").note == ""
+    # a FOPDT rule does not read pu: no note
+    fopdt = ProcessData(process_gain=1.0, dead_time=2.0, time_constant=10.0,
+                        ku=5.881, pu=9.039, relay_phase_lag=phi)
+    assert tune("amigo", fopdt, "PI").note == ""

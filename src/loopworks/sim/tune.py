@@ -113,9 +113,18 @@ def default_loop(module: Module) -> str:
 
 
 def _why(outcome: str, relay: Relay, dt: float) -> str:
-    """One line: why a relay test that ended with ``outcome`` gives no identification."""
+    """One line: why a relay test that ended with ``outcome`` gives no identification (a
+    second stage that stops switching after the symmetric one cycled is told apart: its
+    lower level or shifted point cannot carry the PV through the band, and a larger
+    amplitude is not the cure)."""
     prm = relay.params
     period = float(relay.y[relay._out_index["period"]])
+    if outcome == "no_oscillation" and relay.y[relay._out_index["stage"]] > 1.5:
+        return (f"the second stage of the relay did not switch for {prm['max_half_period']:g}"
+                " s after the symmetric stage cycled: its lower level (or shifted switching "
+                "point) does not carry the PV back through the band of ±"
+                f"{float(prm['hysteresis']):g} (a larger --bias-ratio, a smaller --offset or "
+                "--hysteresis, or --symmetric)")
     reasons = {
         "too_fast": short_cycle(period, dt),
         "not_converged": f"no {prm['stable_cycles']} consecutive cycles agreed within "
@@ -390,15 +399,18 @@ class TuneReport:
             "integrating_gain": idn["integrating_gain"], "dead_time": idn["dead_time"],
             "time_constant": idn["time_constant"], "cycles": idn["cycles"],
             "scan": idn["scan"], "uncertainty": idn["uncertainty"],
-            "warnings": list(idn["warnings"]), "refusal": None,
+            # the rule's validity warnings too (a note of Tuning is one by definition)
+            "warnings": list(idn["warnings"]) + ([self.tuning.note] if self.tuning.note
+                                                 else []),
+            "refusal": None,
             "rule": self.tuning.rule, "controller": self.tuning.controller,
             "rule_form": self.tuning.form,
             "tuning": {"kc": self.tuning.kc, "ti": _finite(self.tuning.ti),
                        "td": self.tuning.td},
             "settings": dict(self.conversion.params),
             "exact": self.conversion.exact,
-            "note": " ".join(s for s in (self.tuning.note, self.conversion.note,
-                                         *self.identification.notes) if s),
+            "note": " ".join(s for s in (self.conversion.note, *self.identification.notes)
+                             if s),
             "handback_jump": self.handback_jump,
         }
         return out

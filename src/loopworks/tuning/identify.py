@@ -97,7 +97,13 @@ amplitudes); y below is (PV - c), negated for direct action.
       τ = tan(π - θ·ωu)/ωu   (needs π/2 < θ·ωu < π),   K = √(1 + (τ·ωu)²)/Ku
 
 Integrating plants (``process = "integrating"``, or ``auto`` when a biased relay's mean output
-equals u0, 3.2): ``a = ε + Kv·d·L`` gives Kv = (a - ε)/(d·L); there is no static gain.
+equals u0, 3.2): ``a = ε + Kv·d·L`` and ``P = 4L + 4ε/(Kv·d)`` give, with L eliminated,
+Kv = 4a/(d·P); there is no static gain. Under a biased relay (levels d1 up, d2 down) the
+half periods are t_on = L + (2ε + Kv·d2·L)/(Kv·d1) and t_off likewise, a = ε + Kv·L·(d1 + d2)/2,
+so Kv = 2(d1 + d2)·a/(d1·d2·P), the same for d1 = d2. Not (a - ε)/(d·L) with the measured L: a relay
+sampled every scan switches up to a scan after the PV crossed its threshold, which adds the
+same delay δ to both a - ε = Kv·d·(L + δ) and P/4, but not to the time from a switch to the
+PV's extremum (L), so that form read Kv 25 % high for L of two scans.
 
 Refusals (:class:`IdentificationRefused`, an InputError: one line, never settings). A record
 the formulas above cannot be applied to is refused with its reason:
@@ -571,12 +577,14 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
                      "gain comes from the ultimate point (vendor-blocks 5.2)")
     time_constant: float | None = None
     if kind == "integrating":
-        kv = (a_peaks - eps) / (d * dead_time)
+        d1, d2 = d_up, (d_down if biased_only else d_up)
+        kv = 2.0 * (d1 + d2) * a_peaks / (d1 * d2 * period)
         if not (math.isfinite(kv) and kv > 0.0):
             raise IdentificationRefused(f"the integrating gain comes out {kv:.4g}: not "
                                         "identifiable (spec 3.2 needs a > ε)")
-        unc["integrating_gain"] = _half_range((amps - eps) / (d * dead_time))
-        notes.append("integrating process: Kv = (a - ε)/(d·L) (spec 3.2)")
+        unc["integrating_gain"] = _half_range(2.0 * (d1 + d2) * amps / (d1 * d2 * periods))
+        notes.append("integrating process: Kv = 4a/(d·P) (spec 3.2, a = ε + Kv·d·L and "
+                     "P = 4L + 4ε/(Kv·d))")
     elif k_static is not None and bia is not None and means_bia is not None:
         unc["process_gain"] = None if k_cycles is None else _half_range(k_cycles)
         time_constant, dead_time, unc_t = _time_constant(

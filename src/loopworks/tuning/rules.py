@@ -52,6 +52,12 @@ PHI_MIN = 3.05 / 1.72
 PHI_MAX = 2.50 / 0.92
 PHI_VALID = (math.radians(120.0), math.radians(140.0))
 
+#: a relay point more than this short of 180° of lag (rad; hysteresis puts it at
+#: π - arcsin(ε/a), spec 3.1) is not the ultimate point: a rule reading its period as Pu is
+#: marked. 5° lengthens the period by about 5 % on the spec 3.2 plant (K 1, T 10 s, L 2 s),
+#: the spread tune calls uncertain; 13° (ε = 0.05) gives 9.04 s for Pu 7.44 s.
+ULTIMATE_PHASE_TOLERANCE = math.radians(5.0)
+
 
 @dataclass(frozen=True)
 class Tuning:
@@ -478,8 +484,26 @@ def tune(rule: str, data: ProcessData, controller: str = "PI", **options: float)
     opts = _options(r, model, ctrl, values, options)
     out = r.compute(values, model, ctrl, opts)
     _check_settings(r, out)
+    notes = [out.note] if out.note else []
+    if "pu" in model:
+        notes += _not_ultimate(r.name, data)
     return Tuning(rule=r.name, controller=ctrl, form=out.form, kc=out.kc, ti=out.ti,
-                  td=out.td, note=out.note, direct=direct)
+                  td=out.td, note=" ".join(notes), direct=direct)
+
+
+def _not_ultimate(rule: str, data: ProcessData) -> list[str]:
+    """The validity note of a rule that reads (Ku, Pu) as the ultimate point when the data
+    came from a relay point short of 180° of lag by more than ``ULTIMATE_PHASE_TOLERANCE``
+    (a relay with hysteresis, spec 3.1): its period is longer than the ultimate period."""
+    phi = data.relay_phase_lag
+    if phi is None or not math.pi - float(phi) > ULTIMATE_PHASE_TOLERANCE:
+        return []
+    short = math.degrees(math.pi - float(phi))
+    return [f"rule {rule!r} reads the relay point as the ultimate point, but it lies at "
+            f"{math.degrees(float(phi)):.1f}° of lag, {short:.1f}° short of 180° (hysteresis: "
+            "spec 3.1): its period pu is longer than the ultimate period, so Ti and Td come "
+            "out long (13° gave 9.04 s for Pu 7.44 s on the spec 3.2 plant); less hysteresis, "
+            "or rule 'amigo_f' (made for such a point, with a static gain), avoids it"]
 
 
 def _check_settings(rule: Rule, out: _Out) -> None:
