@@ -54,8 +54,9 @@ is advanced in one exact step of the lag, without substeps.
 
 With the default ``substep`` = 1 ms a 0.1 s scan has 100 substeps. Against hand solutions (test
 suite): a frictionless step response is within 0.0035 % of travel of the exact second-order
-solution, and a 4 times finer substep changes the response to scan-rate dither by less than
-0.02 % of travel (the dither effect itself is 1.4 %). Use 1e-5 s to resolve the swing of a
+solution, and a 4 times finer substep changes the position scan-rate dither leaves the stem
+at by less than 0.02 % of travel (the dither effect itself is 1.4 %; during the dither, with a
+0.05 s I/P lag, the two paths differ by up to 0.06 %). Use 1e-5 s to resolve the swing of a
 lightly damped stem (period 2·pi·sqrt(m/k) = 17 ms for the spec's m and k). The cost is in
 the sliding scans only.
 
