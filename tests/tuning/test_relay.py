@@ -311,3 +311,17 @@ def test_a_static_gain_of_the_wrong_sign_is_refused() -> None:
     idn = identify(rec["t"], pv, rec["u"], test, relay=rec["relay"], stage=rec["stage"])
     assert idn.process_gain is None or idn.process_gain > 0.0
     assert any("contradicts" in n for n in idn.notes)
+
+
+def test_a_symmetric_relay_only_model_is_marked_approximate() -> None:
+    """K = 1, T = 10, L = 2 under a symmetric relay alone: K and T come through the DF's Ku,
+    7.024 against the true 8.5024 (spec 3.2 table), so T comes out about 8.2 s, not 10 (an
+    independent reference's AMIGO Kc 0.929 for 1.206): said in the warnings, with the cure."""
+    rec = relay_loop(FOPDT, amplitude=1.0, stable_cycles=3, max_cycles=30)
+    idn = _identify(rec, 0.0, cycles=3)
+    # vendor-blocks 5.2 by hand from the DF point: ωu = 2π/P, τ = tan(π - L·ωu)/ωu
+    wu = 2.0 * math.pi / idn.period
+    tau = math.tan(math.pi - idn.dead_time * wu) / wu
+    assert idn.time_constant == pytest.approx(tau, rel=1e-9)
+    assert 7.5 < idn.time_constant < 9.0 and idn.process_gain == pytest.approx(1.0, abs=0.05)
+    assert any("17-19 % low" in w and "--symmetric" in w for w in idn.warnings)

@@ -614,6 +614,13 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
                     " rad, near π/2: a lag-dominant plant); only the ultimate point is used (a "
                     "biased stage gives K)")
                 k_static = time_constant = None
+            else:
+                warnings.append(
+                    "K and T come through the ultimate point (vendor-blocks 5.2), from the "
+                    "describing function's Ku, which reads the true Ku 17-19 % low on the spec "
+                    "3.2 plants (K = 1, T = 10 s, L = 2 s: K 1.01, T 8.2 s): the model and the "
+                    "settings built on it are approximate; a biased second stage (tune without "
+                    "--symmetric) measures K (spec 3.3)")
         except InputError as exc:
             k_static = time_constant = None
             notes.append(f"{exc} (vendor-blocks 5.2)")
