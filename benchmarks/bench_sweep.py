@@ -9,8 +9,9 @@ setpoint, dt = 0.1 s), ``--instances`` instances of ``--scans`` scans, the contr
 drawn uniform(1, 3) per instance; (2) the built-in scenario (7 blocks, two variants, its own
 one-hour run), ``--builtin-instances`` Monte Carlo instances of the valve's resolution (its
 slip jump). Each figure is instances per second (the sweep's: ``SweepResult.seconds``, the
-instances' run with its worker processes, not the scenario's one ``[autotune]`` relay test
-before it); the ratios are the figures (absolute times on shared machines are noise).
+instances' run with its worker processes, not the ``[autotune]`` relay tests, one per point,
+before it: the Python loop runs none either); the ratios are the figures (absolute times on
+shared machines are noise).
 """
 
 from __future__ import annotations
@@ -146,7 +147,7 @@ def main() -> None:
     b = args.builtin_instances
     loopworks.sweep(None, ["valve.resolution=uniform(0.2,0.8)"], samples=1, workers=1)  # warm
     built = loopworks.sweep(None, ["valve.resolution=uniform(0.2,0.8)"], samples=b)
-    ours_b = len(built) / built.seconds  # without the [autotune] relay test, run once before
+    ours_b = len(built) / built.seconds  # without the points' [autotune] relay tests
     sc = load_scenario(None)
     from loopworks.sim.scenario import run_autotune
 

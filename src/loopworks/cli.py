@@ -525,10 +525,20 @@ def sweep(
     _check_report_directory(output)
     if metric is not None:  # checked before the run ("loop: metric" with several loops)
         from loopworks.sim.metrics import METRICS
+        from loopworks.sim.scenario import load_scenario
+        from loopworks.sim.tune import controllers
 
         known = [m.name for m in METRICS]
-        if metric.rpartition(": ")[2] not in known:
+        loops = controllers(load_scenario(scenario).module)
+        loop, _, name = metric.rpartition(": ")
+        if name not in known:
             _fail(f"--metric '{metric}': no such metric; metrics: {', '.join(known)}")
+        if len(loops) > 1 and loop not in loops:
+            _fail(f"--metric '{metric}': this scenario has {len(loops)} loops: name one, "
+                  f"as 'LOOP: {name}' with LOOP one of {', '.join(loops)}")
+        if len(loops) <= 1 and loop:
+            _fail(f"--metric '{metric}': this scenario has one loop, whose metrics are "
+                  f"named without it: '{name}'")
     console = Console(stderr=as_json)
     started = time.perf_counter()
     with Progress("[progress.description]{task.description}", BarColumn(),
@@ -537,13 +547,21 @@ def sweep(
                   disable=quiet) as bar:
         task = bar.add_task("sweeping", total=None, rate="")
 
+        since = [started]  # the instances' rate counts from the end of the relay tests
+
+        def relay_tick(done: int, total: int) -> None:
+            bar.update(task, description="relay tests ([autotune])", completed=done,
+                       total=total, rate="")
+            since[0] = time.perf_counter()
+
         def tick(done: int, total: int) -> None:
-            rate = done / max(time.perf_counter() - started, 1e-9)
-            bar.update(task, completed=done, total=total, rate=f"{rate:.1f} instances/s")
+            rate = done / max(time.perf_counter() - since[0], 1e-9)
+            bar.update(task, description="sweeping", completed=done, total=total,
+                       rate=f"{rate:.1f} instances/s")
 
         result = run_sweep(scenario, vary or [], samples=samples, seed=seed, variant=variant,
                            workers=workers, scheduler=scheduler, progress=tick,
-                           trajectories=trajectory or ())
+                           trajectories=trajectory or (), relay_progress=relay_tick)
     if metric is not None and metric not in result.metrics:
         _fail(f"--metric '{metric}': no such metric; metrics: {', '.join(result.metrics)}")
     sweep_report.write_results(result, output)

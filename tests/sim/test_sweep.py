@@ -385,3 +385,54 @@ def test_a_seed_that_is_not_a_whole_number_is_refused(scenario: Path) -> None:
     """`sweep(..., seed=1.5)` ran as seed 1 (found by a user)."""
     with pytest.raises(InputError, match=r"--seed 1.5: expected a whole number"):
         sweep(scenario, ["pid.k=1,2"], seed=1.5, workers=1)  # type: ignore[arg-type]
+
+
+def test_each_point_is_relay_tested_as_simulate_would(tmp_path: Path) -> None:
+    """A scenario with [autotune]: the sweep ran the relay test once, on the scenario as
+    written, and put that gain into every instance, while `simulate` of a row's values runs
+    it on those values (pid.gain 1.0: 0.850 against 0.945; found by a user comparing rows
+    with simulate). Each point now has its own test, and its gain is a column; varying the
+    parameter [autotune] writes is refused (simulate's test would overwrite it)."""
+    from loopworks.sim.scenario import parse_scenario, run_autotune
+
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "examples" / "default.toml").read_text(encoding="utf-8")
+    text = text.replace("duration = 3600.0", "duration = 600.0").replace(
+        "metrics_window = [1800.0, 3600.0]", "metrics_window = [300.0, 600.0]")
+    path = tmp_path / "short.toml"
+    path.write_text(text, encoding="utf-8")
+    result = sweep(path, {"pid.gain": "0.8,1.0"}, variant="compensation_on", workers=1)
+    gains = result.columns["compensator.process_gain"]
+    assert gains[0] != gains[1]
+    for row in range(2):
+        value, seed = result.columns["pid.gain"][row], result.columns["seed"][row]
+        one = text.replace("gain = 0.8\n", f"gain = {value!r}\n").replace(
+            "[simulation]\n", f"[simulation]\nseed = {seed}\n")
+        sc = parse_scenario(one, source="row")
+        at = run_autotune(sc)
+        assert at is not None and gains[row] == pytest.approx(at["process_gain"], rel=1e-12)
+        expected = sc.variants["compensation_on"].run(sc.duration, sc.dt).metrics(
+            window=sc.metrics_window)
+        for name, want in expected.items():
+            assert result.columns[name][row] == pytest.approx(want, rel=1e-9, abs=1e-12,
+                                                               nan_ok=True), (row, name)
+    with pytest.raises(InputError, match=r"--vary compensator.process_gain: \[autotune\] "
+                                         "writes this parameter"):
+        sweep(path, {"compensator.process_gain": "0.5,1"}, workers=1)
+
+
+def test_a_loop_name_missing_from_the_metric_is_refused_before_the_run(tmp_path: Path) -> None:
+    """Two loops: metrics are "LOOP: name"; `--metric IAE` was refused only after every
+    instance had run, and nothing was written."""
+    two = SCENARIO.replace("[wires]", '[blocks.pid2]\nkind = "pid"\nk = 1.0\nti = 10.0\n\n'
+                           '[blocks.process2]\nkind = "process.fopdt"\ngain = 1.0\n'
+                           'time_constant = 5.0\n\n[wires]\n"process2.u" = "pid2.out"\n'
+                           '"pid2.pv" = "process2.y"', 1)
+    assert two != SCENARIO
+    path = tmp_path / "two.toml"
+    path.write_text(two, encoding="utf-8")
+    result = CliRunner().invoke(app, ["sweep", str(path), "--vary", "pid.k=1,2", "--metric",
+                                      "IAE", "-o", str(tmp_path / "o"), "-q"])
+    assert result.exit_code == 2
+    assert "2 loops: name one, as 'LOOP: IAE' with LOOP one of pid, pid2" in result.output
+    assert not (tmp_path / "o").exists()

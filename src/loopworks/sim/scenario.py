@@ -155,12 +155,13 @@ class Scenario:
 class AutotuneTest:
     """How the scenario's ``[autotune]`` relay-tests its loop: the controller ``loop``, the
     :func:`loopworks.sim.tune.relay_test` keyword arguments ``relay``, and ``build``, which
-    makes a fresh module of the tested variant with the ``set`` changes applied."""
+    makes a fresh module of the tested variant with ``changes`` ("block.parameter" = value:
+    a sweep's point) and then the ``set`` changes applied."""
 
     loop: str
     variant: str
     relay: dict[str, Any]
-    build: Callable[[], Module]
+    build: Callable[..., Module]
     #: the modules of every variant with ``process_gain`` (%PV/%OUT) written into the
     #: ``[autotune] process_gain`` parameters
     rebuild: Callable[[float], dict[str, Module]] = field(repr=False, default=lambda g: {})
@@ -326,18 +327,23 @@ def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]]
         if param.lower() not in params:
             raise FileFormatError(f"{where}: process_gain entry {ref!r}: {cls.kind} has no "
                                   f"parameter '{param}'; parameters: {', '.join(params)}")
-    tables = {block: dict(table) for block, table in variants[name].items()}
-    for ref, value in at.set.items():
+    for ref in at.set:
         block, sep, param = ref.rpartition(".")
-        if not sep or block.lower() not in tables:
+        if not sep or block.lower() not in variants[name]:
             raise FileFormatError(f"{where}: set entry {ref!r} must be 'block.parameter' with "
                                   "a block of this scenario")
-        tables[block.lower()][param.lower()] = value
+
+    def build(changes: Mapping[str, Any] | None = None) -> Module:
+        tables = {block: dict(table) for block, table in variants[name].items()}
+        for ref, value in [*(changes or {}).items(), *at.set.items()]:
+            block, _, param = ref.lower().rpartition(".")
+            tables[block][param] = value
+        return _build(sc, tables, f"{source} (autotune)")
+
     relay: dict[str, Any] = {"amplitude": at.amplitude, "hysteresis": at.hysteresis,
                              "start": at.start, "bias_ratio": at.bias_ratio,
                              "offset": at.offset, "stable_cycles": at.stable_cycles}
-    test = AutotuneTest(at.loop.lower(), name, relay,
-                        lambda: _build(sc, tables, f"{source} (autotune)"))
+    test = AutotuneTest(at.loop.lower(), name, relay, build)
     from loopworks.sim.tune import check_relay_test
 
     try:  # what the test would refuse before its first scan, refused now
@@ -347,20 +353,18 @@ def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]]
     return test
 
 
-def run_autotune(sc: Scenario, progress: Callable[[float], None] | None = None
-                 ) -> dict[str, Any] | None:
-    """Run the scenario's ``[autotune]`` relay test (if it has one) and write the identified
-    process gain into every variant: ``sc.variants`` and ``sc.module`` are rebuilt with it, and
-    ``sc.autotune`` holds what was identified (for reports), which is also returned.
-    ``progress(seconds_of_test)`` is called as the test runs. A test that identifies no
-    process gain raises FileFormatError naming the table."""
-    test = sc.autotune_test
-    if test is None:
-        return None
+def autotune_gain(sc: Scenario, changes: Mapping[str, Any] | None = None,
+                  progress: Callable[[float], None] | None = None) -> tuple[float, Any]:
+    """The ``[autotune]`` relay test of the scenario with ``changes`` ("block.parameter" =
+    value, a sweep's point; then ``set``) applied: (the identified process gain in the
+    controller's %PV/%OUT, the :class:`~loopworks.sim.tune.RelayRun`). Changes nothing; a test
+    that identifies no process gain raises FileFormatError naming the table."""
     from loopworks.sim.tune import relay_test
 
+    test = sc.autotune_test
+    assert test is not None
     where = f"{sc.source}: [autotune]"
-    module = test.build()
+    module = test.build(changes)
     try:
         run = relay_test(module, test.loop, sc.dt, progress=progress, **test.relay)
     except LoopworksError as exc:
@@ -373,7 +377,22 @@ def run_autotune(sc: Scenario, progress: Callable[[float], None] | None = None
     ctrl = module.blocks[test.loop]
     assert isinstance(ctrl, Controller)  # relay_test refuses any other block
     pv_span, out_span = ctrl.spans({k: v for k, v in ctrl.params.items() if v is not None})
-    gain = idn.process_gain * out_span / pv_span
+    return idn.process_gain * out_span / pv_span, run
+
+
+def run_autotune(sc: Scenario, progress: Callable[[float], None] | None = None
+                 ) -> dict[str, Any] | None:
+    """Run the scenario's ``[autotune]`` relay test (if it has one) and write the identified
+    process gain into every variant: ``sc.variants`` and ``sc.module`` are rebuilt with it, and
+    ``sc.autotune`` holds what was identified (for reports), which is also returned.
+    ``progress(seconds_of_test)`` is called as the test runs. A test that identifies no
+    process gain raises FileFormatError naming the table."""
+    test = sc.autotune_test
+    if test is None:
+        return None
+    gain, run = autotune_gain(sc, progress=progress)
+    idn = run.identification
+    assert idn is not None
     sc.variants = test.rebuild(gain)
     sc.module = next(iter(sc.variants.values()))
     sc.autotune = {"loop": test.loop, "variant": test.variant, "outcome": run.outcome,

@@ -25,8 +25,11 @@ scenario would with ``[simulation] seed = s_i``: each noisy block draws from
 ``mix_seed(its seed, s_i)``, so points are independent, the variants of one point share their
 noise (as ``simulate``'s variants do), and a row of the results is reproduced by
 ``loopworks simulate`` with that seed and those values. The scenario's ``[autotune]`` relay
-test runs once, before the sweep, on the scenario as written (as ``simulate`` runs it), and its
-process gain goes into every instance. Metrics are those of ``simulate`` over the scenario's
+test runs for every point, before the sweep, on the scenario with the point's values (as
+``simulate`` of that point runs it: with them, then ``[autotune] set``; it uses no run seed,
+so once per distinct point), and its process gain goes into the point's instances and the
+results (a column named after each ``process_gain`` target); varying a target is refused.
+Metrics are those of ``simulate`` over the scenario's
 ``metrics_window``, for every controller of the module.
 
 Execution: a process parses the scenario text once; the instances of one variant (and one
@@ -372,17 +375,19 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
           samples: int = 100, seed: int | None = None, variant: str | None = None,
           workers: int | None = None, scheduler: str | None = None,
           progress: Callable[[int, int], None] | None = None,
-          trajectories: Sequence[int] = ()) -> SweepResult:
+          trajectories: Sequence[int] = (),
+          relay_progress: Callable[[int, int], None] | None = None) -> SweepResult:
     """Sweep ``scenario`` (a TOML path; None: the built-in one) over ``vary`` (``{name: spec}``
     or ``["name=spec", ...]``, module docstring): ``samples`` Latin-hypercube samples of the
     distributions, ``seed`` (default: the scenario's ``[simulation] seed``, else 0), every
     ``[compare]`` variant or only ``variant``, in ``workers`` processes (default: one, whose
     compiled batch runs on every core) or on the Dask scheduler at ``scheduler``.
-    ``progress(done, total)`` is called as instances finish. ``trajectories``: points whose
+    ``progress(done, total)`` is called as instances finish, ``relay_progress(done, total)``
+    as the points' ``[autotune]`` relay tests do (before them). ``trajectories``: points whose
     full runs (every signal, in every swept variant) the result keeps in ``.trajectories``
     (the rest keep only their metrics). Every name and value is checked
     before anything runs."""
-    from loopworks.sim.scenario import load_scenario, run_autotune
+    from loopworks.sim.scenario import load_scenario
 
     texts = ([f"{k}=" + (",".join(map(str, v)) if isinstance(v, list | tuple) else str(v))
               for k, v in vary.items()] if isinstance(vary, Mapping)
@@ -416,12 +421,7 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     for i, point in enumerate(points):
         for name, value in point.items():
             _check_value(sc, name, value, variants, f"instance {i}")
-    base: dict[str, Value] = {}
-    if sc.autotune_test is not None:
-        at = run_autotune(sc)
-        assert at is not None and sc._model.autotune is not None
-        base = {ref.lower(): float(at["process_gain"])
-                for ref in sc._model.autotune.process_gain}
+    tuned = _autotune_points(sc, points, names, relay_progress)
     from loopworks.plant.sensor import mix_seed
 
     for keep in trajectories:
@@ -429,7 +429,7 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
             raise InputError(f"--trajectory {keep}: no such point; points are 0 to "
                              f"{len(points) - 1}")
     seeds = [mix_seed(sweep_seed, i) for i in range(len(points))]
-    jobs = [Job(i, v, {**base, **point}, seeds[i])
+    jobs = [Job(i, v, {**point, **tuned[i]}, seeds[i])
             for v in variants for i, point in enumerate(points)]
     start = time.perf_counter()
     metrics = _execute(sc.text, sc.source, jobs, workers, scheduler, progress)
@@ -438,7 +438,7 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     columns: dict[str, list[Any]] = {"variant": [j.variant for j in jobs],
                                      "point": [j.point for j in jobs],
                                      "seed": [j.seed for j in jobs]}
-    for name in names:
+    for name in names + list(tuned[0] if tuned else {}):  # varied, then [autotune]'s
         values = [j.changes[name] for j in jobs]
         if any(isinstance(v, str) for v in values):  # a choice input's names and codes mixed
             values = [v if isinstance(v, str) else f"{v:g}" for v in values]
@@ -455,6 +455,40 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
             kept[(v, keep)] = sc.build(v, job.changes, job.seed).run(sc.duration, sc.dt)
     return SweepResult(columns, names, kind, tuple(len(a.values) for a in grid_axes),
                        seconds, metric_names, kept)
+
+
+def _autotune_points(sc: Any, points: Sequence[Mapping[str, Value]], names: Sequence[str],
+                     progress: Callable[[int, int], None] | None = None
+                     ) -> list[dict[str, Value]]:
+    """Per point, the ``[autotune]`` parameters with the gain its own relay test identifies
+    (the scenario with the point's values, then ``[autotune] set``, as ``simulate`` of that
+    point would run it: the test uses no run seed, so one test per distinct point); empty
+    dicts without ``[autotune]``. Varying a parameter ``[autotune]`` writes is refused (the
+    test would overwrite the value, as in ``simulate``)."""
+    from loopworks.sim.scenario import autotune_gain
+
+    if sc.autotune_test is None:
+        return [{} for _ in points]
+    targets = [ref.lower() for ref in sc._model.autotune.process_gain]
+    for name in names:
+        if name.lower() in targets:
+            raise InputError(f"--vary {name}: [autotune] writes this parameter from its relay "
+                             f"test (as simulate does, it would overwrite each value); remove "
+                             "[autotune] from the scenario to vary it")
+    gains: dict[tuple[tuple[str, Value], ...], float] = {}
+    out: list[dict[str, Value]] = []
+    for i, point in enumerate(points):
+        key = tuple(sorted((k.lower(), v) for k, v in point.items()))
+        if key not in gains:
+            try:
+                gains[key] = autotune_gain(sc, point)[0]
+            except LoopworksError as exc:
+                values = ", ".join(f"{k} = {v!r}" for k, v in point.items())
+                raise InputError(f"point {i} ({values}): {exc}") from None
+        out.append({t: gains[key] for t in targets})
+        if progress is not None:
+            progress(i + 1, len(points))
+    return out
 
 
 def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:
