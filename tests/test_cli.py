@@ -651,3 +651,58 @@ def test_convert_json_gives_the_stated_errors_as_data() -> None:
                                      "arithmetic=float", "--json"])
     assert exact.exit_code == 0, exact.output
     assert json.loads(exact.stdout)["response_errors"] == []
+
+
+TWO_LOOPS_ONE_VALVE = """
+[simulation]
+dt = 0.5
+duration = 100.0
+
+[blocks.a]
+kind = "pid"
+k = 1.0
+ti = 10.0
+sp = 50.0
+
+[blocks.pa]
+kind = "process.first_order"
+gain = 1.0
+time_constant = 5.0
+
+[blocks.b]
+kind = "pid"
+k = 1.0
+ti = 10.0
+sp = 50.0
+
+[blocks.vb]
+kind = "valve.choudhury"
+s = 1.0
+j = 0.2
+
+[blocks.pb]
+kind = "process.first_order"
+gain = 1.0
+time_constant = 5.0
+
+[wires]
+"pa.u" = "a.out"
+"a.pv" = "pa.y"
+"vb.op" = "b.out"
+"pb.u" = "vb.position"
+"b.pv" = "pb.y"
+"""
+
+
+def test_simulate_prints_a_later_loops_valve_rows(tmp_path: Path) -> None:
+    """Loop a has no valve, loop b drives one: the table took its rows from the first loop
+    and dropped b's valve travel (in metrics.json, missing from the printed table; found by a
+    user). Every loop's rows are printed, n/a where a loop has none."""
+    path = tmp_path / "two.toml"
+    path.write_text(TWO_LOOPS_ONE_VALVE, encoding="utf-8")
+    result = CliRunner().invoke(app, ["simulate", str(path), "-o", str(tmp_path / "o"), "-q"])
+    assert result.exit_code == 0, result.output
+    saved = json.loads((tmp_path / "o" / "metrics.json").read_text(encoding="utf-8"))
+    travel = saved["base: b"]["valve travel"]
+    row = next(line for line in result.output.splitlines() if "valve travel" in line)
+    assert "n/a" in row and f"{travel:.4g}" in row

@@ -132,7 +132,8 @@ def simulate(
     table.add_column("metric")
     for key in metrics:
         table.add_column(escape(key), justify="right")
-    for name in next(iter(metrics.values()), {}):
+    # every metric of any loop (a later loop's valve rows when the first has no valve)
+    for name in dict.fromkeys(k for m in metrics.values() for k in m):
         table.add_row(name, *("n/a" if math.isnan(m.get(name, math.nan))
                               else f"{m[name]:.4g}" for m in metrics.values()))
     if metrics:
