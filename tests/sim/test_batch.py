@@ -209,3 +209,16 @@ def test_a_bad_measurement_is_na_in_a_sweep_as_in_one_run() -> None:
         got = {k.split(": ", 1)[1]: v for k, v in row.items() if k.startswith("pid: ")}
         for name, value in expected.items():
             assert got[name] == pytest.approx(value, rel=1e-12, abs=1e-12, nan_ok=True), name
+
+
+def test_every_instance_is_checked_at_the_scan_time() -> None:
+    """`--vary process.dead_time=600,1` at dt 0.5 s with a delay line of 1000 scans: the
+    batch checked only the last instance loaded (1 s) against dt, and the 600 s one ran with
+    its dead time cut to the line's length, metrics and all (found by a user; in the other
+    order the error came, but named no instance). Each instance is checked as it is loaded."""
+    sc = parse_scenario(PARAM_EVENTS)
+    jobs = [Job(0, "base", {"process.dead_time": 600.0}, 1),
+            Job(1, "base", {"process.dead_time": 1.0}, 2)]
+    with pytest.raises(InputError, match=r"instance 0 \(base; process\.dead_time = 600\.0\):"
+                                         r" .*delay_capacity"):
+        run_jobs(sc.text, sc.source, jobs)

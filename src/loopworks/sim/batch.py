@@ -121,8 +121,11 @@ class Batch:
         m.reset()
 
     def load(self, instances: Sequence[Mapping[str, Value]],
-             seeds: Sequence[int | None] | None = None) -> None:
-        """Make one row per instance (``changes``: name -> value) with its run seed."""
+             seeds: Sequence[int | None] | None = None, dt: float | None = None) -> None:
+        """Make one row per instance (``changes``: name -> value) with its run seed; with the
+        scan time ``dt``, each instance's blocks are checked to run at it (``check_dt``: a
+        dead time longer than its delay line, a transfer function sampled at another rate),
+        as :meth:`run` checks only the template's last instance."""
         n = len(instances)
         seeds = [None] * n if seeds is None else list(seeds)
         m = self.module
@@ -134,6 +137,9 @@ class Batch:
         for i, (changes, seed) in enumerate(zip(instances, seeds, strict=True)):
             try:
                 self._apply(changes, seed)
+                if dt is not None:
+                    for block in m.blocks.values():
+                        block.check_dt(dt)
             except LoopworksError as exc:
                 raise InstanceError(i, exc) from None
             self.F[i] = m._F

@@ -306,7 +306,8 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
         for at in range(0, len(members), size):
             chunk = members[at:at + size]
             try:
-                batch.load([jobs[k].changes for k in chunk], [jobs[k].seed for k in chunk])
+                batch.load([jobs[k].changes for k in chunk], [jobs[k].seed for k in chunk],
+                           dt=sc.dt)
             except InstanceError as exc:
                 raise _refused(jobs[chunk[exc.index]], exc) from None
             R, RS = batch.run(sc.duration, sc.dt)
