@@ -296,3 +296,49 @@ def test_a_scenario_with_a_byte_order_mark_loads(tmp_path: Path) -> None:
     path = tmp_path / "bom.toml"
     path.write_bytes(b"\xef\xbb\xbf" + GOOD.encode())
     assert load_scenario(path).module.blocks.keys() == parse_scenario(GOOD).module.blocks.keys()
+
+
+def test_an_event_that_outgrows_the_delay_line_is_refused_before_the_run() -> None:
+    """An event setting process.dead_time = 600 s at dt 0.5 s (1200 scans, a line of 1000):
+    the run checked the blocks' parameters at its start only, and ran on with the dead time
+    cut to the line (exit 0, metrics printed). The run now checks each parameter event's
+    parameters at its dt before the first scan, naming the event; a batch does the same."""
+    from loopworks.errors import InputError
+    from loopworks.sim.batch import Batch
+
+    text = """
+[simulation]
+dt = 0.5
+duration = 100.0
+
+[blocks.pid]
+kind = "pid"
+k = 1.0
+ti = 10.0
+sp = 50.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 10.0
+dead_time = 1.0
+
+[wires]
+"process.u" = "pid.out"
+"pid.pv" = "process.y"
+
+[[events]]
+t = 40.0
+set = "process.dead_time"
+value = 600.0
+"""
+    sc = parse_scenario(text)
+    message = r"event at t = 40 s, set = 'process.dead_time': .*delay_capacity = 1000"
+    with pytest.raises(InputError, match=message):
+        sc.module.run(sc.duration, sc.dt)
+    batch = Batch(sc.template("base"), ["pid.out"])
+    batch.load([{"pid.k": 2.0}], [1])
+    with pytest.raises(InputError, match=message):
+        batch.run(sc.duration, sc.dt)
+    fits = parse_scenario(text.replace("value = 600.0", "value = 400.0"))
+    assert len(fits.module.run(fits.duration, fits.dt).t) == 200

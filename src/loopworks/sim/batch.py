@@ -177,8 +177,8 @@ class Batch:
         Bad-status sample counts as no measurement in the metrics, as in a single run)."""
         m = self.module
         n = scan_count(duration, dt)
-        for block in m.blocks.values():
-            block.check_dt(dt)
+        m._next_event = 0
+        m.check_dt(dt)  # the template's instance, and after each parameter event
         R = np.empty((self.F.shape[0], len(self.record), n))
         RS = np.empty((self.F.shape[0], len(self.record), n), dtype=np.uint8)
         if self.F.shape[0] == 0:

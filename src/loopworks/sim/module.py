@@ -438,6 +438,30 @@ class Module:
         self.k = 0
         self._next_event = 0
 
+    def check_dt(self, dt: float, events: bool = True) -> None:
+        """InputError unless every block can run at scan time ``dt`` (``Block.check_dt``),
+        with its parameters now and, with ``events``, after each parameter event still to
+        come (a dead time an event lengthens beyond the delay line), applied in time order
+        to interpreted copies, each such failure naming its event."""
+        for block in self.blocks.values():
+            block.check_dt(dt)
+        if not events:
+            return
+        trials: dict[str, Block] = {}
+        for ev in self.events[self._next_event:]:
+            if not self._is_parameter(ev.target):
+                continue
+            owner, name = _split(ev.target, "event")
+            if owner not in trials:
+                b = self.blocks[owner]
+                trials[owner] = type(b)(jit=False, **b.given)
+            trials[owner].set_params(**{name: ev.value})
+            try:
+                trials[owner].check_dt(dt)
+            except LoopworksError as exc:
+                raise InputError(f"event at t = {ev.t:g} s, set = '{ev.target}': {exc}"
+                                 ) from None
+
     def _is_parameter(self, ref: str) -> bool:
         """True when ``ref`` ("block.name") names a parameter (not an input) of a block."""
         block, name = _split(ref, "event target")
@@ -527,8 +551,7 @@ class Module:
         check_record_size(len(rows) * (n + 1) * RECORD_BYTES, duration, dt, n)
         if reset:
             self.reset()
-        for block in self.blocks.values():
-            block.check_dt(dt)
+        self.check_dt(dt)
         # T[k + 1] is the time of scan k; row r of RF/RS is signal rows[r], column 0 before
         # the first scan and column k + 1 after scan k (record_plan): each signal's record is
         # a contiguous array, handed out as a view
