@@ -149,6 +149,14 @@ def simulate(
                   f"{len(results)} trend plot(s)", markup=False)
 
 
+def _given_values(row: dict[str, Any], metrics: list[str]) -> dict[str, Any]:
+    """A results row for JSON: a given value of ±inf (``pid.ti = inf``, no integral action)
+    as the text "inf" / "-inf", as results.csv writes it; null stays for a metric that has no
+    value (n/a)."""
+    return {k: (("inf" if v > 0 else "-inf") if k not in metrics and isinstance(v, float)
+                and math.isinf(v) else v) for k, v in row.items()}
+
+
 def _g(value: Any) -> str:
     """A figure for a summary line; n/a when there is none."""
     return "n/a" if not isinstance(value, float | int) or not math.isfinite(value) \
@@ -583,8 +591,8 @@ def sweep(
             "seconds": result.seconds, "metric": chosen,
             "variants": {v: {"median": a, "p5": b, "p95": c, "best": d}
                          for v, a, b, c, d in rows},
-            "best": result.best(chosen) if finite else None, "output": str(output)}),
-            nl=False)
+            "best": _given_values(result.best(chosen), result.metrics) if finite else None,
+            "output": str(output)}), nl=False)
         return
     table = Table(title=escape(f"{title}: {result.design}, {len(result)} runs in "
                                f"{result.seconds:.1f} s"))

@@ -436,3 +436,15 @@ def test_a_loop_name_missing_from_the_metric_is_refused_before_the_run(tmp_path:
     assert result.exit_code == 2
     assert "2 loops: name one, as 'LOOP: IAE' with LOOP one of pid, pid2" in result.output
     assert not (tmp_path / "o").exists()
+
+
+def test_an_infinite_varied_value_is_inf_in_json_not_null(scenario: Path,
+                                                          tmp_path: Path) -> None:
+    """`--vary pid.ti=inf` (allowed: no integral action) printed "pid.ti": null in --json,
+    which the docs define as n/a; results.csv says inf. It is the text "inf" now."""
+    result = CliRunner().invoke(app, ["sweep", str(scenario), "--vary", "pid.ti=inf",
+                                      "--variant", "base", "--workers", "1", "-q", "--json",
+                                      "--metric", "PV std", "-o", str(tmp_path / "o")])
+    assert result.exit_code == 0, result.output
+    best = json.loads(result.stdout)["best"]
+    assert best["pid.ti"] == "inf" and isinstance(best["PV std"], float)
