@@ -143,7 +143,10 @@ def test_irregular_sampling_zero_order_hold_hand_computed(tmp_path: Path) -> Non
     assert data.pv.tolist() == [10.0, 11.0, 12.0, 12.0, 14.0, 15.0]
     assert data.op.tolist() == [20.0, 21.0, 22.0, 22.0, 24.0, 25.0]
     for words in ("1 of 4 intervals", "median 1 s", "from 1 to 2 s", "5 samples to 6",
-                  "last sample at or before", "zero-order hold"):
+                  "last sample at or before", "zero-order hold",
+                  # where the longest gap is, so a frozen stretch there is read as the gap
+                  "the longest interval, 2 s from t = 2 to 4 s, is held over 1 grid sample "
+                  "(a frozen"):
         assert words in data.resampled
 
 

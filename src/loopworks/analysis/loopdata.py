@@ -457,11 +457,16 @@ def _uniform(t: FloatArray, values: dict[str, FloatArray]) -> tuple[FloatArray,
     m = math.floor((t[-1] - t[0]) / period + REGULAR_TOLERANCE) + 1
     grid = t[0] + period * np.arange(m)
     idx = np.searchsorted(t, grid + REGULAR_TOLERANCE * period, side="right") - 1
+    gap = int(np.argmax(d))
+    held = round(d[gap] / period) - 1
     note = (f"irregular sampling ({int(off.sum())} of {len(d)} intervals differ from the "
             f"median {period:g} s; they range from {d.min():g} to {d.max():g} s): resampled "
             f"onto a uniform {period:g}-s grid (the median interval) from {t[0]:g} to "
             f"{grid[-1]:g} s, {len(t)} samples to {m}, each grid time taking the last sample "
-            f"at or before it (zero-order hold, as historians store values).")
+            f"at or before it (zero-order hold, as historians store values); the longest "
+            f"interval, {d[gap]:g} s from t = {t[gap]:g} to {t[gap + 1]:g} s, is held over "
+            f"{held} grid sample{'' if held == 1 else 's'} (a frozen stretch there is the "
+            f"gap).")
     return grid, {role: v[idx] for role, v in values.items()}, note
 
 
