@@ -222,6 +222,51 @@ def test_login_and_an_operators_changes_as_that_user(setup: Setup) -> None:
     assert status == 409 and answer["code"] == "BadUserAccessDenied"  # anonymous again
 
 
+def login(setup: Setup) -> Browser:
+    b = Browser(setup.base)
+    assert until(lambda: state(b)["link"]["connected"])
+    status, answer = b.call("/api/login", {"user": "op", "password": "secret"})
+    assert status == 200
+    b.csrf = answer["csrf"]
+    return b
+
+
+def test_a_refusal_shows_the_controller_s_reason_not_the_stock_text(setup: Setup) -> None:
+    # the controller's reason (the serve log's) comes from the loop's LAST_REFUSAL node; the
+    # OPC UA stock text ("The value was out of range.") told the operator nothing
+    b = login(setup)
+    status, answer = b.call("/api/loop/pid/write", {"name": "SP", "value": 150})
+    assert status == 409 and answer == {"code": "BadOutOfRange",
+                                        "message": "SP 150.0: allowed 0..100"}
+    status, answer = b.call("/api/loop/pid/write", {"name": "OUT", "value": 30})
+    assert status == 409 and answer == {"code": "BadInvalidState",
+                                        "message": "OUT is written in MAN only"}
+    b.call("/api/logout", {})
+
+
+def test_a_stalled_controller_s_badtimeout_reaches_the_operator(
+        setup: Setup, monkeypatch: pytest.MonkeyPatch) -> None:
+    # serve answers BadTimeout when its controller process does not answer (and then never
+    # makes the write, loopworks.live.supervisor); the faceplate's session must wait for that
+    # answer: with a 2 s request timeout it told "NotConnected ... the change was not made"
+    # while serve still waited, and its 1 s watchdog dropped the session meanwhile
+    from loopworks.live.opcua import WriteRefused
+
+    async def stalled() -> None:
+        await asyncio.sleep(3.0)
+        raise WriteRefused("BadTimeout", "the controller did not answer within 3 s")
+
+    b = login(setup)
+    monkeypatch.setattr(setup.ctl, "write", lambda *args: stalled())
+    status, answer = b.call("/api/loop/pid/write", {"name": "SP", "value": 58})
+    assert status == 409 and answer == {"code": "BadTimeout",
+                                        "message": "the controller did not answer within 3 s"}
+    monkeypatch.undo()
+    status, answer = b.call("/api/loop/pid/write", {"name": "SP", "value": 57})
+    assert status == 200  # the same session goes on
+    b.call("/api/logout", {})
+
+
 def test_a_viewer_is_refused_by_the_controller(setup: Setup) -> None:
     b = Browser(setup.base)
     status, answer = b.call("/api/login", {"user": "viewer", "password": "look"})

@@ -222,9 +222,12 @@ def test_an_operator_logs_in_changes_sp_and_the_pv_follows(page: Any, run: Run) 
     page.fill("#in-SP", "1000")
     page.click("#set-SP")
     until(page, "document.querySelector('#result').dataset.code === 'BadOutOfRange'")
+    # with the controller's reason (its LAST_REFUSAL node), not OPC UA's stock text
+    assert "SP = 1000 is outside 0..100" in page.text_content("#result")
     page.fill("#in-OUT", "40")
     page.click("#set-OUT")
     until(page, "document.querySelector('#result').dataset.code === 'BadInvalidState'")
+    assert "OUT is written in MAN only" in page.text_content("#result")
     # MAN, then OUT, then back to AUTO
     page.click("#mode-MAN")
     until(page, "document.querySelector('#mode-target').textContent === 'MAN'", 5)

@@ -381,6 +381,42 @@ def test_operator_writes_refused_by_the_controller_get_its_code(
                for m in messages)
 
 
+def test_a_refusal_s_reason_is_on_the_loop_s_last_refusal_node(served: Served) -> None:
+    # an OPC UA write answers a status code only; the reason (the controller's message, what
+    # the serve log says) is put on <loop>.LAST_REFUSAL before the answer, for the faceplate
+    served.reset()
+
+    async def scenario() -> None:
+        async with session(served) as anonymous:
+            last = await read(anonymous, "pid.LAST_REFUSAL")
+            assert last.Value.VariantType == ua.VariantType.String
+            assert await write_code(anonymous, "pid.SP", double(60.0)) == "BadUserAccessDenied"
+            assert (await read(anonymous, "pid.LAST_REFUSAL")).Value.Value == (
+                "anonymous SP BadUserAccessDenied: only operators may write")
+        async with session(served, "op", "op-pass") as client:
+            assert await write_code(client, "pid.SP", double(150.0)) == "BadOutOfRange"
+            assert (await read(client, "pid.LAST_REFUSAL")).Value.Value == (
+                "op SP BadOutOfRange: SP 150.0: allowed 0..100")
+            assert await write_code(client, "pid.OUT", double(30.0)) == "BadInvalidState"
+            assert (await read(client, "pid.LAST_REFUSAL")).Value.Value == (
+                "op OUT BadInvalidState: OUT is written in MAN only")
+            assert (await read(client, "tic2.LAST_REFUSAL")).Value.Value == ""  # per loop
+            # read-only, like every node the server keeps itself
+            assert await write_code(client, "pid.LAST_REFUSAL", ua.Variant(
+                "x", ua.VariantType.String)) in ("BadNotWritable", "BadUserAccessDenied")
+
+    asyncio.run(scenario())
+
+
+def test_a_declared_last_refusal_variable_is_refused() -> None:
+    class Declares(FakeController):
+        def loops(self) -> dict[str, list[Variable]]:
+            return {"pid": [Variable("LAST_REFUSAL", 0.0, "double", False)]}
+
+    with pytest.raises(InputError, match="LAST_REFUSAL is the server's own node"):
+        asyncio.run(LoopServer(Declares(), None, port=0).start())
+
+
 def test_a_published_bad_status_reads_as_its_opcua_code_without_value(served: Served) -> None:
     served.reset()
 
@@ -519,3 +555,53 @@ def test_signed_and_encrypted_sessions_with_a_self_signed_certificate(tmp_path: 
     # the next start reuses the certificate, so clients that trust it keep trusting it
     asyncio.run(_self_signed(pki, "127.0.0.1"))
     assert {p.name: p.read_bytes() for p in pki.iterdir()} == files
+
+
+def test_a_generic_pid_loop_s_modes_on_opcua_are_its_own(tmp_path: Path) -> None:
+    """The tester's cascade example: generic pid loops (mode codes MAN 0, AUTO 1, CAS 2)
+    showed AUTO as IMAN and CAS as LO, and their MAN/AUTO/CAS writes were refused; the MODE
+    node keeps MODES' codes (its EnumStrings) and the controller translates by name."""
+    from tests.live.test_serve import make_cascade, scans
+
+    users = tmp_path / "users.toml"
+    add_user(users, "op", "op-pass", "operator")
+    ctl = make_cascade()
+    scans(ctl, 2)
+
+    async def scenario() -> None:
+        server = LoopServer(ctl, load_users(users), port=0)
+        url = await server.start()
+        try:
+            await server.publish(ctl.snapshot())
+            client = Client(url, timeout=5)
+            client.set_user("op")
+            client.set_password("op-pass")
+            async with client:
+                assert (await read(client, "primary.MODE")).Value.Value == MODES.index("AUTO")
+                assert (await read(client, "primary.MODE_TEXT")).Value.Value == "AUTO"
+                assert (await read(client, "secondary.MODE_TEXT")).Value.Value == "CAS"
+                sp = (await read(client, "secondary.SP")).Value.Value
+                assert sp == pytest.approx(50.0, abs=1.0)  # the primary's OUT, not sp = 0
+                mode = ua.VariantType.Int32
+                assert await write_code(client, "secondary.SP", double(40.0)) == \
+                    "BadInvalidState"  # the setpoint comes from cas_sp
+                assert "cas_sp" in (await read(client, "secondary.LAST_REFUSAL")).Value.Value
+                assert await write_code(client, "secondary.MODE",
+                                        ua.Variant(MODES.index("MAN"), mode)) == "Good"
+                assert await write_code(client, "secondary.MODE",
+                                        ua.Variant(MODES.index("OOS"), mode)) == \
+                    "BadOutOfRange"
+                assert "modes MAN, AUTO, CAS" in (
+                    await read(client, "secondary.LAST_REFUSAL")).Value.Value
+                await server.publish(ctl.snapshot())
+                assert (await read(client, "secondary.MODE_TEXT")).Value.Value == "MAN"
+                assert await write_code(client, "secondary.OUT", double(150.0)) == \
+                    "BadOutOfRange"
+                assert await write_code(client, "secondary.OUT", double(42.0)) == "Good"
+        finally:
+            await server.stop()
+
+    asyncio.run(scenario())
+    secondary = ctl.module.blocks["secondary"]
+    assert secondary.u[secondary._in_index["mode"]] == 0.0  # the pid's own MAN
+    assert secondary.u[secondary._in_index["man_out"]] == 42.0

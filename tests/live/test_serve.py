@@ -14,7 +14,7 @@ import pytest
 
 from loopworks.blocks import status as st
 from loopworks.live.loopback import LoopbackIO
-from loopworks.live.opcua import WriteRefused
+from loopworks.live.opcua import MODES, WriteRefused
 from loopworks.live.registers import default_map
 from loopworks.live.serve import LiveController
 from loopworks.live.split import split_scenario
@@ -182,3 +182,166 @@ def test_a_wrong_poll_period_is_named(period: object) -> None:
     regmap = default_map(split)
     with pytest.raises(InputError, match="poll_period"):
         type(regmap)(regmap.points, poll_period=period)  # type: ignore[arg-type]
+
+
+# --- issue hc (black-box report): modes, working SP, OUT and scale writes, checkpoints -------
+
+CASCADE = Path(__file__).resolve().parents[2] / "examples" / "cascade.toml"
+
+
+def make_cascade(checkpoint: Path | None = None) -> LiveController:
+    """examples/cascade.toml: two generic pids, the secondary in CAS on the primary's OUT."""
+    split = split_scenario(load_scenario(CASCADE))
+    return LiveController(split, default_map(split), LoopbackIO(split), checkpoint=checkpoint)
+
+
+def refusal(ctl: LiveController, loop: str, name: str, value: Any) -> WriteRefused:
+    with pytest.raises(WriteRefused) as info:
+        ctl.write("op", "operator", loop, name, value)
+    return info.value
+
+
+def test_a_generic_pid_s_mode_is_published_and_written_by_its_name() -> None:
+    # the pid's mode input codes MAN 0, AUTO 1, CAS 2; the MODE node's are MODES (OOS 0,
+    # IMAN 1, LO 2, MAN 3, AUTO 4, CAS 5): the name is what is kept, both ways
+    ctl = make_cascade()
+    scans(ctl, 2)
+    snap = ctl.snapshot()
+    assert MODES[snap["primary.MODE"][0]] == "AUTO" and snap["primary.MODE"][1] == st.GOOD_NC
+    assert MODES[snap["secondary.MODE"][0]] == "CAS"
+    declared = {v.name: v for v in ctl.loops()["primary"]}
+    assert MODES[int(declared["MODE"].value)] == "AUTO"
+    assert "MAN, AUTO, CAS" in declared["MODE"].description
+    secondary = ctl.module.blocks["secondary"]
+    ctl.write("op", "operator", "secondary", "MODE", MODES.index("MAN"))  # OPC UA code 3
+    assert _in(secondary, "mode") == 0.0  # the pid's MAN
+    assert MODES[ctl.snapshot()["secondary.MODE"][0]] == "MAN"
+    ctl.write("op", "operator", "secondary", "MODE", MODES.index("AUTO"))
+    assert _in(secondary, "mode") == 1.0
+    ctl.write("op", "operator", "secondary", "MODE", "cas")
+    assert _in(secondary, "mode") == 2.0
+    oos = refusal(ctl, "secondary", "MODE", MODES.index("OOS"))  # code 0 is not the pid's MAN
+    assert oos.code == "BadOutOfRange"
+    assert "OOS" in oos.message and "MAN, AUTO, CAS" in oos.message
+    assert _in(secondary, "mode") == 2.0  # unchanged
+    assert refusal(ctl, "secondary", "MODE", 7).code == "BadOutOfRange"
+
+
+def _in(block: Any, port: str) -> float:
+    return float(block.u[block._in_index[port]])
+
+
+def test_the_sp_node_shows_the_cascade_setpoint_and_refuses_an_operator_sp_in_cas() -> None:
+    # the generic pid in CAS controls to cas_sp (blocks/pid.py): SP shows it, not the unused
+    # local sp (0); an SP write then would be silently unused, so it is refused with the reason
+    ctl = make_cascade()
+    scans(ctl, 5)
+    primary_out = float(ctl.snapshot()["primary.OUT"][0])
+    assert primary_out == pytest.approx(50.0, abs=1.0)
+    assert ctl.snapshot()["secondary.SP"][0] == pytest.approx(primary_out)
+    refused = refusal(ctl, "secondary", "SP", 40.0)
+    assert refused.code == "BadInvalidState"
+    assert "cas_sp" in refused.message and "CAS" in refused.message
+    assert _in(ctl.module.blocks["secondary"], "sp") == 0.0  # not written
+    ctl.write("op", "operator", "secondary", "MODE", "AUTO")
+    ctl.write("op", "operator", "secondary", "SP", 40.0)
+    assert ctl.snapshot()["secondary.SP"][0] == 40.0
+
+
+def test_the_deltav_sp_node_shows_the_working_setpoint_and_refuses_writes_in_cas() -> None:
+    # spec vendor-blocks 4.5: in Cas the SP comes from CAS_IN, in Auto the operator sets it;
+    # SP publishes the block's working SP (its working_sp role output)
+    ctl, _ = make()
+    scans(ctl, 20)
+    pid = ctl.module.blocks["pid"]
+    pid.set_inputs({"cas_in": 57.0})
+    ctl.write("op", "operator", "pid", "MODE", "CAS")
+    scans(ctl, 1)
+    assert pid_out(ctl, "mode_actual") == MODES.index("CAS")
+    assert ctl.snapshot()["pid.SP"][0] == 57.0  # the working SP, not the operator's sp (50)
+    assert _in(pid, "sp") == 50.0
+    refused = refusal(ctl, "pid", "SP", 45.0)
+    assert refused.code == "BadInvalidState" and "cascade" in refused.message
+    assert _in(pid, "sp") == 50.0
+    ctl.write("op", "operator", "pid", "MODE", "AUTO")
+    scans(ctl, 1)
+    ctl.write("op", "operator", "pid", "SP", 45.0)
+    scans(ctl, 1)
+    assert ctl.snapshot()["pid.SP"][0] == 45.0
+
+
+@pytest.mark.parametrize(("scenario", "loop"), [("deltav", "pid"), ("cascade", "primary")])
+def test_an_out_beyond_the_output_limits_is_refused_not_clamped(scenario: str,
+                                                                loop: str) -> None:
+    ctl = make()[0] if scenario == "deltav" else make_cascade()
+    scans(ctl, 2)
+    ctl.write("op", "operator", loop, "MODE", "MAN")
+    for value in (150.0, -20.0, 100.5):
+        refused = refusal(ctl, loop, "OUT", value)
+        assert refused.code == "BadOutOfRange"
+        assert f"OUT = {value:g} is outside the output limits 0..100" == refused.message
+    ctl.write("op", "operator", loop, "OUT", 100.0)
+    scans(ctl, 1)
+    assert ctl.snapshot()[f"{loop}.OUT"][0] == 100.0
+
+
+def test_a_scale_is_written_in_oos_only() -> None:
+    # Fieldbus PID parameter tables: PV_SCALE and OUT_SCALE are written in OOS (e.g. Fisher
+    # DVC6000f manual, table 4-31); a scale sets what PV, SP and OUT mean (spec vendor-blocks
+    # 4.1, 4.9: changing a span changes the effective gain), so in AUTO it bumps the output
+    ctl, _ = make()
+    scans(ctl, 20)
+    pid = ctl.module.blocks["pid"]
+    names = {v.name: v for v in ctl.loops()["pid"]}
+    assert names["OUT_SCALE_EU_100"].writable
+    assert "OOS only" in names["OUT_SCALE_EU_100"].description
+    out = pid_out(ctl, "out")
+    for name, value in (("OUT_SCALE_EU_100", 10.0), ("PV_SCALE_EU_100", 200.0),
+                        ("OUT_SCALE_EU_0", -5.0), ("PV_SCALE_EU_0", 1.0)):
+        refused = refusal(ctl, "pid", name, value)
+        assert refused.code == "BadInvalidState"
+        assert "OOS" in refused.message and "AUTO" in refused.message, refused.message
+    scans(ctl, 1)
+    assert pid.params["out_scale_eu_100"] == 100.0 and pid.params["pv_scale_eu_100"] == 100.0
+    assert pid_out(ctl, "out") == pytest.approx(out, abs=1.0)  # no bump
+    ctl.write("op", "operator", "pid", "MODE", "OOS")
+    ctl.write("op", "operator", "pid", "PV_SCALE_EU_100", 200.0)
+    assert pid.params["pv_scale_eu_100"] == 200.0
+    ctl.write("op", "operator", "pid", "GAIN", 0.7)  # ordinary tuning: any mode
+    assert pid.params["gain"] == 0.7
+
+
+def test_an_accepted_write_is_in_the_checkpoint_at_once(tmp_path: Path) -> None:
+    # the supervisor restarts a killed controller from its checkpoint (every 10 scans): an
+    # acknowledged change must survive that
+    path = tmp_path / "checkpoint.json"
+    ctl, _ = make(path)
+    scans(ctl, 23)  # the last periodic checkpoint is at scan 20
+    ctl.write("op", "operator", "pid", "GAIN", 0.9)
+    ctl.write("op", "operator", "pid", "MODE", "MAN")
+    ctl.write("op", "operator", "pid", "OUT", 44.0)
+    again, _ = make(path)  # a restart: no scan ran after the writes
+    assert again.module.blocks["pid"].params["gain"] == 0.9
+    scans(again, 1)
+    assert pid_out(again, "mode_actual") == MODES.index("MAN")
+    assert pid_out(again, "out") == pytest.approx(44.0)
+
+
+def test_a_checkpoint_that_overrides_the_file_s_parameters_says_so(
+        tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    path = tmp_path / "checkpoint.json"
+    ctl, _ = make(path)
+    ctl.module.blocks["pid"].set_params(gain=1.2, reset=33.0)  # or a file edited since
+    ctl.save()
+    with caplog.at_level("WARNING", logger="loopworks.serve"):
+        again, _ = make(path)
+    assert again.module.blocks["pid"].params["gain"] == 1.2  # the checkpoint's is kept
+    lines = [r.getMessage() for r in caplog.records if r.levelname == "WARNING"]
+    assert len(lines) == 1, lines
+    assert "pid.gain = 1.2 (file: 0.8)" in lines[0] and "pid.reset = 33.0 (file: " in lines[0]
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="loopworks.serve"):
+        plain = tmp_path / "plain.json"  # a checkpoint of the file as it is: nothing to say
+        make(plain)[0].save()
+        make(plain)
+    assert not [r for r in caplog.records if "differ" in r.getMessage()]

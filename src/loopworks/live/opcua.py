@@ -24,7 +24,12 @@ Address space (namespace ``urn:loopworks``)::
   as the mode's name. Clients write MODE as an integer code (a mode name as a String is
   accepted as well);
 - units are the ``EngineeringUnits`` property (EUInformation, UnitId -1: no UNECE code) and
-  also appear in the Description (``"Process variable [degC]"``).
+  also appear in the Description (``"Process variable [degC]"``);
+- every loop has a read-only String node ``<loop>.LAST_REFUSAL`` set by the server: the last
+  write to the loop it refused, ``"<user> <NAME> <code>: <reason>"`` (``"op SP
+  BadOutOfRange: SP = 150 is outside 0..100"``; ``anonymous`` for a client without a user).
+  An OPC UA write answers a status code only; a client that wants the reason (the faceplate)
+  reads it right after a refusal.
 
 Identity: anonymous clients may read and never write. With a ``Users`` file, clients may log in
 with a user name and password (checked at session activation: a wrong password is refused with
@@ -32,7 +37,8 @@ BadUserAccessDenied, the connection fails). Writes by anonymous clients and view
 with BadUserAccessDenied, writes to read-only variables with BadNotWritable; an operator's
 write goes to ``controller.write`` and a ``WriteRefused`` is answered with its code. Each
 write, accepted or refused, is logged on the ``loopworks.serve`` logger with user, node, value
-and outcome. An accepted write does not change the node: its value is what the controller
+and outcome, and a refusal is put on the loop's ``LAST_REFUSAL`` node before it is answered.
+An accepted write does not change the node: its value is what the controller
 publishes next (a clamped SP shows clamped).
 
 Writes are intercepted per item by wrapping the server's attribute service ``write`` (the
@@ -84,6 +90,8 @@ if TYPE_CHECKING:
 log = logging.getLogger("loopworks.serve")
 
 NAMESPACE = "urn:loopworks"
+#: the read-only String node of each loop that holds the last refused write and its reason
+LAST_REFUSAL = "LAST_REFUSAL"
 APPLICATION_URI = "urn:loopworks:serve"
 MODES: tuple[str, ...] = ("OOS", "IMAN", "LO", "MAN", "AUTO", "CAS")
 Kind = Literal["double", "mode", "int"]
@@ -372,6 +380,7 @@ class LoopServer:
         self.namespace_index: int | None = None
         self._nodes: dict[str, _Node] = {}
         self._by_nodeid: dict[ua.NodeId, _Node] = {}
+        self._refusals: dict[str, ua.NodeId] = {}  # loop -> its LAST_REFUSAL node
 
     @property
     def loopback(self) -> bool:
@@ -497,6 +506,14 @@ class LoopServer:
                                                       ua.VariantType.String))
                 self._nodes[key] = entry
                 self._by_nodeid[nodeid] = entry
+            refusal = _nid(f"{loop}.{LAST_REFUSAL}", idx)
+            node = await obj.add_variable(refusal, ua.QualifiedName(LAST_REFUSAL, idx),
+                                          ua.Variant("", ua.VariantType.String))
+            await node.write_attribute(AttributeIds.Description, ua.DataValue(ua.Variant(
+                ua.LocalizedText("the last write to this loop the controller refused: "
+                                 "<user> <NAME> <code>: <reason>"),
+                ua.VariantType.LocalizedText)))
+            self._refusals[loop] = refusal
 
     def _intercept_writes(self, server: Server) -> None:
         service = server.iserver.attribute_service
@@ -521,35 +538,42 @@ class LoopServer:
 
     async def _client_write(self, user: UaUser, node: _Node,
                             dv: ua.DataValue) -> ua.StatusCode:
+        """One client's write of one node: the controller's verdict as a status code; a
+        refusal is logged and put on the loop's LAST_REFUSAL node before it is answered."""
         name = user.name
         role = getattr(user, "loop_role", None)
         key = f"{node.loop}.{node.var.name}"
         raw = dv.Value.Value if dv.Value is not None else None
         who = f"{name} ({role})" if name else "anonymous"
-
-        def refuse(code: str, why: str) -> ua.StatusCode:
-            log.warning("write %s = %r by %s: refused, %s: %s", key, raw, who, code, why)
-            return _code(code)
-
-        if not node.var.writable:
-            return refuse("BadNotWritable", "a read-only variable")
-        if role != "operator":
-            return refuse("BadUserAccessDenied", "only operators may write")
         try:
+            if not node.var.writable:
+                raise WriteRefused("BadNotWritable", "a read-only variable")
+            if role != "operator":
+                raise WriteRefused("BadUserAccessDenied", "only operators may write")
             value = _client_value(node.var.kind, dv.Value)
-        except WriteRefused as exc:
-            return refuse(exc.code, exc.message)
-        try:
             done = self.controller.write(name, role, node.loop, node.var.name, value)
             if inspect.isawaitable(done):  # a controller in another process answers later
                 await done
         except WriteRefused as exc:
-            return refuse(exc.code, exc.message)
+            log.warning("write %s = %r by %s: refused, %s: %s", key, raw, who, exc.code,
+                        exc.message)
+            await self._note_refusal(node.loop, f"{name or 'anonymous'} {node.var.name} "
+                                                f"{exc.code}: {exc.message}")
+            return _code(exc.code)
         except Exception:
             log.exception("write %s = %r by %s: refused, the controller failed", key, raw, who)
             return _code("BadInternalError")
         log.info("write %s = %r by %s: accepted", key, value, who)
         return _code("Good")
+
+    async def _note_refusal(self, loop: str, text: str) -> None:
+        """Put ``text`` on the loop's LAST_REFUSAL node (module docstring)."""
+        nodeid = self._refusals.get(loop)
+        if self.server is None or nodeid is None:
+            return
+        now = cast(ua.DateTime, dt.datetime.now(dt.UTC))
+        await self.server.write_attribute_value(nodeid, ua.DataValue(
+            ua.Variant(text, ua.VariantType.String), SourceTimestamp=now, ServerTimestamp=now))
 
 
 # --- helpers --------------------------------------------------------------------------------
@@ -589,6 +613,9 @@ def _check_loops(loops: Mapping[str, list[Variable]]) -> None:
             if var.kind not in KINDS:
                 raise InputError(f"OPC UA server: {loop}.{var.name}: kind {var.kind!r}: "
                                  f"expected one of {', '.join(KINDS)}")
+            if var.name == LAST_REFUSAL:
+                raise InputError(f"OPC UA server: {loop}.{LAST_REFUSAL} is the server's own "
+                                 f"node (the last refused write): do not declare it")
             if not var.name or var.name in seen:
                 raise InputError(f"OPC UA server: loop {loop!r}: variable name {var.name!r} "
                                  f"is empty or declared twice")

@@ -14,10 +14,14 @@ Each scan (absolute deadlines, :mod:`loopworks.live.schedule`):
 3. write the controller outputs to the device (read back and compared next scan);
 4. publish every loop's PV, SP, OUT, MODE, tuning and scan statistics on the OPC UA server
    (:mod:`loopworks.live.opcua`), whose operators' writes come back through
-   :meth:`LiveController.write`, validated and logged;
-5. every ``checkpoint_every`` scans, and on shutdown, save the controller state
-   (``Module.state_dict``) to the checkpoint file; a controller started on an existing
-   checkpoint of the same module resumes from it, so OUT continues without a bump.
+   :meth:`LiveController.write`, validated and logged; SP is the setpoint the controller
+   works to (:meth:`LiveController.working_sp`), MODE and MODE_ACTUAL the block's modes
+   translated by name to the server's codes (``MODES``) and back (:func:`mode_names`);
+5. every ``checkpoint_every`` scans, after every accepted operator write and on shutdown,
+   save the controller state (``Module.state_dict``) to the checkpoint file; a controller
+   started on an existing checkpoint of the same module resumes from it, so OUT continues
+   without a bump (parameters the checkpoint holds at other values than the scenario file
+   are kept, and named in one warning line).
 
 A loop is a controller block (a kind that declares its roles, :mod:`loopworks.blocks.controller`),
 named after the block. A loop whose output feeds a block of the controller side that is not
@@ -35,6 +39,7 @@ import json
 import logging
 import math
 import os
+import re
 import tempfile
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -43,10 +48,10 @@ from pathlib import Path
 from typing import Any
 
 from loopworks.blocks import status as st
-from loopworks.blocks.block import Block
+from loopworks.blocks.block import Block, _same
 from loopworks.blocks.controller import Controller
 from loopworks.errors import InputError, LoopworksError
-from loopworks.live.opcua import Variable, WriteRefused
+from loopworks.live.opcua import MODES, Variable, WriteRefused
 from loopworks.live.registers import RegisterMap
 from loopworks.live.schedule import ScanStats, Scheduler
 from loopworks.live.split import Split
@@ -59,6 +64,9 @@ log = logging.getLogger("loopworks.serve")
 NOT_REQUESTABLE = ("IMAN", "LO")
 #: scans between checkpoints (default)
 CHECKPOINT_EVERY = 10
+#: a scale or span parameter (pv_scale_eu_0, out_scale_eu_100, ...): it sets what PV, SP and
+#: OUT mean, so it is written in OOS only (Fieldbus; spec vendor-blocks 4.1, 4.9)
+_SCALE = re.compile(r"(^|_)(scale|span)(_|$)")
 
 
 @dataclass
@@ -76,6 +84,8 @@ class Loop:
     #: the block fed by the loop's output (a compensator), and its ports shown as COMP_<PORT>
     compensator: str | None = None
     comp_ports: list[tuple[str, bool]] = field(default_factory=list)  # (port, is an output)
+    #: the names of the mode input's codes (index = the block's code): ``mode_names``
+    modes: tuple[str, ...] = ()
 
 
 def _compensator(module: Module, loop: str, out: str) -> tuple[str | None,
@@ -101,6 +111,31 @@ def _comp_name(port: str) -> str:
     return "COMP_" + port.upper().removeprefix("COMP_")
 
 
+def is_scale(param: str) -> bool:
+    """True for a scale or span parameter (``pv_scale_eu_100``, ``out_span``): it sets what
+    PV, SP and OUT mean, so an operator writes it in OOS only."""
+    return _SCALE.search(param.lower()) is not None
+
+
+def mode_names(block: Block, port: str) -> tuple[str, ...]:
+    """The names of a mode input's codes, index = code: its choices (``pid``: MAN, AUTO, CAS;
+    ``deltav.pid``: OOS, IMAN, LO, MAN, AUTO, CAS), or, for a switch without names (GE's
+    MAN input, 1 = Manual), AUTO and MAN at the codes the controller's ``AUTOMATIC`` and
+    ``MANUAL`` give it; () when neither says."""
+    spec = block.INPUTS[block._in_index[port]]
+    if spec.choices:
+        return tuple(c.upper() for c in spec.choices)
+    cls = type(block)
+    named: dict[int, str] = {}
+    for mode, table in (("AUTO", getattr(cls, "AUTOMATIC", {})),
+                        ("MAN", getattr(cls, "MANUAL", {}))):
+        code = table.get(port)
+        if (isinstance(code, int | float) and not isinstance(code, bool) and 0 <= code < 8
+                and code == int(code)):
+            named[int(code)] = mode
+    return tuple(named.get(i, "") for i in range(max(named) + 1)) if named else ()
+
+
 def _loops(module: Module) -> list[Loop]:
     loops = []
     for name in module.order:
@@ -108,12 +143,25 @@ def _loops(module: Module) -> list[Loop]:
         if not isinstance(block, Controller):
             continue
         roles = type(block).ROLES
+        modes = mode_names(block, roles.mode) if roles.mode is not None else ()
         tuning = [p for p in type(block).LAW_PARAMS
-                  if p in block.params and type(block.params[p]) in (int, float)]
+                  if p in block.params and type(block.params[p]) in (int, float)
+                  and ("OOS" in modes or not is_scale(p))]  # a scale: in OOS only
         comp, ports = _compensator(module, name, roles.out)
-        loops.append(Loop(name, block, roles.pv, roles.sp, roles.out, roles.mode,
-                          roles.man_out, tuning, comp, ports))
+        loops.append(Loop(name, block, roles.pv, roles.sp, roles.out,
+                          roles.mode if modes else None, roles.man_out, tuning, comp, ports,
+                          modes))
     return loops
+
+
+def _published_mode(names: tuple[str, ...], code: float) -> tuple[int, int]:
+    """(code of ``MODES``, status byte): how the MODE node publishes a block's mode code
+    whose names are ``names``, translated by name (the generic pid's AUTO, its code 1, is
+    MODES' 4); a code without a name of MODES is published Bad (configuration error), never
+    as another mode."""
+    if code == int(code) and 0 <= int(code) < len(names) and names[int(code)] in MODES:
+        return MODES.index(names[int(code)]), st.GOOD_NC
+    return 0, st.BAD_CONFIGURATION_ERROR
 
 
 def _input(block: Block, port: str) -> tuple[float, int]:
@@ -144,6 +192,31 @@ def _atomic_write(path: Path, text: str) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+def _requested_mode(value: Any) -> str:
+    """The name of a mode an operator requested: a code of the OPC UA MODE node (``MODES``:
+    0 OOS .. 5 CAS) or a name; WriteRefused(BadOutOfRange) for anything else."""
+    if isinstance(value, str) and value.strip().upper() in MODES:
+        return value.strip().upper()
+    if (isinstance(value, int | float) and not isinstance(value, bool) and value == int(value)
+            and 0 <= value < len(MODES)):
+        return MODES[int(value)]
+    raise WriteRefused("BadOutOfRange", f"mode {value!r}: expected a code 0..{len(MODES) - 1} "
+                       f"or a name of {', '.join(MODES)}")
+
+
+def _overridden(module: Module, saved: Mapping[str, Any]) -> list[str]:
+    """The parameters a checkpoint ``saved`` (``Module.state_dict``) sets to another value
+    than ``module``'s (the scenario file's), as ``block.param = saved (file value)``."""
+    kept = []
+    for name, block in module.blocks.items():
+        given = (saved.get("blocks", {}).get(name) or {}).get("params") or {}
+        for param, value in given.items():
+            if param not in block.given or not _same(block.given[param], value):
+                kept.append(f"{name}.{param} = {value!r} (file: "
+                            f"{block.params.get(param)!r})")
+    return kept
 
 
 class LiveController:
@@ -198,7 +271,12 @@ class LiveController:
             raise InputError(f"{path}: the checkpoint is of another controller module "
                              f"(layout {saved.get('layout')!r}, this one {self.key!r}); "
                              "remove it or give another --state-dir")
+        kept = _overridden(self.module, saved["module"])
         self.module.load_state(saved["module"])
+        if kept:
+            log.warning("%s: the checkpoint's parameters differ from the scenario file's and "
+                        "are kept (an operator's retuning, or an edited file: remove the "
+                        "checkpoint to start from the file): %s", path, "; ".join(kept))
         self.scans = int(saved.get("scans", 0))
         self.resumed = True
         log.info("resumed from checkpoint %s at scan %d (t = %.3f s)", path, self.scans,
@@ -239,20 +317,24 @@ class LiveController:
         out: list[Variable] = [
             Variable("PV", _input(b, loop.pv)[0], "double", False, "% of PV span",
                      "process variable as the controller reads it"),
-            Variable("SP", _input(b, loop.sp)[0], "double", True, "% of PV span",
-                     "setpoint (writable by an operator)"),
+            Variable("SP", self.working_sp(loop)[0], "double", True, "% of PV span",
+                     "working setpoint (writable by an operator, not while it comes from "
+                     "a cascade input)"),
             Variable("OUT", _output(b, loop.out)[0], "double", True, "% of OUT span",
                      "controller output (writable by an operator in MAN)"),
         ]
         if loop.mode is not None:
-            out.append(Variable("MODE", int(_input(b, loop.mode)[0]), "mode", True, "",
-                                "target mode (writable by an operator)"))
+            out.append(Variable("MODE", self.mode(loop)[0], "mode", True, "",
+                                "target mode (writable by an operator): "
+                                + ", ".join(m for m in loop.modes
+                                            if m and m not in NOT_REQUESTABLE)))
         if "mode_actual" in b._out_index:
-            out.append(Variable("MODE_ACTUAL", int(_output(b, "mode_actual")[0]), "mode", False,
+            out.append(Variable("MODE_ACTUAL", self.mode_actual(loop)[0], "mode", False,
                                 "", "actual mode, as the block computed it"))
         for name in loop.tuning:
             out.append(Variable(name.upper(), float(b.params[name]), "double", True, "",
-                                f"tuning parameter {name}"))
+                                f"tuning parameter {name}"
+                                + (" (written in OOS only)" if is_scale(name) else "")))
         for name in ("SCANS", "OVERRUNS", "LATE_P99_MS", "LATE_MAX_MS", "COMM_ERRORS",
                      "READBACK_MISMATCHES"):
             out.append(Variable(name, 0.0, "double", False, "", "scan statistics"))
@@ -280,12 +362,12 @@ class LiveController:
         for name, loop in self.by_name.items():
             b = loop.block
             snap[f"{name}.PV"] = _input(b, loop.pv)
-            snap[f"{name}.SP"] = _input(b, loop.sp)
+            snap[f"{name}.SP"] = self.working_sp(loop)
             snap[f"{name}.OUT"] = _output(b, loop.out)
             if loop.mode is not None:
-                snap[f"{name}.MODE"] = (int(_input(b, loop.mode)[0]), st.GOOD_NC)
+                snap[f"{name}.MODE"] = self.mode(loop)
             if "mode_actual" in b._out_index:
-                snap[f"{name}.MODE_ACTUAL"] = (int(_output(b, "mode_actual")[0]), st.GOOD_NC)
+                snap[f"{name}.MODE_ACTUAL"] = self.mode_actual(loop)
             for p in loop.tuning:
                 snap[f"{name}.{p.upper()}"] = (float(b.params[p]), st.GOOD_NC)
             for key, value in (("SCANS", stats["scans"]), ("OVERRUNS", stats["overruns"]),
@@ -303,11 +385,66 @@ class LiveController:
                     snap[f"{name}.{_comp_name(port)}"] = (v, s if spec.status else st.GOOD_NC)
         return snap
 
+    def mode(self, loop: Loop) -> tuple[int, int]:
+        """The loop's target mode as the OPC UA MODE node publishes it: (code of ``MODES``,
+        status byte), translated from the block's own code by name (``_published_mode``)."""
+        assert loop.mode is not None
+        return _published_mode(loop.modes, _input(loop.block, loop.mode)[0])
+
+    def mode_actual(self, loop: Loop) -> tuple[int, int]:
+        """The block's ``mode_actual`` output as MODE_ACTUAL publishes it (as :meth:`mode`)."""
+        b = loop.block
+        spec = b.OUTPUTS[b._out_index["mode_actual"]]
+        return _published_mode(tuple(c.upper() for c in spec.choices),
+                                _output(b, "mode_actual")[0])
+
+    def _mode_name(self, loop: Loop, actual: bool = False) -> str:
+        """The name of the loop's target (or actual) mode, "" when it has none."""
+        if actual and "mode_actual" in loop.block._out_index:
+            code, status = self.mode_actual(loop)
+        elif loop.mode is not None:
+            code, status = self.mode(loop)
+        else:
+            return ""
+        return MODES[code] if status == st.GOOD_NC else ""
+
+    def working_sp(self, loop: Loop) -> tuple[float, int]:
+        """The setpoint the controller works to, as SP publishes it: its ``working_sp`` role
+        output where it has one (deltav.pid: after limits, ramp and filter, CAS_IN in Cas),
+        else the input its ``setpoint_input`` names for its current inputs (the generic
+        pid's ``cas_sp`` in CAS), never an unused local SP."""
+        b = loop.block
+        assert isinstance(b, Controller)
+        roles = type(b).ROLES
+        if roles.working_sp is not None:
+            return _output(b, roles.working_sp)
+        return _input(b, self._setpoint_input(loop))
+
+    def _setpoint_input(self, loop: Loop) -> str:
+        """The input the loop's controller takes its setpoint from now (``setpoint_input``)."""
+        b = loop.block
+        assert isinstance(b, Controller)
+        values = {p.name: float(b.u[i]) for i, p in enumerate(b.INPUTS)}
+        return type(b).setpoint_input(values)
+
+    def _sp_elsewhere(self, loop: Loop) -> str | None:
+        """Why an operator's SP would not be used now, None when it would: the setpoint
+        comes from another input (the generic pid's ``cas_sp`` in CAS), or the block's actual
+        mode is CAS (DeltaV: SP = CAS_IN, an SP write is not taken; spec vendor-blocks 4.5)."""
+        port = self._setpoint_input(loop)
+        if port != loop.sp:
+            return (f"the setpoint comes from input {port} in mode "
+                    f"{self._mode_name(loop) or '?'}")
+        if self._mode_name(loop, actual=True) == "CAS":
+            return "the setpoint comes from the cascade input while the actual mode is CAS"
+        return None
+
     def write(self, user: str | None, role: str | None, loop: str, name: str,
               value: Any) -> None:
         """An operator's write, validated by the block's own rules; raises
         :class:`~loopworks.live.opcua.WriteRefused` with the OPC UA status code when refused.
-        Every write is logged, accepted or not."""
+        Every write is logged, accepted or not. An accepted write is saved in the checkpoint
+        at once (when there is one), so a controller restarted from it keeps the change."""
         try:
             self._write(role, loop, name, value)
         except WriteRefused as exc:
@@ -315,6 +452,12 @@ class LiveController:
                         exc.message, exc.code)
             raise
         log.info("write accepted: user %s, %s.%s = %r", user, loop, name, value)
+        try:
+            self.save()
+        except OSError as exc:  # the write stands; the operator's log says it is not saved
+            log.error("write %s.%s = %r by %s is applied but not saved in the checkpoint %s "
+                      "(%s): a restart before the next checkpoint would lose it", loop, name,
+                      value, user, self.checkpoint, exc)
 
     def _write(self, role: str | None, loop_name: str, name: str, value: Any) -> None:
         if role != "operator":
@@ -326,15 +469,15 @@ class LiveController:
         b = loop.block
         name = name.upper()
         if name == "MODE" and loop.mode is not None:
-            port = b.INPUTS[b._in_index[loop.mode]]
-            try:
-                code = int(port.parse(value))
-            except (TypeError, ValueError) as exc:
-                raise WriteRefused("BadOutOfRange", str(exc)) from None
-            if port.choices[code] in NOT_REQUESTABLE:
-                raise WriteRefused("BadOutOfRange", f"mode {port.choices[code]} cannot be "
-                                   "requested (the block sets it itself)")
-            b.set_inputs({loop.mode: float(code)})
+            mode = _requested_mode(value)
+            if mode not in loop.modes:
+                allowed = [m for m in loop.modes if m and m not in NOT_REQUESTABLE]
+                raise WriteRefused("BadOutOfRange", f"mode {mode}: this {b.kind} block has "
+                                   f"the modes {', '.join(allowed)}")
+            if mode in NOT_REQUESTABLE:
+                raise WriteRefused("BadOutOfRange", f"mode {mode} cannot be requested (the "
+                                   "block sets it itself)")
+            b.set_inputs({loop.mode: float(loop.modes.index(mode))})
             return
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise WriteRefused("BadTypeMismatch", f"{name} takes a number, not {value!r}")
@@ -342,6 +485,10 @@ class LiveController:
         if not math.isfinite(v):
             raise WriteRefused("BadOutOfRange", f"{name} = {v!r} is not finite")
         if name == "SP":
+            elsewhere = self._sp_elsewhere(loop)
+            if elsewhere is not None:
+                raise WriteRefused("BadInvalidState", f"SP is not written now: {elsewhere} "
+                                   "(set the target mode to AUTO to write SP)")
             lo, hi = self._sp_range(b)
             if not lo <= v <= hi:
                 raise WriteRefused("BadOutOfRange", f"SP = {v:g} is outside {lo:g}..{hi:g}")
@@ -349,20 +496,38 @@ class LiveController:
         elif name == "OUT":
             if loop.mode is None or loop.man_out is None:
                 raise WriteRefused("BadNotWritable", "this controller has no manual output")
-            mode = b.INPUTS[b._in_index[loop.mode]].choices[int(_input(b, loop.mode)[0])]
-            assert isinstance(b, Controller)
-            manual = str(type(b).MANUAL.get(loop.mode, "MAN")).upper()
-            if mode != manual:
-                raise WriteRefused("BadInvalidState", f"OUT is written in {manual} only; the "
-                                   f"loop's target mode is {mode}")
+            mode = self._mode_name(loop)
+            if mode != "MAN":
+                raise WriteRefused("BadInvalidState", f"OUT is written in MAN only; the "
+                                   f"loop's target mode is {mode or '?'}")
+            lo, hi = self._out_range(b)
+            if not lo <= v <= hi:
+                raise WriteRefused("BadOutOfRange", f"OUT = {v:g} is outside the output "
+                                   f"limits {lo:g}..{hi:g}")
             b.set_inputs({loop.man_out: v})
         elif name.lower() in loop.tuning:
+            if is_scale(name) and self._mode_name(loop) != "OOS":
+                raise WriteRefused("BadInvalidState", f"{name} is written in OOS only: a "
+                                   "scale sets what PV, SP and OUT mean, so changing it in "
+                                   "another mode would bump the output; the loop's target "
+                                   f"mode is {self._mode_name(loop) or '?'}")
             try:
                 b.set_params(**{name.lower(): v})
             except LoopworksError as exc:
                 raise WriteRefused("BadOutOfRange", str(exc)) from None
         else:
             raise WriteRefused("BadNotWritable", f"{loop_name}.{name} is not writable")
+
+    @staticmethod
+    def _out_range(b: Block) -> tuple[float, float]:
+        """The range an operator's OUT must respect: the controller's output limits
+        (``output_range``), any value when the block takes OUT unlimited in manual
+        (DeltaV's ``no_out_limits_manual``, spec vendor-blocks 4.5)."""
+        assert isinstance(b, Controller)
+        if b.params.get("no_out_limits_manual"):
+            return -math.inf, math.inf
+        lo, hi = type(b).output_range(b.params)
+        return min(lo, hi), max(lo, hi)
 
     @staticmethod
     def _sp_range(b: Block) -> tuple[float, float]:

@@ -9,6 +9,9 @@ OPC UA client does (a flood of requests, a login's password hashing) can stall i
 * this process (the **supervisor**) runs the OPC UA server: it publishes the snapshots, and
   hands each client's write to the controller process, answering the client with the
   controller's verdict (``BadTimeout`` when there is none within :data:`REPLY_TIMEOUT`);
+  each write carries a deadline, :data:`APPLY_MARGIN` s before that answer is due, and the
+  controller drops (never applies) a write it takes from the queue after its deadline (a
+  stalled controller resuming): a write the client was told failed is never made later;
 * without ``--device`` (and without a ``url`` in an OPC UA ``[io]`` table), the scenario's
   plant runs in a third process as the device (serving OPC UA as well when the table says
   ``protocol = "opcua"``);
@@ -40,7 +43,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from loopworks.errors import InputError
+from loopworks.errors import InputError, LoopworksError
 from loopworks.live.opcua import Variable, WriteRefused
 from loopworks.live.tasks import cancel_and_wait
 
@@ -48,6 +51,9 @@ log = logging.getLogger("loopworks.serve")
 
 #: how long a client's write waits for the controller's answer, s
 REPLY_TIMEOUT = 5.0
+#: a write the controller takes later than this before its answer is due is dropped, s:
+#: room for the controller's checkpoint and its answer to reach the supervisor in time
+APPLY_MARGIN = 1.0
 #: how long the controller process may take to start (a fresh machine compiles kernels), s
 START_TIMEOUT = 300.0
 #: restarts of a dying controller allowed within a minute
@@ -81,9 +87,51 @@ def log_to_stderr() -> None:
 # -- the controller process ------------------------------------------------------------------
 
 def controller_main(job: Job, commands: Any, events: Any) -> None:
-    """Entry point of the controller process."""
+    """Entry point of the controller process. A user error (a checkpoint of another
+    scenario ...) is sent to the supervisor as ``("error", message)`` for its one ``error:``
+    line, and the process exits with code 2, without a traceback."""
     log_to_stderr()
-    asyncio.run(_controller(job, commands, events))
+    try:
+        asyncio.run(_controller(job, commands, events))
+    except LoopworksError as exc:
+        with contextlib.suppress(Exception):
+            events.put(("error", str(exc)), timeout=2.0)
+        sys.exit(2)
+
+
+def take_commands(ctl: Any, commands: Any, events: Any,
+                  now: Callable[[], float] = time.monotonic) -> bool:
+    """Apply the operators' pending writes from ``commands`` to ``ctl`` (a LiveController),
+    each answered on ``events`` as ``("reply", ident, code or None, message)``; True when a
+    stop command came. A write is ``("write", ident, deadline, user, role, loop, name,
+    value)``: taken after ``deadline`` (``time.monotonic``, the same clock in every process
+    of the machine), it is dropped, not applied, and answered BadTimeout: its client has been
+    (or is being) told it failed."""
+    while True:
+        try:
+            cmd = commands.get_nowait()
+        except queue.Empty:
+            return False
+        if cmd[0] == "stop":
+            return True
+        _, ident, deadline, user, role, name, var, value = cmd
+        late = now() - deadline
+        try:
+            if late > 0.0:
+                log.warning("write %s.%s = %r by %s: dropped, not applied: it reached the "
+                            "controller %.3g s after its deadline, when its client had been "
+                            "told it failed (BadTimeout)", name, var, value, user, late)
+                raise WriteRefused("BadTimeout", "the controller took the write too late: "
+                                   "it was not applied")
+            ctl.write(user, role, name, var, value)
+            reply: tuple[Any, ...] = ("reply", ident, None, "")
+        except WriteRefused as exc:
+            reply = ("reply", ident, exc.code, exc.message)
+        except Exception as exc:  # answered, never a crash of the scans
+            log.exception("write %s.%s = %r failed", name, var, value)
+            reply = ("reply", ident, "BadInternalError", str(exc))
+        with contextlib.suppress(queue.Full):  # never wait for the supervisor
+            events.put_nowait(reply)
 
 
 async def _controller(job: Job, commands: Any, events: Any) -> None:
@@ -118,25 +166,8 @@ async def _controller(job: Job, commands: Any, events: Any) -> None:
             log.error("the supervisor process is gone: stopping")
             stop.set()
             return
-        while True:
-            try:
-                cmd = commands.get_nowait()
-            except queue.Empty:
-                return
-            if cmd[0] == "stop":
-                stop.set()
-                return
-            _, ident, user, role, name, var, value = cmd
-            try:
-                ctl.write(user, role, name, var, value)
-                reply: tuple[Any, ...] = ("reply", ident, None, "")
-            except WriteRefused as exc:
-                reply = ("reply", ident, exc.code, exc.message)
-            except Exception as exc:  # answered, never a crash of the scans
-                log.exception("write %s.%s = %r failed", name, var, value)
-                reply = ("reply", ident, "BadInternalError", str(exc))
-            with contextlib.suppress(queue.Full):  # never wait for the supervisor
-                events.put_nowait(reply)
+        if take_commands(ctl, commands, events):
+            stop.set()
 
     def publish(snapshot: dict[str, tuple[float, int]]) -> None:
         with contextlib.suppress(queue.Full):
@@ -230,6 +261,9 @@ class ControllerProcess:
             if msg is not None and msg[0] == "hello":
                 _, self._loops, self.resumed, self.scans, self.dt = msg
                 return
+            if msg is not None and msg[0] == "error":  # a user error, already worded
+                self.proc.join(10)
+                raise InputError(msg[1])
             if not self.proc.is_alive():
                 raise InputError(f"the controller process stopped before it started (exit "
                                  f"code {self.proc.exitcode}); see its messages above")
@@ -256,7 +290,8 @@ class ControllerProcess:
         fut: asyncio.Future[tuple[str | None, str]] = (
             asyncio.get_running_loop().create_future())
         self._pending[ident] = fut
-        self.commands.put(("write", ident, user, role, loop, name, value))
+        deadline = time.monotonic() + REPLY_TIMEOUT - APPLY_MARGIN  # take_commands
+        self.commands.put(("write", ident, deadline, user, role, loop, name, value))
         return self._answer(ident, fut)
 
     async def _answer(self, ident: int, fut: asyncio.Future[tuple[str | None, str]]) -> None:
@@ -306,8 +341,9 @@ class ControllerProcess:
             log.error("the controller process died (exit code %s): restarting it from its "
                       "checkpoint", self.proc.exitcode)
             await self.start()
-            log.info("controller restarted%s", f", resumed at scan {self.scans}"
-                     if self.resumed else " from the scenario's start (no checkpoint)")
+            log.info("controller restarted in process %d%s", self.proc.pid,
+                     f", resumed at scan {self.scans}" if self.resumed
+                     else " from the scenario's start (no checkpoint)")
 
     def stop_now(self) -> None:
         if self.proc is not None and self.proc.is_alive():

@@ -48,7 +48,14 @@ from fastapi.responses import HTMLResponse, JSONResponse, Response, StreamingRes
 from fastapi.staticfiles import StaticFiles
 from pydantic import BaseModel, Field, StrictFloat, StrictInt, StrictStr
 
-from loopworks.live.faceplate.link import Link, WriteError, flatten, is_link_error, status_name
+from loopworks.live.faceplate.link import (
+    WRITE_TIMEOUT,
+    Link,
+    WriteError,
+    flatten,
+    is_link_error,
+    status_name,
+)
 from loopworks.live.tasks import cancel_and_wait
 
 log = logging.getLogger("loopworks.faceplate")
@@ -95,8 +102,13 @@ class Faceplate:
         self.closing.set()
 
     async def user_client(self, user: str, password: str) -> Client:
-        """A connected OPC UA session as ``user``, or HTTPException (401 / 503)."""
-        client = Client(self.link.url, timeout=self.link.timeout)
+        """A connected OPC UA session as ``user``, or HTTPException (401 / 503). Its requests
+        wait :data:`WRITE_TIMEOUT` s, so the controller's own BadTimeout comes first; its
+        watchdog probes no more often than that: the server answers a session's requests in
+        order, so a probe sent while a write waits for the controller's next scan waits too
+        (asyncua's default, 1 s, would drop the session and lose the write's answer)."""
+        client = Client(self.link.url, timeout=WRITE_TIMEOUT,
+                        watchdog_intervall=2 * WRITE_TIMEOUT)
         client.set_user(user)
         client.set_password(password)
         try:
@@ -139,7 +151,7 @@ class Faceplate:
             if s.client is None:
                 s.client = await self.user_client(s.user, s.password)
             try:
-                await self.link.write(s.client, loop, name, value)
+                await self.link.write(s.client, loop, name, value, s.user)
             except WriteError:
                 raise
             except Exception as exc:
@@ -147,6 +159,10 @@ class Faceplate:
                     raise
                 await _disconnect(s.client)  # its session is gone: a new one next time
                 s.client = None
+                if isinstance(exc, TimeoutError):  # sent, never answered: not known
+                    raise WriteError("NoAnswer", f"the controller did not answer within "
+                                     f"{WRITE_TIMEOUT:g} s: the change may still be made; "
+                                     "check the value before trying again") from None
                 raise WriteError("NotConnected", "the link to the controller was lost: "
                                  "the change was not made") from None
 
@@ -348,7 +364,7 @@ def create_app(opcua_url: str, *, period: float = 0.25) -> FastAPI:
             if exc.code == "BadUserAccessDenied":
                 hint = ("log in as an operator to make changes" if s is None else
                         f"user {s.user} may not make changes (not an operator)")
-            status = 503 if exc.code == "NotConnected" else 409
+            status = 503 if exc.code in ("NotConnected", "NoAnswer") else 409
             return JSONResponse({"code": exc.code, "message": hint}, status_code=status)
         log.info("write %s.%s = %r by %s: accepted", name, body.name, body.value, who)
         return JSONResponse({"code": "Good", "message": "accepted by the controller"})

@@ -20,7 +20,11 @@ still answers is shown as not scanning: its values are stale too.
 
 Writes go through the OPC UA session of the user who makes them (``write(client, ...)``),
 so the controller checks that user's role and logs the write under that name; anonymous
-writes go through the link's own session, and the controller refuses them.
+writes go through the link's own session, and the controller refuses them. A refusal's reason
+(``SP = 150 is outside 0..100``) is read from the loop's ``LAST_REFUSAL`` node right after it
+(``loopworks.live.opcua``): the OPC UA answer itself is a status code only. A user's session
+waits :data:`WRITE_TIMEOUT` s for an answer, longer than ``serve`` takes to answer
+``BadTimeout`` for a stalled controller (which guarantees such a write is never made later).
 """
 
 from __future__ import annotations
@@ -41,6 +45,9 @@ from asyncua.ua.attribute_ids import AttributeIds
 from asyncua.ua.status_codes import get_name_and_doc
 from asyncua.ua.uaerrors import UaError, UaStatusCodeError
 
+from loopworks.live.opcua import LAST_REFUSAL
+from loopworks.live.supervisor import REPLY_TIMEOUT
+
 log = logging.getLogger("loopworks.faceplate")
 
 NAMESPACE = "urn:loopworks"
@@ -51,6 +58,9 @@ HISTORY_SECONDS = 900.0
 STILL_AFTER = 3.0
 #: the variables a trend keeps
 TREND = ("PV", "SP", "OUT")
+#: seconds a user's write waits for the controller's answer: longer than serve's own
+#: REPLY_TIMEOUT, so a stalled controller is answered by serve's BadTimeout
+WRITE_TIMEOUT = REPLY_TIMEOUT + 2.0
 _ERRORS = (ConnectionError, OSError, TimeoutError, asyncio.TimeoutError, UaError)
 
 
@@ -340,20 +350,40 @@ class Link:
             raise WriteError("BadTypeMismatch", f"{name} = {value!r}: expected a whole number")
         return ua.Variant(int(number), point.vtype)
 
-    async def write(self, client: Client | None, loop: str, name: str, value: Any) -> None:
-        """Write ``loop.name`` through ``client`` (a user's session; None: this link's own,
-        anonymous one); raises WriteError with the controller's status code when refused."""
+    async def write(self, client: Client | None, loop: str, name: str, value: Any,
+                    user: str | None = None) -> None:
+        """Write ``loop.name`` through ``client`` (the session of ``user``; None: this link's
+        own, anonymous one); raises WriteError with the controller's status code when
+        refused, and its reason when the server gave it (:meth:`reason`), else the code's
+        stock text."""
         variant = self.variant(loop, name, value)
         client = client or self.client
         if client is None or not self.connected:
             raise WriteError("NotConnected", "the faceplate has no link to the controller")
         node = client.get_node(self.loops[loop][name].nodeid)
         try:
-            await asyncio.wait_for(node.write_value(ua.DataValue(variant)), self.timeout + 5.0)
+            await asyncio.wait_for(node.write_value(ua.DataValue(variant)), WRITE_TIMEOUT + 1.0)
         except UaStatusCodeError as exc:
             code = status_name(exc.code)
             _, doc = get_name_and_doc(exc.code)
-            raise WriteError(code, doc) from None
+            why = await self.reason(client, loop, f"{user or 'anonymous'} {name} {code}: ")
+            raise WriteError(code, why or doc) from None
+
+    async def reason(self, client: Client, loop: str, prefix: str) -> str | None:
+        """The reason of the refusal the loop's LAST_REFUSAL node holds when its text starts
+        with ``prefix`` (``"op SP BadOutOfRange: "``: this user's refusal of this write), else
+        None (an older server without the node, another write refused since)."""
+        point = self.loops.get(loop, {}).get(LAST_REFUSAL)
+        if point is None:
+            return None
+        try:
+            text = await asyncio.wait_for(client.get_node(point.nodeid).read_value(),
+                                          self.timeout)
+        except Exception:  # the reason is a courtesy: the refusal stands without it
+            return None
+        if isinstance(text, str) and text.startswith(prefix) and len(text) > len(prefix):
+            return text[len(prefix):]
+        return None
 
 
 def _why(exc: BaseException) -> str:
