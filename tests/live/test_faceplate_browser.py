@@ -234,6 +234,11 @@ def test_an_operator_logs_in_changes_sp_and_the_pv_follows(page: Any, run: Run) 
     page.fill("#in-OUT", "42.5")
     page.click("#set-OUT")
     until(page, "Number(document.querySelector('#v-OUT').textContent) === 42.5", 5)
+    # three quick clicks of +1 ask for 43.5, 44.5, 45.5: each adds to the OUT last asked for,
+    # not to the displayed one, which lags a refresh (they asked for 43.5 three times)
+    for _ in range(3):
+        page.click("button.slew[data-slew='1']")
+    until(page, "Number(document.querySelector('#v-OUT').textContent) === 45.5", 5)
     page.click("#mode-AUTO")
     until(page, "document.querySelector('#mode-actual').textContent === 'AUTO'", 5)
     # tuning

@@ -295,9 +295,20 @@
       el("button", { type: "submit", id: `set-${name}`, text: "Set" }), ...(extra || []));
     return form;
   }
+  // A slew key adds its step to the OUT last asked for while that request is recent (3 s),
+  // not to the displayed OUT, which lags the controller by a refresh: three quick clicks of
+  // +1 ask for +1, +2, +3 (on the displayed value they asked for +1 three times).
+  let slewTarget = null;
   function slew(delta) {
     return el("button", { type: "button", class: "slew", "data-slew": delta, text: (delta > 0 ? "+" : "−") + Math.abs(delta),
-      onclick: () => { const out = num(LOOP, "OUT"); if (out !== null) change("OUT", Math.round((out + delta) * 100) / 100); } });
+      onclick: () => {
+        const recent = slewTarget && Date.now() < slewTarget.until;
+        const base = recent ? slewTarget.value : num(LOOP, "OUT");
+        if (base === null) return;
+        const target = Math.round((base + delta) * 100) / 100;
+        slewTarget = { value: target, until: Date.now() + 3000 };
+        change("OUT", target).then((ok) => { if (!ok) slewTarget = null; });
+      } });
   }
   function buildLoop() {
     const main = $("#main");
