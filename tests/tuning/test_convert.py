@@ -371,3 +371,55 @@ def test_a_kind_converted_to_itself_keeps_its_own_settings() -> None:
     dv = convert("deltav.pid", {"gain": 2.0, "reset": 10.0, "rate": 1.0, "form": "series"},
                  "deltav.pid", sample_time=1.0)
     assert dv.exact and dv.params["form"] == "series"
+
+
+# -- found by an independent reference of the conversions (2026-12-06) ------------------------
+
+
+def test_a_pid_dead_band_makes_the_conversion_inexact() -> None:
+    """docs/conversion.md: exact means no non-linear option; DeltaV IDEADBAND, GE's dead band
+    and E2's MAE say so, but the pid's i_deadband and e_deadband were dropped as "not tuning
+    parameters" under "exact: true" (closed loop 0.5 % of PV apart)."""
+    for extra in ({"i_deadband": 1.0}, {"e_deadband": 0.5}):
+        out = convert("pid", {"k": 2.0, "ti": 10.0, **extra}, "ge.pid_ind", sample_time=1.0)
+        name = next(iter(extra))
+        assert not out.exact and f"{name} = " in out.note and "not converted" in out.note
+        assert "linear laws only" in out.note  # the stated error does not cover it
+    assert convert("pid", {"k": 2.0, "ti": 10.0}, "ge.pid_ind", sample_time=1.0).exact
+
+
+def test_deltav_reset_is_converted_as_the_block_runs_it() -> None:
+    """spec 4.7 step 7: R moves by a = Δ/RESET (Euler, capped at 1), Δ/(RESET + Δ)
+    (backward) or 1 - e^(-Δ/RESET) (exact) of the way per scan, i.e. the Euler reset of
+    RESET_eff = Δ/a. RESET 0.5 s at Δ 1 s ran as RESET 1 s but converted to ti = 0.5 (twice
+    the integral); reset_discretisation = exact converted as RESET with error 0."""
+    cases = (("euler", 0.5, 1.0), ("backward", 16.0, 17.0),
+             ("exact", 16.0, 1.0 / (1.0 - math.exp(-1.0 / 16.0))))
+    for law, reset, effective in cases:
+        src = {"gain": 1.0, "reset": reset, "reset_discretisation": law}
+        dv = convert("deltav.pid", src, "deltav.pid", sample_time=1.0)
+        assert dv.exact and close(dv.params["reset"], effective, 1e-12), (law, dv.params)
+        assert "converted so" in dv.note
+        ideal, _, _ = to_ideal("deltav.pid", src, sample_time=1.0)
+        assert close(ideal.ti, effective, 1e-12)
+    # the block runs them alike: RESET 0.5 and 1.0 at Δ = 1 s, Euler
+    outs = []
+    for reset in (0.5, 1.0):
+        b = create_block("deltav.pid", gain=1.0, reset=reset)
+        outs.append([b.step(1.0, sp=50.0, pv=50.0 - (k % 3))["out"] for k in range(20)])
+    assert len(set(outs[0])) > 2  # the reset moved the output
+    assert outs[0] == outs[1]
+
+
+def test_a_conversion_takes_what_the_block_refuses_as_an_error() -> None:
+    """The pid refuses k with kp (another form's gains) and deltav.pid RESET = 0; convert
+    accepted both, ignoring kp/ki silently and reading RESET 0 as no integral ("Exact")."""
+    with pytest.raises(ParameterError, match="'ki' is for the parallel form"):
+        convert("pid", {"k": 2.0, "kp": 5.0, "ki": 3.0}, "ge.pid_ind", sample_time=1.0)
+    with pytest.raises(ParameterError, match="'k' is for the ideal and series forms"):
+        convert("pid", {"form": "parallel", "k": 2.0, "ti": 3.0}, "pid")
+    with pytest.raises(ParameterError, match=r"'reset' = 0 is out of range: allowed \(0, inf\]"):
+        convert("deltav.pid", {"gain": 1.0, "reset": 0.0}, "pid", sample_time=1.0)
+    ok = convert("deltav.pid", {"gain": 1.0, "reset": 0.0, "reset_zero_disables": True}, "pid",
+                 sample_time=1.0)
+    assert ok.params["ti"] == math.inf

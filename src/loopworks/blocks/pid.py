@@ -309,6 +309,26 @@ _GAINS_IDEAL = ("k", "ti", "td")
 _GAINS_PARALLEL = ("kp", "ki", "kd")
 
 
+def _check_form(form: str, given: set[str]) -> None:
+    """ParameterError when ``given`` (the parameter names set) mixes the forms' gains (k, ti,
+    td for ideal and series; kp, ki, kd for parallel) or gives both 'n' and 'tf': what the
+    block refuses, and so what a conversion from it refuses too."""
+    if form == "parallel":
+        wrong = given & set(_GAINS_IDEAL)
+        if wrong:
+            raise ParameterError(
+                f"pid: parameter '{sorted(wrong)[0]}' is for the ideal and series forms; "
+                "form 'parallel' takes kp, ki, kd")
+    else:
+        wrong = given & set(_GAINS_PARALLEL)
+        if wrong:
+            raise ParameterError(
+                f"pid: parameter '{sorted(wrong)[0]}' is for the parallel form; "
+                f"form '{form}' takes k, ti, td")
+    if "n" in given and "tf" in given:
+        raise ParameterError("pid: give either 'n' or 'tf' for the derivative filter, not both")
+
+
 @register
 class PID(Controller, Block):
     """Generic PID: ideal, parallel or series form; positional or velocity algorithm."""
@@ -392,7 +412,8 @@ class PID(Controller, Block):
     # -- the discrete law (loopworks.blocks.law), both ways ---------------------------------
     LAW_CONTEXT: ClassVar[tuple[str, ...]] = ("pv_span", "out_span")
     LAW_PARAMS: ClassVar[tuple[str, ...]] = ("form", "k", "ti", "td", "kp", "ki", "kd", "n",
-                                             "tf", "action", "b", "c")
+                                             "tf", "action", "b", "c", "i_deadband",
+                                             "e_deadband")
 
     @classmethod
     def law(cls, params: Mapping[str, Any], dt: float | None,
@@ -406,6 +427,7 @@ class PID(Controller, Block):
         prm: dict[str, Any] = validate(cls.kind, cls.PARAMS, dict(params))
         pv_span, out_span = cls.spans(context)
         form = prm["form"]
+        _check_form(form, {str(k).lower() for k, v in params.items() if v is not None})
         if form == "parallel":
             kp = 1.0 if prm["kp"] is None else float(prm["kp"])
             ki = 0.0 if prm["ki"] is None else float(prm["ki"])
@@ -426,11 +448,20 @@ class PID(Controller, Block):
             tf = 0.0 if td == 0.0 or n == math.inf else td / n
         notes: tuple[str, ...] = ()
         if prm["tf"] is None and td > 0.0 and tf > 0.0:
-            notes = (f"The pid filters its derivative with Tf = Td/n = {tf:g} s (n default "
-                     "10).",)
+            n_text = "n default 10" if prm["n"] is None else f"n = {float(prm['n']):g}"
+            notes = (f"The pid filters its derivative with Tf = Td/n = {tf:g} s "
+                     f"({n_text}).",)
+        flags: list[str] = []
+        if float(prm["i_deadband"]) > 0.0 and ti < math.inf:
+            flags.append(f"The pid's i_deadband = {float(prm['i_deadband']):g} freezes the "
+                         "integral near the setpoint (not converted).")
+        if float(prm["e_deadband"]) > 0.0:
+            flags.append(f"The pid's e_deadband = {float(prm['e_deadband']):g} holds the "
+                         "output near the setpoint (not converted).")
         ideal = Ideal(k * pv_span / out_span, ti, td, tf if td > 0.0 else 0.0,
                       prm["action"] == "direct")
-        return DiscreteLaw(ideal, b=float(prm["b"]), c=float(prm["c"]), dt=dt, notes=notes)
+        return DiscreteLaw(ideal, b=float(prm["b"]), c=float(prm["c"]), dt=dt, notes=notes,
+                           flags=tuple(flags))
 
     @classmethod
     def from_law(cls, law: DiscreteLaw, dt: float | None,
@@ -503,31 +534,20 @@ class PID(Controller, Block):
         prm: dict[str, Any] = self.params
         given = set(self.given)
         form = prm["form"]
+        _check_form(form, given)
         if form == "parallel":
-            wrong = given & set(_GAINS_IDEAL)
-            if wrong:
-                raise ParameterError(
-                    f"pid: parameter '{sorted(wrong)[0]}' is for the ideal and series forms; "
-                    "form 'parallel' takes kp, ki, kd")
             kp = _or(prm["kp"], 1.0)
             ki = _or(prm["ki"], 0.0)
             kd = _or(prm["kd"], 0.0)
             ti = kp / ki if ki > 0.0 else math.inf
             td = kd / kp if kp > 0.0 else math.inf
         else:
-            wrong = given & set(_GAINS_PARALLEL)
-            if wrong:
-                raise ParameterError(
-                    f"pid: parameter '{sorted(wrong)[0]}' is for the parallel form; "
-                    f"form '{form}' takes k, ti, td")
             k = _or(prm["k"], 1.0)
             ti = _or(prm["ti"], math.inf)
             td = _or(prm["td"], 0.0)
             if form == "series" and td > 0.0:
                 k, ti, td = series_to_ideal(k, ti, td)
             kp, ki, kd = k, (k / ti if ti < math.inf else 0.0), k * td
-        if "n" in given and "tf" in given:
-            raise ParameterError("pid: give either 'n' or 'tf' for the derivative filter, not both")
         if prm["tf"] is not None:
             tf = float(prm["tf"])
         else:

@@ -249,9 +249,12 @@ def _compare(src: DiscreteLaw, tgt: DiscreteLaw) -> tuple[bool, list[str]]:
     text = [f"{e:.3g} at ω = {label} = {w:.4g} rad/s" if w is not None
             else f"{e:.3g} (P only, any ω)" for label, w, e in errors]
     where = f"discrete, Δ = {dt:g} s" if dt is not None else "continuous, no Δ given"
+    unmodelled = (" It compares the two linear laws only: the options named above (a dead "
+                  "band, a feedback path the linear law does not hold) are not in it, and "
+                  "their effect is not bounded here." if src.flags or tgt.flags else "")
     why.append("Controller frequency-response error |C_t - C_s|/|C_s| "
                f"({where}): " + ("; ".join(text) if text else "not computable in double "
-                                 "precision at these settings") + ".")
+                                 "precision at these settings") + "." + unmodelled)
     return False, why
 
 

@@ -400,6 +400,23 @@ def first_order(y: float, target: float, dt: float, t: float, law: float) -> flo
 
 
 @primitive
+def _reset(kind: str, reset: float, zero_disables: bool) -> float:
+    """RESET (s/repeat) as the block runs it: inf disables I; 0 is a ParameterError unless
+    ``reset_zero_disables`` (then inf)."""
+    if reset == 0.0:
+        if not zero_disables:
+            raise ParameterError(
+                f"{kind}: parameter 'reset' = 0 is out of range: allowed (0, inf] s/repeat "
+                "(inf = no integral action; reset_zero_disables = true accepts 0)")
+        return math.inf
+    return reset
+
+
+def _rel_differs(a: float, b: float) -> bool:
+    """True when ``a`` and ``b`` differ by more than rounding (1e-12 relative)."""
+    return abs(a - b) > 1e-12 * max(abs(a), abs(b))
+
+
 def reset_gain(dt: float, reset: float, law: float) -> float:
     """The a of R_k = R_{k-1} + a·(F - R_{k-1}) (spec 4.7 step 7): dt/RESET (Euler [A], capped
     at 1), dt/(RESET + dt) (backward) or 1 - e^(-dt/RESET) (exact)."""
@@ -888,7 +905,7 @@ class DeltaVPID(Controller, Block):
         "form", "structure", "gain", "reset", "rate", "alpha", "beta", "gamma",
         "direct_acting", "series_derivative", "reset_discretisation",
         "derivative_discretisation", "reset_feedback", "ideadband", "pv_scale_eu_0",
-        "pv_scale_eu_100", "out_scale_eu_0", "out_scale_eu_100")
+        "pv_scale_eu_100", "out_scale_eu_0", "out_scale_eu_100", "reset_zero_disables")
 
     @classmethod
     def spans(cls, context: Mapping[str, Any]) -> tuple[float, float]:
@@ -924,15 +941,32 @@ class DeltaVPID(Controller, Block):
                                  "ideal form (no P action): allowed a structure with P")
         if structure == "two_degrees_of_freedom":
             beta, gamma = float(prm["beta"]), float(prm["gamma"])
-        gain, reset, rate = float(prm["gain"]), float(prm["reset"]), float(prm["rate"])
-        if reset == 0.0 or not has_i:
+        gain, rate = float(prm["gain"]), float(prm["rate"])
+        reset = _reset(kind, float(prm["reset"]), bool(prm["reset_zero_disables"]))
+        if not has_i:
             reset = math.inf
         alpha = float(prm["alpha"])
         direct = bool(prm["direct_acting"])
         flags: list[str] = []
-        if prm["reset_discretisation"] != "euler" and reset < math.inf:
+        notes: list[str] = []
+        law_code = {"euler": EULER, "backward": BACKWARD, "exact": EXACT}[
+            prm["reset_discretisation"]]
+        if reset < math.inf and dt is not None:
+            # the reset's gain per scan a (reset_gain: Euler capped at 1, backward, exact) is
+            # the Euler law's Δ/RESET of RESET_eff = Δ/a: the law is that one exactly
+            effective = dt / reset_gain(dt, reset, law_code)
+            if _rel_differs(effective, reset):
+                notes.append(f"RESET = {reset:g} s with reset_discretisation = "
+                             f"{prm['reset_discretisation']} at Δ = {dt:g} s moves the reset "
+                             f"by a = {dt / effective:.6g} of the way per scan, as the Euler "
+                             f"reset of RESET = {effective:.6g} s does (converted so)"
+                             + (": the Euler gain Δ/RESET is capped at 1." if law_code == EULER
+                                else "."))
+                reset = effective
+        elif prm["reset_discretisation"] != "euler" and reset < math.inf:
             flags.append(f"DeltaV reset_discretisation = {prm['reset_discretisation']} "
-                         "changes the integral gain per scan (converted as RESET).")
+                         "changes the integral gain per scan (converted as RESET; give the "
+                         "sample time for the exact equivalent).")
         if prm["derivative_discretisation"] != "backward" and rate > 0.0:
             flags.append("DeltaV derivative_discretisation = exact (step invariant) is not the "
                          "backward-Euler filter (converted as α·RATE).")
@@ -943,9 +977,6 @@ class DeltaVPID(Controller, Block):
         if float(prm["ideadband"]) > 0.0 and reset < math.inf:
             flags.append("DeltaV IDEADBAND freezes the reset near the setpoint (not "
                          "converted).")
-        if dt is not None and reset < dt:
-            flags.append(f"RESET = {reset:g} s is shorter than the scan {dt:g} s: the Euler "
-                         "reset gain is capped at 1.")
         cls.spans(prm)  # checks the scales
         filt = alpha * rate if rate > 0.0 else 0.0
         if prm["form"] == "series":
@@ -953,9 +984,9 @@ class DeltaVPID(Controller, Block):
             d_factor = 1.0 - alpha if prm["series_derivative"] == "lead_lag" else 1.0
             return DiscreteLaw(Ideal(k, ti, td, filt, direct), b=beta, c=gamma, dt=dt,
                                integral="forward", series=(gain, reset, rate, d_factor, filt),
-                               flags=tuple(flags))
+                               flags=tuple(flags), notes=tuple(notes))
         return DiscreteLaw(Ideal(gain, reset, rate, filt, direct), b=beta, c=gamma, dt=dt,
-                           integral="forward", flags=tuple(flags))
+                           integral="forward", flags=tuple(flags), notes=tuple(notes))
 
     @classmethod
     def from_law(cls, law: DiscreteLaw, dt: float | None,
@@ -1086,13 +1117,7 @@ class DeltaVPID(Controller, Block):
                     raise ParameterError(
                         f"{kind}: parameter '{name}' is used only with structure "
                         f"'two_degrees_of_freedom', not '{structure}'")
-        reset = num("reset")
-        if reset == 0.0:
-            if not prm["reset_zero_disables"]:
-                raise ParameterError(
-                    f"{kind}: parameter 'reset' = 0 is out of range: allowed (0, inf] s/repeat "
-                    "(inf = no integral action; reset_zero_disables = true accepts 0)")
-            reset = math.inf
+        reset = _reset(kind, num("reset"), bool(prm["reset_zero_disables"]))
         if math.isinf(reset):
             has_i = False
         # output limits, in % of the OUT span
