@@ -436,3 +436,16 @@ def test_a_ge_loop_in_counts_scores_output_travel_in_percent() -> None:
     assert result.metrics("pid")["output travel"] == pytest.approx(expected, rel=1e-12)
     (row,) = run_jobs(sc.text, sc.source, [Job(0, "base", {"pid.kp": 1.0}, None)])
     assert row["output travel"] == pytest.approx(expected, rel=1e-12)  # one loop: no prefix
+
+
+def test_itae_of_a_moving_setpoint_weighs_from_the_window_start() -> None:
+    """A cascade secondary's setpoint changes every scan: its "last change" was the last
+    scan, so ITAE weighed nothing and printed 0 beside an IAE of 69 (found by a user of
+    examples/cascade.toml). A window with more than one setpoint change weighs from its
+    start, as a regulatory one."""
+    t = np.arange(20.0)
+    sp = 5.0 + 0.1 * t  # a ramp: a change on every scan
+    pv = sp - 1.0
+    m = metrics.loop_metrics(t, sp, pv, np.zeros(20))
+    assert m["ITAE"] == pytest.approx(sum(range(20)))
+    assert m["IAE"] == pytest.approx(20.0)

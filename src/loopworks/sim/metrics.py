@@ -4,9 +4,10 @@ For samples k with scan time Ts and error e = SP - PV::
 
     IAE  = Σ |e_k|·Ts        ISE = Σ e_k²·Ts        ITAE = Σ t_k·|e_k|·Ts
 
-with t measured from the setpoint change the step figures use (the samples before it not
-summed), or from the start of the window when it has none (a regulatory window: the
-disturbance's time is not known). For a setpoint step of size
+with t measured from the setpoint step when the window holds exactly one setpoint change
+(the samples before it not summed), or from the start of the window otherwise (a regulatory
+window, whose disturbance's time is not known; a setpoint that moves, as a cascade
+secondary's does every scan, or steps several times). For a setpoint step of size
 Δr = r - y_0 (r the setpoint, y_0 the PV at the step) and y_∞ the mean PV over the tail (the
 last 5 % of the samples after the step, at least 2)::
 
@@ -63,9 +64,10 @@ METRICS: tuple[MetricInfo, ...] = (
                "e = working SP − PV", _INTEGRAL),
     MetricInfo("ISE", "PV units²·s", "integral of squared error Σe²·Ts", _INTEGRAL),
     MetricInfo("ITAE", "PV units·s²", "integral of time-weighted absolute error "
-               "Σ(t − t₀)·|e|·Ts from t₀ on, t₀ the setpoint change the step figures use "
-               "(spec 4.1: t from the set-point change), the start of the window when it has "
-               "none", _INTEGRAL),
+               "Σ(t − t₀)·|e|·Ts from t₀ on, t₀ the setpoint step when the window holds "
+               "exactly one setpoint change (spec 4.1: t from the set-point change), else the "
+               "start of the window (regulatory, or a moving setpoint: a cascade secondary's)",
+               _INTEGRAL),
     MetricInfo("mean |e|", "PV units", "mean absolute error over the window", _NONFINITE),
     MetricInfo("step size", "PV units", "the last setpoint step in the window: SP after it "
                "minus PV at it (Δr)",
@@ -423,8 +425,11 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     has_change = changed.any(axis=1)
     start = np.where(has_change, n - 1 - changed[:, ::-1].argmax(axis=1), 0)
     size, over, rise, settle = _step_rows(t, pv, sp[:, -1], start)
-    # ITAE's t from the setpoint change (spec 4.1), the window's start without one
-    since = t[None, :] - t[start][:, None]
+    # ITAE's t from the setpoint step (spec 4.1) when the window holds one change, else from
+    # the window's start (regulatory, or a setpoint that moves: a cascade secondary's changes
+    # every scan, and its last change is no step to weigh from)
+    t0 = np.where(changed.sum(axis=1) == 1, start, 0)
+    since = t[None, :] - t[t0][:, None]
     if window is not None:  # a regulatory window (no setpoint change in it): no step figures
         for fig in (size, over, rise, settle):
             fig[~has_change] = math.nan
