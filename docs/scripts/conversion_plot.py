@@ -17,7 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
-from loopworks.blocks.registry import create_block
+from loopworks import create_block
 from loopworks.tuning.convert import convert
 
 DT, N, STEP_AT, SP0, SP1 = 1.0, 240, 10, 50.0, 55.0
