@@ -399,7 +399,6 @@ def first_order(y: float, target: float, dt: float, t: float, law: float) -> flo
     return y + dt / (t + dt) * (target - y)
 
 
-@primitive
 def _reset(kind: str, reset: float, zero_disables: bool) -> float:
     """RESET (s/repeat) as the block runs it: inf disables I; 0 is a ParameterError unless
     ``reset_zero_disables`` (then inf)."""
@@ -417,6 +416,7 @@ def _rel_differs(a: float, b: float) -> bool:
     return abs(a - b) > 1e-12 * max(abs(a), abs(b))
 
 
+@primitive
 def reset_gain(dt: float, reset: float, law: float) -> float:
     """The a of R_k = R_{k-1} + a·(F - R_{k-1}) (spec 4.7 step 7): dt/RESET (Euler [A], capped
     at 1), dt/(RESET + dt) (backward) or 1 - e^(-dt/RESET) (exact)."""
