@@ -706,3 +706,27 @@ def test_simulate_prints_a_later_loops_valve_rows(tmp_path: Path) -> None:
     travel = saved["base: b"]["valve travel"]
     row = next(line for line in result.output.splitlines() if "valve travel" in line)
     assert "n/a" in row and f"{travel:.4g}" in row
+
+
+def test_replay_reads_a_pipe(tmp_path: Path) -> None:
+    """`loopworks replay pid /dev/stdin` (a pipe: not seekable) was an io.UnsupportedOperation
+    traceback (found by a user); a pipe is read into memory first."""
+    import subprocess
+    import sys
+
+    done = subprocess.run([sys.executable, "-m", "loopworks", "replay", "pid", "/dev/stdin"],
+                          input="t,sp,pv\n0,1,0\n1,1,0.5\n", capture_output=True, text=True,
+                          timeout=300, cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines()[1:] == ["0.0,1.0,1.0,0.0,0.0,128",
+                                            "1.0,0.5,0.5,0.0,0.0,128"]  # P = k·e, k = 1
+
+
+def test_a_warning_is_one_line() -> None:
+    """README: a cache that cannot be written gives one warning line; Python's format gave the
+    file, line and source line too (found by a user)."""
+    from loopworks.cli import _warning_line
+
+    text = _warning_line(RuntimeWarning("loopworks: the plan cache /x cannot be written"),
+                         RuntimeWarning, "/some/file.py", 12, "warnings.warn(...)")
+    assert text == "warning: the plan cache /x cannot be written\n"

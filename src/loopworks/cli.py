@@ -1062,10 +1062,20 @@ def _announce(message: str) -> None:
 def main() -> None:
     """Entry point of the ``loopworks`` console script. A compilation that the plan cache
     could not spare is announced on one line of stderr (blocks.plan)."""
+    import warnings
+
     from loopworks.blocks import plan
 
     plan.announce = _announce
+    # a warning is one line on stderr ("warning: ..."), not Python's file:line and source
+    warnings.formatwarning = _warning_line
     app()
+
+
+def _warning_line(message: Warning | str, category: type[Warning], filename: str,
+                  lineno: int, line: str | None = None) -> str:
+    """``warnings.formatwarning`` of the command line: ``warning: MESSAGE``, one line."""
+    return f"warning: {str(message).removeprefix('loopworks: ')}\n"
 
 
 if __name__ == "__main__":

@@ -329,3 +329,11 @@ def test_a_ku_pu_rule_on_a_hysteresis_point_is_marked() -> None:
     fopdt = ProcessData(process_gain=1.0, dead_time=2.0, time_constant=10.0,
                         ku=5.881, pu=9.039, relay_phase_lag=phi)
     assert tune("amigo", fopdt, "PI").note == ""
+
+
+def test_a_p_controller_gets_the_rule_that_offers_one() -> None:
+    """`tune --controller P` failed: the default (amigo) offers PI and PID only; Ziegler-
+    Nichols is the rule with a P setting (spec 3.6: Kc = 0.5 Ku)."""
+    assert default_rule(EVERYTHING, "P") == "zn"
+    assert default_rule(EVERYTHING, "PI") == "amigo"
+    assert tune(default_rule(ULTIMATE, "p"), ULTIMATE, "P").kc == pytest.approx(0.5 * KU)

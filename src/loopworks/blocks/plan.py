@@ -563,8 +563,10 @@ def entry(slots: Sequence[Slot], what: str, signature: str, usual: Record | None
             _announced = True  # one line per process, before the first compilation
             kinds = ", ".join(sorted({_kind(slot.kernel) for slot in slots}))
             thing = kinds if what == "call" else f"the {what} plan of this module ({kinds})"
-            announce(f"compiling {thing} once for this machine (cached in {cache_dir()}; "
-                     "later runs load it): this can take a minute")
+            where = (f"once for this machine (cached in {cache_dir()}; later runs load it)"
+                     if getattr(mod, "CACHE", False) else
+                     "in memory (the cache cannot be written: every run compiles it)")
+            announce(f"compiling {thing} {where}: this can take a minute")
         if getattr(mod, "CACHE", False):
             with _compile_lock(cache_dir() / "plans" / f"{name}.{what}.lock"):
                 disp.compile(signature)  # loads what another process compiled meanwhile

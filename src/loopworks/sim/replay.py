@@ -197,9 +197,14 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
 
 
 def _open_input(input_path: str | Path, source: str) -> BinaryIO:
-    """The input file, opened for reading bytes."""
+    """The input file, opened for reading bytes; a pipe (``/dev/stdin``, a FIFO), which the
+    reader cannot rewind, is read into memory first."""
     try:
-        return open(input_path, "rb")
+        fh = open(input_path, "rb")  # noqa: SIM115 - the caller closes it
+        if fh.seekable():
+            return fh
+        with fh:
+            return io.BytesIO(fh.read())
     except OSError as exc:
         raise FileFormatError(f"{source}: cannot read the input: {exc.strerror}") from None
 

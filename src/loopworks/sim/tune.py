@@ -433,7 +433,7 @@ def tune_loop(module: Module, loop: str, dt: float, *, rule: str | None = None,
     run = relay_test(module, loop, dt, **relay_options)
     assert run.identification is not None  # relay_test raises RelayTestRefused otherwise
     data = run.identification.process_data()
-    name = default_rule(data) if rule is None else rule
+    name = default_rule(data, controller) if rule is None else rule
     tuning = tune(name, data, controller, **(options or {}))
     ideal = tuning.ideal()
     ctrl = module.blocks[loop]

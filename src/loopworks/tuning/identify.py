@@ -529,7 +529,8 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
     # the switching point of the second stage (of the only stage, for a biased relay alone)
     centre = test.sp + (test.offset if has_biased else 0.0)
     means_sym = _stage_means(rec, ups, (centre if biased_only else test.sp) - s * eps)
-    _stationarity(warnings, "biased" if biased_only else "symmetric", means_sym, a, d)
+    _stationarity(warnings, "biased" if biased_only else "symmetric", means_sym, a, d,
+                  gain=has_biased)
 
     # static gain and process type
     k_static: float | None = None
@@ -706,9 +707,12 @@ def _time_half_range(x: np.ndarray, scan: float) -> float | None:
     return None if spread is None else max(spread, 0.5 * scan)
 
 
-def _stationarity(warnings: list[str], what: str, means: _Means, a: float, d: float) -> None:
+def _stationarity(warnings: list[str], what: str, means: _Means, a: float, d: float,
+                  gain: bool = True) -> None:
     """Warn when a stage's interpolated cycle means of the PV moved by more than
-    SPREAD_WARNING·a, or of the output by more than SPREAD_WARNING·d, over its cycles."""
+    SPREAD_WARNING·a, or of the output by more than SPREAD_WARNING·d, over its cycles;
+    ``gain``: a static gain is read from those means (not with a symmetric relay alone,
+    whose cycle is then uncertain itself)."""
     if len(means.pv_cycles) < 2:
         return
     dy = float(np.ptp(means.pv_cycles))
@@ -718,7 +722,9 @@ def _stationarity(warnings: list[str], what: str, means: _Means, a: float, d: fl
             f"the {what} stage is not stationary: its cycle means moved by {dy:.3g} (PV, "
             f"{100 * dy / a:.0f} % of a) and {du:.3g} (output, {100 * du / d:.0f} % of d) over "
             f"the analysed cycles, above {100 * SPREAD_WARNING:.0f} % (a load, or a loop not at "
-            "rest when the test began): the static gain rests on those means")
+            "rest when the test began): "
+            + ("the static gain rests on those means" if gain
+               else "the cycle's amplitude and period drift with them"))
 
 
 def _or_nan(estimate: Callable[[], tuple[float, float]]) -> tuple[float, float]:

@@ -520,17 +520,20 @@ def _check_settings(rule: Rule, out: _Out) -> None:
                 "data lie outside the range the rule's formulas hold for")
 
 
-def default_rule(data: ProcessData) -> str:
+def default_rule(data: ProcessData, controller: str = "PI") -> str:
     """A sensible rule for what is known, in this order: ``amigo`` (FOPDT or integrating model:
     robust, Ms ≈ 1.4), ``amigo_f`` (relay point with static gain, φ within 120-140°),
     ``amigo_frequency`` (ultimate point and static gain), ``tyreus_luyben`` (ultimate point
     only: the conservative ultimate-point rule, Ms 1.59 for PI on the worked example where
-    Ziegler-Nichols gives 2.43, and it absorbs part of the relay's Ku bias, spec 3.2).
-    Raises ParameterError when no rule has its data."""
+    Ziegler-Nichols gives 2.43, and it absorbs part of the relay's Ku bias, spec 3.2). A P
+    controller, which only ``zn`` offers (spec 3.6), gets ``zn``. Raises ParameterError when
+    no rule has its data."""
 
     def known(model: tuple[str, ...]) -> bool:
         return all(getattr(data, f) is not None for f in model)
 
+    if str(controller).strip().upper() == "P" and known(ULTIMATE):
+        return "zn"
     if known(FOPDT) or known(INTEGRATING):
         return "amigo"
     if known(RELAY_POINT) and data.relay_phase_lag is not None \
