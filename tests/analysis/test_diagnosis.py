@@ -223,11 +223,14 @@ def test_a_few_bad_samples_are_held_not_a_crash() -> None:
 
 @pytest.mark.parametrize(("s", "gain", "vote"), [
     (3.0, 0.2, "stiction"), (MIN_S / 2.0, 0.2, "no_stiction"), (3.0, 0.001, "no_stiction"),
-    (3.0, MIN_R2_GAIN / 2.0, "undetermined"), (1.5 * MAX_S, 0.2, "undetermined")])
+    (3.0, MIN_R2_GAIN / 2.0, "undetermined"), (1.5 * MAX_S, 0.2, "undetermined"),
+    (0.6, -0.05, "undetermined"), (MIN_S / 2.0, -0.05, "no_stiction")])
 def test_the_valve_fit_vote(s: float, gain: float, vote: str) -> None:
     # stiction from S >= MIN_S explaining >= MIN_R2_GAIN of what a linear valve leaves; no
     # stiction below MIN_S or below NO_R2_GAIN; abstains between, and above MAX_S (a band no
-    # loop runs with: the fit has found something else)
+    # loop runs with: the fit has found something else). A fit with S >= MIN_S worse than
+    # the linear valve it could have chosen did not converge: it abstains (sticky level loops
+    # at S 0.56 % and gain -5 % were voted no_stiction, and called so; found by a user)
     r2_lin = 0.5
     fit = ValveFit(s, 0.0, 0.0, s, {"model": "fopdt"}, r2_lin + gain * (1.0 - r2_lin), r2_lin,
                    "", True)
@@ -344,3 +347,31 @@ def test_a_report_directory_keeps_no_plot_of_an_earlier_diagnosis(tmp_path: Path
     assert run.exit_code == 0, run.output
     assert not (out / "valve_travel.png").exists() and not (out / "recommendation.png").exists()
     assert (out / "trends.png").exists() and (out / "mine.txt").read_text() == "earlier"
+
+
+def test_a_valve_seen_on_its_travel_whose_process_fit_is_refused_still_gets_advice(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """docs/diagnose.md: a sticky valve's recommendation always says to repair the valve, and
+    when no option can be simulated the summary says why. A stiction verdict from the
+    recorded travel with the process fit refused had `recommendation: null` and kept the
+    refused fit's process (found by a user's loops with a position column)."""
+    from loopworks.analysis import diagnosis as dg
+    from loopworks.analysis.valve_travel import TravelFit
+
+    t = np.arange(0.0, 4000.0, 1.0)
+    tri = 2.0 * np.abs(((t / 100.0) % 1.0) * 2.0 - 1.0) - 1.0
+    noise = 0.02 * np.random.default_rng(1).standard_normal((2, len(t)))
+    data = _loop(50.0 + 2.0 * tri, 50.0 + np.sign(np.gradient(tri)) + noise[0])
+    data = dataclasses.replace(data, position=50.0 + np.sign(np.gradient(tri)) + noise[1])
+    refused = ValveFit(math.nan, math.nan, math.nan, math.nan, {"model": "fopdt", "gain": 9.9},
+                       0.1, 0.1, "the record does not support an estimate", False)
+    monkeypatch.setattr(dg, "fit_valve", lambda *a, **k: refused)
+    monkeypatch.setattr(dg, "fit_travel",
+                        lambda d: TravelFit(1.5, 0.5, 0.9, 0.5, True, "travel fitted"))
+    d = dg.diagnose(data, samples=1)
+    assert d.verdict == "stiction", d.reason
+    assert d.stiction is not None and d.stiction["s"] == 1.5 and d.stiction["process"] is None
+    assert d.stiction["r2"] == 0.9 and d.stiction["r2_linear"] == 0.5  # the travel's fit
+    assert d.recommendation is not None and d.recommendation["recommended"] is None
+    assert "Repair or replace the valve" in d.recommendation["summary"]
+    assert "S = 1.5 %" in d.recommendation["summary"]

@@ -261,10 +261,13 @@ def _valve_fit_vote(fit: ValveFit) -> Evidence:
 def _fit_vote(s: float, gain: float) -> Verdict:
     """A fitted valve's vote (rule 3): stiction when S ≥ :data:`MIN_S` and the stiction
     explains at least :data:`MIN_R2_GAIN` of what a linear valve leaves unexplained (``gain``);
-    no stiction when S is below :data:`MIN_S` or ``gain`` below :data:`NO_R2_GAIN`."""
+    no stiction when S is below :data:`MIN_S` or ``gain`` in [0, :data:`NO_R2_GAIN`). A fit
+    with S ≥ MIN_S that explains *less* than the linear valve (gain < 0) abstains: S = J = 0
+    is one of the valves it could have chosen, so it did not find its best, and its S says
+    nothing either way (sticky level loops fitted so were called no_stiction)."""
     if s >= MIN_S and gain >= MIN_R2_GAIN:
         return "stiction"
-    if s < MIN_S or gain < NO_R2_GAIN:
+    if s < MIN_S or 0.0 <= gain < NO_R2_GAIN:
         return "no_stiction"
     return "undetermined"
 
@@ -362,21 +365,30 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     if held:
         reason += (f"; {held} Bad (NaN, infinite or beyond ±1e12) sample(s) of SP, PV or OP "
                    "held at the last good value before the tests")
-    stiction = model = rec = None
+    stiction: dict[str, Any] | None = None
+    model = rec = None
+    r2 = (fit.r2, fit.r2_linear)  # of the fit S and J come from
     if verdict == "stiction" and travel is not None and travel.ok:
+        r2 = (travel.r2, travel.r2_linear)
         # measured on the stem: better than the estimate through the process
         fit = replace(fit, s=travel.s, j=travel.j, resolution=travel.j,
                       deadband=travel.s - travel.j,
                       reason=f"{travel.reason} Process: {fit.reason}")
-        if not fit.ok:
+        if not fit.ok:  # the stem shows it; the process fit was refused: no loop model
             stiction = {"s": travel.s, "j": travel.j, "resolution": travel.j,
                         "deadband": travel.s - travel.j, "r2": travel.r2,
-                        "r2_linear": travel.r2_linear, "process": dict(fit.process),
+                        "r2_linear": travel.r2_linear, "process": None,
                         "reason": travel.reason}
+            if recommend:
+                rec = _no_options(
+                    f"the recorded valve travel shows a stick band of S = {travel.s:.3g} %, "
+                    f"but the process could not be fitted ({fit.reason}), so the options "
+                    "cannot be simulated. Repair or replace the valve at the next "
+                    "opportunity.")
     if verdict == "stiction" and fit.ok:
         model = model_pv(data, fit)
         stiction = {"s": fit.s, "j": fit.j, "resolution": fit.resolution,
-                    "deadband": fit.deadband, "r2": fit.r2, "r2_linear": fit.r2_linear,
+                    "deadband": fit.deadband, "r2": r2[0], "r2_linear": r2[1],
                     "process": dict(fit.process),
                     "reason": f"{fit.reason} {SAMPLED.format(dt=data.dt)}"}
         if recommend:
