@@ -539,6 +539,23 @@ def test_the_plan_name_follows_the_kernels_code_not_its_module(tmp_path: Path) -
     assert plan._kernels_hash((kernel("\n\n# moved down\n" + text, 2.0),)) == base
     assert plan._kernels_hash((kernel(text, 3.0),)) != base  # a constant numba freezes
     assert plan._kernels_hash((kernel(text.replace("*", "+"), 2.0),)) != base
+    # a helper the kernel calls, compiled apart (a primitive) or left a plain function: a
+    # decorator moved off it kept the name, and a warm cache served machine code that a fresh
+    # machine could not build (deltav.pid's reset_gain, 2026-12-06)
+    import numba
+
+    def helper(v: float) -> float:
+        return 2.0 * v
+
+    calls = "def k(dt, p, x, u, us, y, ys):\n    y[0] = HELPER(u[0])\n"
+
+    def calling(fn: Any) -> Any:
+        namespace: dict[str, Any] = {"HELPER": fn, "__name__": "tests.fake_kernels"}
+        exec(compile(calls, "<fake>", "exec"), namespace)
+        return namespace["k"]
+
+    assert plan._kernels_hash((calling(helper),)) != plan._kernels_hash(
+        (calling(numba.njit(helper)),))
 
 
 def test_is_cached_finds_machine_code_under_numba_cache_dir(monkeypatch: pytest.MonkeyPatch,

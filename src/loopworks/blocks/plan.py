@@ -198,6 +198,9 @@ def _feed(obj: Any, digest: Any, seen: set[int]) -> None:
     seen.add(id(obj))
     py_func = getattr(obj, "py_func", None)  # a numba dispatcher
     if py_func is not None:
+        # compiled apart (a primitive) or not at all: a kernel calling a plain function
+        # fails to compile, so the two must not share machine code
+        digest.update(b"dispatcher")
         obj = py_func
     if isinstance(obj, types.FunctionType):
         digest.update(f"function {obj.__module__}.{obj.__qualname__}".encode())
