@@ -55,7 +55,8 @@ def test_a_backlash_is_measured_as_its_band() -> None:
     assert fit is not None and fit.ok, fit
     assert fit.s == pytest.approx(2.0, rel=0.1)  # Choudhury S of a pure backlash: its band
     assert fit.j == pytest.approx(0.0, abs=0.2)
-    assert fit.r2 > 0.99 > fit.r2_linear
+    # the band explains nearly all that the best linear valve (a lag or not) leaves
+    assert fit.r2 > 0.99 and (fit.r2 - fit.r2_linear) / (1.0 - fit.r2_linear) > 0.9
 
 
 def test_a_positioner_lag_is_not_stiction() -> None:
@@ -97,3 +98,21 @@ def test_the_report_draws_the_valve_against_its_recorded_position(tmp_path: Path
         3.0, rel=0.3)
     assert (tmp_path / "r" / "valve_travel.png").stat().st_size > 10_000
     assert "valve_travel.png" in (tmp_path / "r" / "report.html").read_text()
+
+
+@pytest.mark.parametrize("periods", [2.0, 4.0])
+def test_a_slow_positioner_is_not_stiction(periods: float) -> None:
+    """A healthy valve behind a 10-20 s positioner lag, recorded every 5 s (2-4 periods):
+    the lag puts the position behind the OP on every reversal, as a dead band would, and
+    against α·OP + β alone the fit voted stiction (S 0.3-0.5 %; found by a user's level
+    loops). The linear valve it is measured against may lag (LAG_TAUS): the stick band
+    explains nothing beyond it."""
+    from loopworks.analysis.diagnosis import _valve_travel_vote
+
+    op = _op()
+    a = math.exp(-1.0 / periods)
+    pos = lfilter([1.0 - a], [1.0, -a], op, zi=[a * op[0]])[0]
+    pos = pos + 0.01 * np.random.default_rng(5).standard_normal(len(op))
+    fit = fit_travel(_record(op, pos))
+    assert fit is not None and fit.ok and fit.r2_linear > 0.99
+    assert _valve_travel_vote(fit).vote != "stiction", fit

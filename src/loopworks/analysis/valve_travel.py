@@ -16,7 +16,14 @@ the recorded OP to the recorded position::
 α and β by linear least squares (a position reported in another span or with an offset), S
 and J by the grid and pattern search of the joint fit
 (:func:`loopworks.analysis.valve_fit.search_sj`). R² = 1 − SSE/SST of the position;
-``r2_linear`` is the same with S = J = 0 (α·OP + β, a linear valve).
+``r2_linear`` is the best linear valve: S = J = 0 behind a first-order positioner lag of
+τ ≥ 0 (α·OP + β for τ = 0)::
+
+    l_k = l_{k-1} + (1 − e^{−Δ/τ})·(OP_k − l_{k-1}),   position_k ≈ α·l_k + β
+
+τ from :data:`LAG_TAUS` record periods; a slow positioner's lag shows a healthy valve's
+position behind the OP on every reversal, as a dead band would, and was read as stiction
+(a 10 s lag at a 5 s record: S 0.3-0.5 %).
 """
 
 from __future__ import annotations
@@ -48,6 +55,21 @@ MIN_R2 = 0.25
 #: a period after the move (0.75-1.0, median 0.998, on the simulated set's 120 sticky valves,
 #: docs/diagnose.md); an unrelated signal does half the time (0.52-0.54 for random walks)]
 MIN_TOWARD = 0.65
+#: the positioner lags τ tried for the linear valve, in record periods Δ (0: none) [ours: a
+#: positioner is a first-order lag of 0.5-20 s, at historian periods of 1-10 s]
+LAG_TAUS = (0.0, 0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0)
+
+
+def lagged(op: FloatArray, tau: float) -> FloatArray:
+    """``op`` through a first-order lag of ``tau`` record periods (module docstring), from
+    rest at its first value; ``op`` itself for tau = 0."""
+    if tau <= 0.0:
+        return op
+    from scipy.signal import lfilter
+
+    a = 1.0 - math.exp(-1.0 / tau)  # l_k = (1 - a)·l_{k-1} + a·OP_k, l_{-1} = OP_0
+    out, _ = lfilter([a], [1.0, a - 1.0], op, zi=[(1.0 - a) * float(op[0])])
+    return np.asarray(out, dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -125,7 +147,8 @@ def fit_travel(data: LoopData) -> TravelFit | None:
     def cost(s: float, j: float) -> float:
         return _sse(valve_position(op_held, s, j)[use], p)
 
-    r2_lin = 1.0 - cost(0.0, 0.0) / sst
+    # the best linear valve, behind a positioner lag or not
+    r2_lin = max(1.0 - _sse(lagged(op_held, tau)[use], p) / sst for tau in LAG_TAUS)
     s, j = search_sj(cost, op_range)
     r2 = 1.0 - cost(s, j) / sst
     toward = _toward(op[use], valve_position(op_held, s, j)[use], p)
@@ -140,7 +163,8 @@ def fit_travel(data: LoopData) -> TravelFit | None:
                          f"of the recorded position, below {MIN_R2:g}: is it this OP's valve?")
     return TravelFit(s, j, r2, r2_lin, True, f"on the recorded position: S = {s:.3g} %, J = "
                      f"{j:.3g} % (deadband {s - j:.3g} %, resolution {j:.3g} %); R² "
-                     f"{r2:.3f} of the position against {r2_lin:.3f} for a linear valve.")
+                     f"{r2:.3f} of the position against {r2_lin:.3f} for a linear valve "
+                     "(behind the best positioner lag).")
 
 
 def model_position(data: LoopData, fit: TravelFit) -> FloatArray:
