@@ -37,8 +37,11 @@
       e.append(typeof kid === "string" ? document.createTextNode(kid) : kid);
     return e;
   }
+  // digits: decimals; "exact": a setting as given, to 6 significant digits (a tuning value:
+  // ALPHA 0.125 showed as 0.13, RESET 1e9 pushed the panel apart)
   function fmt(v, digits) {
     if (typeof v !== "number") return v === null || v === undefined ? "" : String(v);
+    if (digits === "exact") return String(Number(v.toPrecision(6)));
     const d = digits === undefined ? (Math.abs(v) >= 1000 ? 0 : Math.abs(v) >= 100 ? 1 : 2) : digits;
     return v.toFixed(d);
   }
@@ -401,7 +404,8 @@
     ofill.className = "fill q-" + (stale ? "stale" : out ? out[2] : "none");
     for (const n of Object.keys(points())) {
       const cell = document.getElementById(`v-${n}`);
-      if (cell && !["PV", "SP", "OUT"].includes(n)) show(cell, val(LOOP, n), stale, n === "SCANS" || n.endsWith("ERRORS") || n === "OVERRUNS" || n === "READBACK_MISMATCHES" ? 0 : undefined);
+      const setting = points()[n].writable && n !== "MODE";
+      if (cell && !["PV", "SP", "OUT"].includes(n)) show(cell, val(LOOP, n), stale, setting ? "exact" : n === "SCANS" || n.endsWith("ERRORS") || n === "OVERRUNS" || n === "READBACK_MISMATCHES" ? 0 : undefined);
     }
     const start = val(LOOP, "COMP_START");
     const cs = $("#comp-state");
