@@ -423,3 +423,19 @@ def test_a_conversion_takes_what_the_block_refuses_as_an_error() -> None:
     ok = convert("deltav.pid", {"gain": 1.0, "reset": 0.0, "reset_zero_disables": True}, "pid",
                  sample_time=1.0)
     assert ok.params["ti"] == math.inf
+
+
+def test_a_gain_word_at_its_limits() -> None:
+    """GE word 6 = 100·Kp: Kp 0.004 rounds to 0 (no P, which the block refuses); the error
+    showed the rounded 0.0, or blamed ti when Kp was the cause. S5's K is a signed word,
+    -32768..+32767 (spec 2.2): a direct-acting K of 32·1024 = -32768 was refused."""
+    for kind, name in (("ge.pid_ind", "kp"), ("ge.pid_isa", "kc")):
+        for params in ({"k": 0.004}, {"k": 1e-4, "ti": 1e4}):
+            with pytest.raises(ParameterError, match=rf"'{name}' = .* allowed 0.005 and above"):
+                convert("pid", params, kind, sample_time=1.0)
+    assert convert("pid", {"k": 0.004}, "ge.pid_ind", sample_time=1.0,
+                   target={"arithmetic": "float"}).params["kp"] == pytest.approx(0.004)
+    out = convert("pid", {"k": 32.0, "action": "direct"}, "s5.pid", sample_time=1.0)
+    assert out.params["k"] == -32768
+    with pytest.raises(ParameterError, match=r"'k' = 32768 is out of range: allowed 0\.\.32767"):
+        convert("pid", {"k": 32.0}, "s5.pid", sample_time=1.0)

@@ -969,8 +969,19 @@ class GEPIDBlock(Controller, Block):
                                  "allowed: expected one of native, float")
         native = arithmetic == "native"
         out: dict[str, ParamValue] = {}
+        def gain_word(name: str, gain: float) -> int:
+            """Word 6 = 100·gain rounded half up; a gain it rounds to 0 (no proportional
+            action, which the block refuses) is a ParameterError with the given gain."""
+            w = word("word6", gain * 100.0, kind)
+            if w == 0 and native:
+                raise ParameterError(
+                    f"{kind}: parameter '{name}' = {gain:.4g} is out of range: allowed 0.005 "
+                    "and above (word 6 = 100·gain rounds to 0: no proportional action; or "
+                    "arithmetic = float)")
+            return w
+
         if cls.IS_ISA:
-            w6 = word("word6", k * 100.0, kind)
+            w6 = gain_word("kc", k)
             w7 = word("word7", ideal.td * 100.0, kind)
             w8 = 0 if ideal.ti == math.inf else word("word8", 1000.0 / ideal.ti, kind)
             if ideal.ti != math.inf and w8 == 0:
@@ -984,7 +995,7 @@ class GEPIDBlock(Controller, Block):
                 out.update(kc=k, ti=ideal.ti, td=ideal.td)
         else:
             kp, ki, kd = ideal_to_parallel(k, ideal.ti, ideal.td)
-            w6 = word("word6", kp * 100.0, kind)
+            w6 = gain_word("kp", kp)
             w7 = word("word7", kd * 100.0, kind)
             w8 = word("word8", ki * 1000.0, kind)
             if ideal.ti != math.inf and w8 == 0:

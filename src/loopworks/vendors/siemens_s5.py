@@ -664,7 +664,8 @@ class S5PID(Controller, Block):
                 raise ParameterError(f"s5.pid: parameter 'dd_decay' = {d:g} is out of range "
                                      "for a derivative: allowed (0, 1) (law A: 0.5)")
             td_c = r * ideal.td * (1.0 - d) / (d * dt)
-        k_word = word("k", big_k * scale, kind)
+        # K is a signed word, -32768..+32767 (spec 2.2): a direct-acting K may reach 32768
+        k_word = word("k", big_k * scale, kind, 32768.0 if ideal.direct else 32767.0)
         td_word = word("td", td_c * scale, kind)
         if ideal.ti < math.inf and word("ti", ti_c * scale, kind, 9999.0) == 0:
             raise ParameterError(
