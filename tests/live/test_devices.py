@@ -117,3 +117,23 @@ def test_a_controller_over_two_devices() -> None:
                 t.cancel()
 
     asyncio.run(main())
+
+
+def test_a_failed_device_leaves_only_its_points_unwritten() -> None:
+    """serve publishes OUT Bad for the loops whose device points were not written
+    (LiveController.out): with two devices, one down, only that one's points."""
+    class Fake:
+        def __init__(self, ok: bool) -> None:
+            self.ok = ok
+
+        async def write(self, values: dict[str, float]) -> bool:
+            return self.ok
+
+    multi = object.__new__(MultiIO)
+    multi.ios = [Fake(True), Fake(False)]  # type: ignore[list-item]
+    multi.writes_to = [{"valve_a.op"}, {"valve_b.op"}]
+    ok = asyncio.run(multi.write({"valve_a.op": 1.0, "valve_b.op": 2.0}))
+    assert not ok and multi.unwritten == {"valve_b.op"}
+    multi.ios[1].ok = True  # type: ignore[attr-defined]
+    assert asyncio.run(multi.write({"valve_a.op": 1.0, "valve_b.op": 2.0}))
+    assert multi.unwritten == set()

@@ -345,3 +345,26 @@ def test_a_checkpoint_that_overrides_the_file_s_parameters_says_so(
         make(plain)[0].save()
         make(plain)
     assert not [r for r in caplog.records if "differ" in r.getMessage()]
+
+
+def test_out_is_bad_while_its_device_write_fails() -> None:
+    """An operator's run: with the valve's device down, OUT stayed Good and the loop looked
+    healthy (only the COMM_ERRORS count said otherwise). A loop whose device point was not
+    written on the last scan publishes OUT Bad, no communication, last usable value."""
+    from loopworks.blocks import status as st
+
+    ctl, io = make()
+    scans(ctl, 3)
+    value, status = ctl.snapshot()["pid.OUT"]
+    assert status & 0xC0 != 0  # Good (or Uncertain), not Bad
+
+    async def down(values: dict[str, float]) -> bool:
+        return False
+
+    io.write = down  # type: ignore[method-assign]
+    scans(ctl, 1)
+    value, status = ctl.snapshot()["pid.OUT"]
+    assert status == st.BAD_NO_COMM_LUV and math.isfinite(value)
+    del io.write  # the device is back
+    scans(ctl, 1)
+    assert ctl.snapshot()["pid.OUT"][1] & 0xC0 != 0

@@ -133,6 +133,8 @@ class MultiIO:
         self.reads = 0
         self.writes_to = [{p.name for p in link.regmap.points if p.direction == "input"}
                           for link in self.links]
+        #: the points the last write left unwritten (a device whose write failed)
+        self.unwritten: set[str] = set()
 
     async def read(self) -> dict[str, tuple[float, int]]:
         """Every device's outputs; a device is read when its poll period is due."""
@@ -148,10 +150,13 @@ class MultiIO:
         return out
 
     async def write(self, values: dict[str, float]) -> bool:
-        """Each output to its device; False when any device's write failed."""
+        """Each output to its device; False when any device's write failed, whose points are
+        then ``unwritten`` (the other devices' were written)."""
         parts = [{k: v for k, v in values.items() if k in names} for names in self.writes_to]
-        done = await asyncio.gather(*(io.write(part) for io, part in
-                                      zip(self.ios, parts, strict=True) if part))
+        sent = [(io, part) for io, part in zip(self.ios, parts, strict=True) if part]
+        done = await asyncio.gather(*(io.write(part) for io, part in sent))
+        self.unwritten = {k for (_, part), ok in zip(sent, done, strict=True) if not ok
+                          for k in part}
         return all(done)
 
     def status(self) -> dict[str, Any]:

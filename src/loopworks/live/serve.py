@@ -240,6 +240,8 @@ class LiveController:
         # controller output "compensator.signal_out"
         self.reads = [(dest, src) for dest, src in split.to_controller]
         self.writes = [(point, src) for point, src in split.to_plant]
+        #: the device points the last scan's write left unwritten (:meth:`out`)
+        self.unwritten: set[str] = set()
         names = {p.name for m in maps for p in m.points}
         missing = [n for n in [s for _, s in self.reads] + [p for p, _ in self.writes]
                    if n not in names]
@@ -305,7 +307,10 @@ class LiveController:
         for point, src in self.writes:
             block, port = src.split(".", 1)
             out[point] = _output(self.module.blocks[block], port)[0]
-        await self.io.write(out)
+        # the points a failed write left unwritten (the I/O's own list where it has one, else
+        # all): the loops that feed them publish OUT Bad, no communication
+        ok = await self.io.write(out)
+        self.unwritten = set() if ok else set(getattr(self.io, "unwritten", out))
         self.scans += 1
         if self.checkpoint is not None and self.scans % self.checkpoint_every == 0:
             self.save()
@@ -363,7 +368,7 @@ class LiveController:
             b = loop.block
             snap[f"{name}.PV"] = _input(b, loop.pv)
             snap[f"{name}.SP"] = self.working_sp(loop)
-            snap[f"{name}.OUT"] = _output(b, loop.out)
+            snap[f"{name}.OUT"] = self.out(loop)
             if loop.mode is not None:
                 snap[f"{name}.MODE"] = self.mode(loop)
             if "mode_actual" in b._out_index:
@@ -384,6 +389,18 @@ class LiveController:
                     v, s = _output(cb, port) if output else _input(cb, port)
                     snap[f"{name}.{_comp_name(port)}"] = (v, s if spec.status else st.GOOD_NC)
         return snap
+
+    def out(self, loop: Loop) -> tuple[float, int]:
+        """OUT as published: the controller's output and status, the status Bad (no
+        communication, last usable value) while a device point the loop feeds (through its
+        compensator too) was not written on the last scan: the valve does not get it, and an
+        operator must not read it as Good."""
+        value, status = _output(loop.block, loop.out)
+        feeds = {loop.name, loop.compensator}
+        if any(src.split(".", 1)[0] in feeds for point, src in self.writes
+               if point in self.unwritten):
+            return value, st.BAD_NO_COMM_LUV
+        return value, status
 
     def mode(self, loop: Loop) -> tuple[int, int]:
         """The loop's target mode as the OPC UA MODE node publishes it: (code of ``MODES``,
