@@ -312,3 +312,27 @@ def test_a_controller_whose_scans_stop_is_shown_stale(setup: Setup) -> None:
     assert until(lambda: not state(b)["loops"]["pid"]["stale"], 3.0)
     assert until(lambda: state(b)["loops"]["pid"]["stale"], 5.0)  # SCANS still for 3 s
     assert state(b)["link"]["connected"] and not state(b)["loops"]["pid"]["scanning"]
+
+
+def test_a_login_the_faceplate_no_longer_holds_is_told_not_sent_as_anonymous(
+        setup: Setup) -> None:
+    """After a restart the page still showed the operator logged in and a change went to the
+    controller as an anonymous write ("log in as an operator"; found by an operator's run). A
+    write with a session cookie the faceplate does not hold is refused with SessionEnded,
+    the cookie cleared, and nothing reaches the controller."""
+    import urllib.error
+    import urllib.request
+
+    before = len(setup.ctl.writes)
+    req = urllib.request.Request(
+        setup.base + "/api/loop/pid/write", data=json.dumps({"name": "SP", "value": 63}).encode(),
+        headers={"Content-Type": "application/json", "Cookie": "loopworks_session=gone"},
+        method="POST")
+    with pytest.raises(urllib.error.HTTPError) as info:
+        urllib.request.urlopen(req, timeout=10)
+    assert info.value.code == 401
+    answer = json.loads(info.value.read())
+    assert answer["code"] == "SessionEnded" and "log in again" in answer["message"]
+    assert "loopworks_session=\"\"" in str(info.value.headers.get("set-cookie")) or \
+        "Max-Age=0" in str(info.value.headers.get("set-cookie"))
+    assert len(setup.ctl.writes) == before

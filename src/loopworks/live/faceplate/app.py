@@ -355,6 +355,15 @@ def create_app(opcua_url: str, *, period: float = 0.25) -> FastAPI:
         s = fp.session(request)
         if s is not None:
             _check_csrf(request, s)
+        elif request.cookies.get(COOKIE):
+            # a login this faceplate no longer holds (it restarted, or the session idled
+            # out): not sent as an anonymous write the page would show under the user's name
+            response = JSONResponse(
+                {"code": "SessionEnded", "message": "your login ended (the faceplate "
+                 "restarted, or the session was idle): log in again; the change was not "
+                 "made"}, status_code=401)
+            response.delete_cookie(COOKIE, path="/")
+            return response
         who = s.user if s is not None else "anonymous"
         try:
             await fp.write(s, name, body.name.upper(), body.value)

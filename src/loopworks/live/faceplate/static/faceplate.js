@@ -145,6 +145,7 @@
       result.dataset.code = code;
     }
     toast(text, r.ok ? "ok" : "err");
+    if (code === "SessionEnded") await loadSession();  // shows the page logged out
     return r.ok;
   }
 
