@@ -94,3 +94,39 @@ def test_no_device_at_all_is_bad_without_a_usable_value() -> None:
 
     value, status = asyncio.run(main())["sensor.pv"]
     assert status == st.BAD_NO_COMM_NO_LUV and math.isnan(value)
+
+
+def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up() -> None:
+    """A device that answers every poll with a Modbus exception (a wrong unit id in the [io]
+    map) was taken for a lost device: the link was closed and opened again every second, with
+    "connected again" and "reading the device failed" logged each time, forever (found by an
+    operator's run). A refusal keeps the link, marks the points Bad (configuration error) and
+    is logged once, naming the unit id."""
+    split = split_scenario(SC)
+    regmap = default_map(split)
+    wrong = object.__new__(type(regmap))
+    for name, value in vars(regmap).items():
+        object.__setattr__(wrong, name, value)
+    object.__setattr__(wrong, "device_id", regmap.device_id + 1)
+
+    async def main() -> None:
+        device = Device(split_scenario(SC), regmap, speedup=50.0)
+        port = await device.start("127.0.0.1", 0)
+        scanning = asyncio.create_task(device.run())
+        io = ModbusIO(wrong, "127.0.0.1", port)
+        try:
+            for _ in range(5):
+                values = await io.read()
+                assert values["sensor.pv"][1] == st.BAD_CONFIGURATION_ERROR
+            assert not await io.write({"valve.op": 50.0})
+            refusals = [e for e in io.counters.events if "answered" in e]
+            assert len(refusals) == 2  # one for the reads, one for the write
+            assert f"unit id {regmap.device_id + 1}" in refusals[0]
+            assert io.counters.reconnects == 0 and io.client.connected
+            assert not [e for e in io.counters.events if "connected again" in e]
+        finally:
+            io.close()
+            scanning.cancel()
+            await device.stop()
+
+    asyncio.run(main())

@@ -32,6 +32,10 @@ from loopworks.live.registers import Point, RegisterMap, decode_f32, encode_f32
 log = logging.getLogger("loopworks.serve")
 
 #: first and longest wait between reconnection attempts, s
+#: Modbus exception codes (Modbus Application Protocol V1.1b3, 7)
+EXCEPTIONS = {1: "illegal function", 2: "illegal data address", 3: "illegal data value",
+              4: "server device failure", 6: "server device busy",
+              10: "gateway path unavailable", 11: "gateway target device failed to respond"}
 RETRY_MIN = 0.1
 RETRY_MAX = 1.0
 #: a request's time-out, s (a scan waits at most this for the device)
@@ -81,6 +85,8 @@ class ModbusIO:
         self._retry_at = 0.0
         self._backoff = RETRY_MIN
         self._lost_logged = False
+        #: the last refusal logged ("what: exception code"), None after a good read
+        self._refusal: str | None = None
 
     def _event(self, message: str, level: int = logging.WARNING) -> None:
         stamp = time.strftime("%Y-%m-%dT%H:%M:%S", time.localtime())
@@ -108,6 +114,20 @@ class ModbusIO:
             self._lost(f"cannot connect to the device {self.host}:{self.port}")
         return ok
 
+    def _refused(self, what: str, rr: Any) -> None:
+        """The device answered ``what`` with a Modbus exception: logged once per kind of
+        refusal (the link stays up; a wrong unit id or address refuses every poll, which
+        logged "lost" and "connected again" every second before)."""
+        code = int(getattr(rr, "exception_code", 0) or 0)
+        key = f"{what}: {code}"
+        if self._refusal != key:
+            self._refusal = key
+            meaning = EXCEPTIONS.get(code, "an exception")
+            self._event(f"device {self.host}:{self.port} answered {what} of unit id "
+                        f"{self.regmap.device_id} with exception {code} ({meaning}): check the "
+                        "[io] map's device_id and addresses against the device; its points "
+                        "are Bad (configuration error) meanwhile")
+
     def _lost(self, why: str) -> None:
         self.counters.connected = False
         if not self._lost_logged:
@@ -129,8 +149,15 @@ class ModbusIO:
                 first, count = _span(self.regmap.points)
                 rr = await self.client.read_holding_registers(
                     first, count=count, device_id=self.regmap.device_id)
-                if rr.isError():
-                    raise ConnectionError(f"exception response {rr}")
+                if rr.isError():  # it answered: connected, but refused (not a lost link)
+                    self.counters.read_errors += 1
+                    self._refused(f"reading registers {first}..{first + count - 1}", rr)
+                    for p in self.inputs:
+                        last = self.last.get(p.name)
+                        values[p.name] = (math.nan if last is None else last,
+                                          st.BAD_CONFIGURATION_ERROR)
+                    return values
+                self._refusal = None
                 regs = list(rr.registers)
             except Exception as exc:  # a lost device surfaces as several exception types
                 self.counters.read_errors += 1
@@ -182,8 +209,11 @@ class ModbusIO:
             try:
                 rr = await self.client.write_registers(
                     p.address, encode_f32(value, p.word_order), device_id=self.regmap.device_id)
-                if rr.isError():
-                    raise ConnectionError(f"exception response {rr}")
+                if rr.isError():  # refused, not lost: the link stays up
+                    self.counters.write_errors += 1
+                    self._refused(f"writing {p.name} (register {p.address})", rr)
+                    ok = False
+                    continue
             except Exception as exc:
                 self.counters.write_errors += 1
                 self._lost(f"writing {p.name} failed ({type(exc).__name__}: {exc})")
