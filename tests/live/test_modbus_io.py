@@ -7,6 +7,7 @@ import asyncio
 import math
 import time
 
+import pytest
 from pymodbus.client import AsyncModbusTcpClient
 
 from loopworks.blocks import status as st
@@ -96,7 +97,8 @@ def test_no_device_at_all_is_bad_without_a_usable_value() -> None:
     assert status == st.BAD_NO_COMM_NO_LUV and math.isnan(value)
 
 
-def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up() -> None:
+def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up(
+        caplog: pytest.LogCaptureFixture) -> None:
     """A device that answers every poll with a Modbus exception (a wrong unit id in the [io]
     map) was taken for a lost device: the link was closed and opened again every second, with
     "connected again" and "reading the device failed" logged each time, forever (found by an
@@ -124,6 +126,12 @@ def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up() -> None:
             assert f"unit id {regmap.device_id + 1}" in refusals[0]
             assert io.counters.reconnects == 0 and io.client.connected
             assert not [e for e in io.counters.events if "connected again" in e]
+            # the device: one line, not pymodbus's traceback and frame dump on every poll
+            assert device.refusals is not None and device.refusals.count >= 6
+            lines = [r for r in caplog.records if "does not serve" in r.getMessage()]
+            assert len(lines) == 1 and "unit id 1" in lines[0].getMessage()
+            assert not [r for r in caplog.records
+                        if "Datastore unable" in r.getMessage()]
         finally:
             io.close()
             scanning.cancel()

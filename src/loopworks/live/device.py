@@ -53,6 +53,29 @@ from loopworks.sim.module import scan_count
 
 log = logging.getLogger("loopworks.device")
 
+class _Refusals(logging.Filter):
+    """pymodbus logs a request it cannot serve (another unit id, an unknown register) as a
+    traceback with a hex dump of the frame, on every poll; it answers exception 4 (server
+    device failure) all the same. The device logs the first such request as one line and
+    drops the rest (a client polling a wrong unit id filled the terminal)."""
+
+    def __init__(self, unit: int) -> None:
+        super().__init__()
+        self.unit = unit
+        self.count = 0
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if not record.getMessage().startswith("Datastore unable to fulfill request"):
+            return True
+        self.count += 1
+        if self.count == 1:
+            log.warning("a client asked for a unit id or register this device does not serve "
+                        "(it serves unit id %d): answered Modbus exception 4 (server device "
+                        "failure); further such requests are answered alike, not logged",
+                        self.unit)
+        return False
+
+
 #: Modbus function codes that write holding registers (6 single, 16 multiple, 22 mask
 #: write, 23 read/write multiple)
 WRITE_CODES = frozenset({6, 16, 22, 23})
@@ -138,6 +161,8 @@ class Device:
         self.overruns = 0
         self.port: int | None = None
         self._server: ModbusTcpServer | None = None
+        #: the requests for another unit id or an unknown register (counted, logged once)
+        self.refusals: _Refusals | None = None
         self._last_write: dict[str, float] = {}
         self._written: dict[str, float] = {}  # client writes since the last scan: wall time
         self._refusing: set[str] = set()
@@ -258,6 +283,11 @@ class Device:
                              "free port)")
         device = SimDevice(id=self.regmap.device_id, simdata=self._registers(),
                            action=self._action)
+        pymodbus_log = logging.getLogger("pymodbus.logging")
+        for old in [f for f in pymodbus_log.filters if isinstance(f, _Refusals)]:
+            pymodbus_log.removeFilter(old)
+        self.refusals = _Refusals(self.regmap.device_id)
+        pymodbus_log.addFilter(self.refusals)
         server = ModbusTcpServer(device, address=(host, port))
         try:
             await server.serve_forever(background=True)
