@@ -439,3 +439,15 @@ def test_a_gain_word_at_its_limits() -> None:
     assert out.params["k"] == -32768
     with pytest.raises(ParameterError, match=r"'k' = 32768 is out of range: allowed 0\.\.32767"):
         convert("pid", {"k": 32.0}, "s5.pid", sample_time=1.0)
+
+
+def test_a_target_at_another_sample_time_is_not_told_two_things() -> None:
+    """An E2 source (its law fixed to its update interval, 2 s) converted for a target at
+    Δ = 1 s: the note said "Run the target at Δ = 2 s." then "the target at 1 s", which read
+    as a contradiction (found by an independent reference). It now says the source's law is
+    fixed to 2 s and that what follows is the difference at the 1 s asked for."""
+    out = convert("e2.pid", {"update_interval": 2.0, "ki": 0.1}, "pid", sample_time=1.0)
+    assert "Run the target at" not in out.note
+    assert "fixed to Δ = 2 s (run the target at that Δ); at the 1 s asked for" in out.note
+    same = convert("e2.pid", {"update_interval": 2.0, "ki": 0.1}, "pid", sample_time=2.0)
+    assert "Run the target at Δ = 2 s." in same.note

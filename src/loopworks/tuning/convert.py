@@ -377,7 +377,12 @@ def _from_law(kind: str, law: DiscreteLaw, dt: float | None, ctx: dict[str, Any]
     exact, why = _compare(law, tgt)
     notes = [*law.notes, *made.notes]
     if not cls.PER_SAMPLE and law.dt is not None:
-        notes.append(f"Run the target at Δ = {law.dt:g} s.")
+        if tgt.dt is not None and _rel(law.dt, tgt.dt) > TOL:
+            notes.append(f"The source's law is fixed to Δ = {law.dt:g} s (run the target at "
+                         f"that Δ); at the {tgt.dt:g} s asked for, the target's terms differ "
+                         "as the next sentence says.")
+        else:
+            notes.append(f"Run the target at Δ = {law.dt:g} s.")
     errors = () if exact else tuple(
         (w, e) for _, w, e in _response_errors(law, tgt, law.dt if law.dt is not None
                                                 else tgt.dt) if w is not None)
