@@ -219,7 +219,7 @@ def test_mapped_column_absent(tmp_path: Path) -> None:
 def test_two_columns_for_one_role(tmp_path: Path) -> None:
     with pytest.raises(FileFormatError) as exc:
         read_csv(write(tmp_path, "t,sp,pv,op,out\n0,1,2,3,4\n1,1,2,3,4\n"))
-    assert "'op' and 'out'" in str(exc.value) and "line 1" in str(exc.value)
+    assert "'op' (#4) and 'out' (#5)" in str(exc.value) and "line 1" in str(exc.value)
 
 
 @pytest.mark.parametrize(("text", "words"), [
@@ -299,3 +299,18 @@ def test_mode_codes_and_words(tmp_path: Path) -> None:
         with pytest.raises(FileFormatError, match=rf"line 3, column 'mode': '{code}' is not a "
                                                   r"mode: 0 \(manual\), 1 \(automatic\), 2 "):
             read_csv(write(tmp_path, f"t,sp,pv,op,mode\n0,1,2,3,1\n1,1,2,3,{code}\n"))
+
+
+def test_a_column_named_twice_is_chosen_by_its_position(tmp_path: Path) -> None:
+    """Two columns named pv: the error said to map one with --columns, and --columns pv=pv
+    then said 2 columns are named 'pv', a dead end (found by a user). A column can be given
+    by its position, #N (1-based), which the errors name."""
+    path = write(tmp_path, "t,sp,pv,op,pv\n0,1,2,3,4\n1,1,2,3,4\n")
+    with pytest.raises(FileFormatError, match=r"'pv' \(#3\) and 'pv' \(#5\).*--columns pv=#3"):
+        read_csv(path)
+    with pytest.raises(FileFormatError, match=r"name one by its position, #3, #5"):
+        read_csv(path, {"pv": "pv"})
+    assert read_csv(path, {"pv": "#5"}).pv.tolist() == [4.0, 4.0]
+    assert read_csv(path, parse_columns("pv=#3")).pv.tolist() == [2.0, 2.0]
+    with pytest.raises(FileFormatError, match="columns #1 to #5"):
+        read_csv(path, {"pv": "#9"})

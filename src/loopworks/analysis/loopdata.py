@@ -239,12 +239,20 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
         hits = [i for i, h in enumerate(names) if h == column]
         if not hits:
             hits = [i for i, h in enumerate(lower) if h == column.lower()]
+        if not hits and column.startswith("#") and column[1:].isdigit():
+            # a column by its position, 1-based (two columns of one name can be told apart)
+            if not 1 <= int(column[1:]) <= len(names):
+                raise FileFormatError(f"{source}, line {line}: column {column} (given for "
+                                      f"{role}): the header has columns #1 to #{len(names)}")
+            hits = [int(column[1:]) - 1]
         if not hits:
             raise FileFormatError(f"{source}, line {line}: no column {column!r} (given for "
                                   f"{role}, the {MEANING[role]}); the columns are {present}")
         if len(hits) > 1:
+            where = ", ".join(f"#{i + 1}" for i in hits)
             raise FileFormatError(f"{source}, line {line}: {len(hits)} columns are named "
-                                  f"{column!r} (given for {role})")
+                                  f"{column!r} (given for {role}): name one by its position, "
+                                  f"{where} (--columns {role}=#{hits[0] + 1})")
         found[role] = hits[0]
     taken = set(found.values())
     for role in ROLES:
@@ -252,10 +260,11 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
             continue
         hits = [i for i, h in enumerate(lower) if h in ALIASES[role] and i not in taken]
         if len(hits) > 1:
-            both = " and ".join(repr(names[i]) for i in hits)
+            both = " and ".join(f"{names[i]!r} (#{i + 1})" for i in hits)
             raise FileFormatError(f"{source}, line {line}: columns {both} could each be the "
                                   f"{role} ({MEANING[role]}): map one with "
-                                  f"columns={{'{role}': NAME}}")
+                                  f"columns={{'{role}': NAME}}, or by its position "
+                                  f"(--columns {role}=#{hits[0] + 1})")
         if hits:
             found[role] = hits[0]
             taken.add(hits[0])
