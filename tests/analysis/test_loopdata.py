@@ -314,3 +314,19 @@ def test_a_column_named_twice_is_chosen_by_its_position(tmp_path: Path) -> None:
     assert read_csv(path, parse_columns("pv=#3")).pv.tolist() == [2.0, 2.0]
     with pytest.raises(FileFormatError, match="columns #1 to #5"):
         read_csv(path, {"pv": "#9"})
+
+
+def test_a_tab_separated_export_reads_as_its_csv(tmp_path: Path) -> None:
+    """Many historians export tab-separated text (the StictionGPT records are): it was
+    refused as "one column"; it now reads as the same file with commas, value for value,
+    and a comma in the first line keeps it a CSV."""
+    source = PLANT / "plant06.csv"
+    text = source.read_text()
+    tabbed = write(tmp_path, text.replace(",", "\t"), "plant06.txt")
+    a, b = read_csv(source), read_csv(tabbed)
+    for role in ("t", "sp", "pv", "op", "mode"):
+        np.testing.assert_array_equal(getattr(a, role), getattr(b, role))
+    # a comma-separated file whose cells hold a tab is still read by commas
+    mixed = write(tmp_path, "t,sp,pv,op\n" + "".join(
+        f"{k},50,\t{50 + k % 3},40\n" for k in range(5)), "mixed.csv")
+    np.testing.assert_array_equal(read_csv(mixed).pv, [50, 51, 52, 50, 51])

@@ -448,3 +448,28 @@ def test_an_infinite_varied_value_is_inf_in_json_not_null(scenario: Path,
     assert result.exit_code == 0, result.output
     best = json.loads(result.stdout)["best"]
     assert best["pid.ti"] == "inf" and isinstance(best["PV std"], float)
+
+
+def test_a_swept_out_scale_scores_output_travel_in_each_instances_span(
+        tmp_path: Path) -> None:
+    """A DeltaV PID's OUT is in OUT_SCALE's EU, and output travel is scored in % of that span
+    (spec 4.1, docs/metrics.md): a sweep of OUT_SCALE scored every instance against the
+    template's span (an OUT_SCALE of 0..200 EU printed twice its travel). Each row now
+    equals ``loopworks simulate`` of its point."""
+    text = SCENARIO.replace('kind = "pid"\nk = 1.0\nti = 20.0\nsp = 50.0\nbias = 50.0\n',
+                            'kind = "deltav.pid"\ngain = 1.0\nreset = 20.0\nsp = 50.0\n'
+                            'initial_out = 50.0\nout_scale_eu_100 = 100.0\n'
+                            ).replace('"pid.ti" = 10.0', '"pid.reset" = 10.0')
+    assert "deltav.pid" in text and "ti" not in text.split("[compare.base]")[1]
+    path = tmp_path / "deltav.toml"
+    path.write_text(text, encoding="utf-8")
+    result = sweep(path, {"pid.out_scale_eu_100": "100,200"}, variant="base", workers=1)
+    travel = []
+    for i in range(2):
+        row = {k: col[i] for k, col in result.columns.items()}
+        expected = _simulate_metrics(tmp_path, text, {
+            "pid.out_scale_eu_100": row["pid.out_scale_eu_100"]}, row["seed"], "base")
+        for name in ("output travel", "output reversals", "IAE"):
+            assert row[name] == pytest.approx(expected[name], rel=1e-9), name
+        travel.append(row["output travel"])
+    assert travel[0] != pytest.approx(travel[1], rel=0.05)  # the runs differ: a real check

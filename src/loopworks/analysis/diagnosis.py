@@ -35,8 +35,8 @@ The rules, in order:
    stiction when the fitted S is at least :data:`MIN_S` % and the valve nonlinearity explains at
    least :data:`MIN_R2_GAIN` of the PV variance a linear valve leaves unexplained; no stiction
    when the fit is good and S is below :data:`MIN_S` or that share below :data:`NO_R2_GAIN`;
-   otherwise (or when the record does not support a fit, or S is above :data:`MAX_S` %) it
-   abstains.
+   otherwise (or when the record does not support a fit, or S is above :data:`MAX_S` %, or
+   the fit explains less than the linear valve, :func:`_fit_vote`) it abstains.
 
    When the record has the valve position (a digital positioner's travel feedback), the
    valve is also measured on it (:mod:`loopworks.analysis.valve_travel`: OP → position, no
@@ -262,12 +262,17 @@ def _fit_vote(s: float, gain: float) -> Verdict:
     """A fitted valve's vote (rule 3): stiction when S ≥ :data:`MIN_S` and the stiction
     explains at least :data:`MIN_R2_GAIN` of what a linear valve leaves unexplained (``gain``);
     no stiction when S is below :data:`MIN_S` or ``gain`` in [0, :data:`NO_R2_GAIN`). A fit
-    with S ≥ MIN_S that explains *less* than the linear valve (gain < 0) abstains: S = J = 0
-    is one of the valves it could have chosen, so it did not find its best, and its S says
-    nothing either way (sticky level loops fitted so were called no_stiction)."""
+    that explains *less* than the linear valve abstains: S = J = 0 is one of the valves it
+    could have chosen, so it did not find its best, and its S says nothing either way (sticky
+    level loops fitted so were called no_stiction) - with S ≥ MIN_S for any gain < 0, with S
+    below it for gain < -NO_R2_GAIN (a fit as good as the linear valve's, within the
+    no-stiction share, is one that found the valve linear; a fit 12 % worse with S = 0.08 %
+    called a sticky level loop no_stiction)."""
     if s >= MIN_S and gain >= MIN_R2_GAIN:
         return "stiction"
-    if s < MIN_S or 0.0 <= gain < NO_R2_GAIN:
+    if gain < (0.0 if s >= MIN_S else -NO_R2_GAIN):
+        return "undetermined"
+    if s < MIN_S or gain < NO_R2_GAIN:
         return "no_stiction"
     return "undetermined"
 

@@ -4,12 +4,13 @@ reader of historian CSV exports that makes it.
 :class:`LoopData` holds uniformly sampled float64 arrays; it needs no blocks. :func:`read_csv`
 reads a historian export with the csv module and numpy (no pandas):
 
-* a header row; the columns are found by name in any letter case: time ``t``, ``time``,
-  ``timestamp`` or ``datetime``; setpoint ``sp``, ``setpoint`` or ``sv``; process variable
-  ``pv``; controller output ``op``, ``mv``, ``out`` or ``output``; valve stem position
-  ``position`` or ``valve`` (optional); ``mode`` (optional: 1 = automatic, 0 = manual, 2 =
-  cascade (automatic), loopworks' pid codes, or the words of :data:`MODE_WORDS`; any other
-  number is a located error, not a guess). Tag names are mapped explicitly with
+* comma-separated, or tab-separated when the first line holds tabs and no comma (as many
+  historians export); a header row; the columns are found by name in any letter case: time
+  ``t``, ``time``, ``timestamp`` or ``datetime``; setpoint ``sp``, ``setpoint`` or ``sv``;
+  process variable ``pv``; controller output ``op``, ``mv``, ``out`` or ``output``; valve
+  stem position ``position`` or ``valve`` (optional); ``mode`` (optional: 1 = automatic, 0 =
+  manual, 2 = cascade (automatic), loopworks' pid codes, or the words of :data:`MODE_WORDS`;
+  any other number is a located error, not a guess). Tag names are mapped explicitly with
   ``columns={"sp": "FIC101.SV", ...}`` (:func:`parse_columns` reads the same from the text
   ``sp=FIC101.SV,pv=FIC101.PV``); roles not mapped are still looked for by name;
 * the time column holds seconds (numbers) or ISO 8601 time stamps (``2024-03-01 12:00:10``,
@@ -42,7 +43,7 @@ import os
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
-from typing import Literal
+from typing import Literal, TextIO
 
 import numpy as np
 import numpy.typing as npt
@@ -233,7 +234,8 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
         if sep is not None:
             raise FileFormatError(f"{source}, line {line}: the header {names[0]!r} is one "
                                   f"column: the file seems separated by {sep!r}; a historian "
-                                  "CSV here is comma-separated (export it so, or convert it)")
+                                  "CSV here is comma- or tab-separated (export it so, or "
+                                  "convert it)")
     found: dict[str, int] = {}
     for role, column in mapping.items():
         hits = [i for i, h in enumerate(names) if h == column]
@@ -330,7 +332,7 @@ def _rows(source: str) -> Iterator[tuple[int, list[str]]]:
     read or parsed is a FileFormatError."""
     try:
         with open(source, newline="", encoding="utf-8-sig") as f:
-            reader = csv.reader(f)
+            reader = csv.reader(f, delimiter=_separator(f))
             while True:
                 try:
                     row = next(reader)
@@ -344,6 +346,14 @@ def _rows(source: str) -> Iterator[tuple[int, list[str]]]:
         raise FileFormatError(f"{source}: not UTF-8 text (byte {exc.start})") from None
     except OSError as exc:
         raise FileFormatError(f"{source}: cannot read the file: {exc.strerror}") from None
+
+
+def _separator(f: TextIO) -> str:
+    """A tab when the file's first non-blank line holds tabs and no comma (a tab-separated
+    export, as many historians write), else a comma; ``f`` is left at its start."""
+    first = next((line for line in f if line.strip()), "")
+    f.seek(0)
+    return "\t" if "\t" in first and "," not in first else ","
 
 
 def _number(cell: str) -> float | None:

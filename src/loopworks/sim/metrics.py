@@ -385,12 +385,13 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
                  window: tuple[float, float] | None = None,
                  reversal_threshold: float = 0.05,
                  command: np.ndarray | None = None,
-                 out_span: float = 100.0) -> dict[str, Any]:
+                 out_span: float | np.ndarray = 100.0) -> dict[str, Any]:
     """The metrics table of one loop (``METRICS``, spec 4.1), over ``window`` = (t0, t1) s
     (default: the whole run): error integrals, step figures from the last setpoint change in
     the window (none for a window without one; a change on the window's first scan, against
     the scan before it, is one), PV spread, controller output travel and reversals (in % of
-    ``out_span``, the output's units of 100 %), the valve stem's when ``position`` is given
+    ``out_span``, the output's units of 100 %, or one per instance), the valve stem's when
+    ``position`` is given
     and the valve command's (the signal wired to the valve's op input) when ``command`` is
     given; ``reversal_threshold`` in % of span. NaN marks a figure the data cannot support.
 
@@ -450,7 +451,8 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
             "PV peak to peak": np.ptp(pv, axis=1) if spread else np.full(len(pv), math.nan),
         }
     result["output travel"], result["output reversals"] = _signal_metrics(
-        out * (100.0 / out_span), reversal_threshold)
+        out * (100.0 / np.reshape(np.asarray(out_span, dtype=np.float64), (-1, 1))),
+        reversal_threshold)
     if position is not None:
         result["valve travel"], result["valve reversals"] = _signal_metrics(
             position, reversal_threshold)

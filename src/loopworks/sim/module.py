@@ -310,12 +310,27 @@ class Module:
         return [f"{name}.{port.name}" for name in self.order
                 for port in (*self.blocks[name].INPUTS, *self.blocks[name].OUTPUTS)]
 
-    def out_spans(self) -> dict[str, float]:
-        """Each controller's output units of 100 % (``Controller.out_span``), by name."""
+    def out_spans(self, instances: Sequence[Mapping[str, Any]] = ()
+                  ) -> dict[str, float | np.ndarray]:
+        """Each controller's output units of 100 % (``Controller.out_span``), by name; with
+        ``instances`` (each a batch instance's changes, ``"block.parameter"`` = value), one
+        per instance where they differ (a swept OUT_SCALE), an array of them."""
         from loopworks.blocks.controller import Controller
 
-        return {n: type(b).out_span(b.params) for n, b in self.blocks.items()
-                if isinstance(b, Controller)}
+        spans: dict[str, float | np.ndarray] = {}
+        for n, b in self.blocks.items():
+            if not isinstance(b, Controller):
+                continue
+            span = type(b).out_span(b.params)
+            mine = [{k.lower().rpartition(".")[2]: v for k, v in changes.items()
+                     if k.lower().rpartition(".")[0] == n.lower()} for changes in instances]
+            if any(mine):
+                each = np.array([type(b).out_span({**b.params, **m}) if m else span
+                                 for m in mine])
+                spans[n] = float(each[0]) if (each == each[0]).all() else each
+            else:
+                spans[n] = span
+        return spans
 
     def metric_signals(self) -> list[str]:
         """What :meth:`SimResult.metrics` reads of every controller: its SP, PV and OUT roles

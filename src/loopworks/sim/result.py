@@ -28,8 +28,9 @@ class SimResult:
     status: dict[str, np.ndarray]
     kinds: dict[str, str] = field(default_factory=dict)
     wires: dict[str, str] = field(default_factory=dict)
-    #: each controller's output units of 100 % (``Controller.out_span``; 100 when not given)
-    out_spans: dict[str, float] = field(default_factory=dict)
+    #: each controller's output units of 100 % (``Controller.out_span``; 100 when not given);
+    #: in a batch, an array of one per instance where they differ
+    out_spans: dict[str, float | np.ndarray] = field(default_factory=dict)
 
     def __getitem__(self, name: str) -> np.ndarray:
         """``result["pid.out"]``; ``result["pid.out.ST"]`` gives the status array."""

@@ -290,8 +290,8 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
             raise _refused(jobs[members[0]], exc) from None
         template = batch.module
         record = template.metric_signals()
-        info = {"kinds": {b: template.blocks[b].kind for b in template.order},
-                "wires": dict(template.wires), "out_spans": template.out_spans()}
+        info: dict[str, Any] = {"kinds": {b: template.blocks[b].kind for b in template.order},
+                                "wires": dict(template.wires)}
         if not template.compiled:  # interpreted: one module per instance
             for k in members:
                 job = jobs[k]
@@ -313,6 +313,8 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
             R, RS = batch.run(sc.duration, sc.dt)
             values = {name: R[:, j] for j, name in enumerate(record)}
             status = {name: RS[:, j] for j, name in enumerate(record)}
+            # each instance's output span (a swept OUT_SCALE changes it)
+            info["out_spans"] = template.out_spans([jobs[k].changes for k in chunk])
             for k, row in zip(chunk, _metrics(SimResult(t, values, status, **info),
                                               sc.metrics_window), strict=True):
                 rows[k] = row
