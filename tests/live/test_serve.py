@@ -345,6 +345,18 @@ def test_a_checkpoint_that_overrides_the_file_s_parameters_says_so(
         make(plain)[0].save()
         make(plain)
     assert not [r for r in caplog.records if "differ" in r.getMessage()]
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="loopworks.serve"):
+        # an operator's write of a default the file leaves out overrides nothing (the
+        # warning named `deadband_pos = 0.0 (file: 0.0)`; found by an operator)
+        default = tmp_path / "default.json"
+        ctl, _ = make(default)
+        pid = ctl.module.blocks["pid"]
+        assert "rate" not in pid.given
+        pid.set_params(rate=pid.params["rate"])
+        ctl.save()
+        make(default)
+    assert not [r for r in caplog.records if "differ" in r.getMessage()]
 
 
 def test_out_is_bad_while_its_device_write_fails() -> None:
@@ -368,3 +380,72 @@ def test_out_is_bad_while_its_device_write_fails() -> None:
     del io.write  # the device is back
     scans(ctl, 1)
     assert ctl.snapshot()["pid.OUT"][1] & 0xC0 != 0
+
+
+WORD_LOOPS = """\
+[simulation]
+dt = 0.5
+duration = 60.0
+
+[blocks.ge]
+kind = "ge.pid_ind"
+kp = 0.5
+ki = 0.05
+sample_period = 0.5
+bias = 16000
+upper_clamp = 32000
+lower_clamp = 0
+sp = 16000
+
+[blocks.p_ge]
+kind = "process.first_order"
+gain = 1.0
+time_constant = 10.0
+y0 = 16000.0
+
+[blocks.s5]
+kind = "s5.pid"
+k = 500
+r = 1000
+ti = 50
+td = 0
+bgog = 2000
+bgug = 0
+y0 = 1000
+no_z = true
+w = 1000
+yh = 1000
+
+[blocks.p_s5]
+kind = "process.first_order"
+gain = 1.0
+time_constant = 10.0
+y0 = 1000.0
+
+[wires]
+"p_ge.u" = "ge.cv"
+"ge.pv" = "p_ge.y"
+"p_s5.u" = "s5.y"
+"s5.x" = "p_s5.y"
+"""
+
+
+def test_a_word_setpoint_takes_whole_counts_of_a_16_bit_word(tmp_path: Path) -> None:
+    """GE's SP operand and S5's W are signed 16-bit words (spec vendor-blocks 1.1, 2.2): an
+    operator's SP of 40000 was accepted and published Good while the GE block skipped every
+    solution (ok = 0, CV frozen) and S5 used 32767; 16500.5 was published as typed while
+    the blocks used 16501 (found by an operator). Both are refused, with the range; a whole
+    number in range is taken."""
+    path = tmp_path / "words.toml"
+    path.write_text(WORD_LOOPS, encoding="utf-8")
+    split = split_scenario(load_scenario(path))
+    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    scans(ctl, 4)
+    for loop in ("ge", "s5"):
+        for value in (40000.0, -40000.0, 1e9, 16500.5):
+            refused = refusal(ctl, loop, "SP", value)
+            assert refused.code == "BadOutOfRange", (loop, value)
+            assert "16-bit word, a whole number of counts in -32768..32767" in str(refused)
+        ctl.write("op", "operator", loop, "SP", 1200.0)
+        scans(ctl, 2)
+        assert ctl.snapshot()[f"{loop}.SP"][0] == 1200.0

@@ -434,17 +434,19 @@ class Block:
             if params[name] != self.params[name]:
                 raise InputError(f"{self.kind}: {name} {why} and cannot change "
                                  f"({self.params[name]!r} → {params[name]!r}); make a new block")
-        old_params, self.params = self.params, params
+        # the coefficients are computed from the new values and the new set of names given
+        # (a rule on which parameters were given, such as DeltaV's BETA only with the
+        # two-degrees-of-freedom structure, judges this change, not the last one)
+        old_params, old_given = self.params, self.given
+        self.params, self.given = params, given
         try:
             coefficients = self._coefficients()
+            if coefficients.shape != self.p.shape:
+                raise InputError(f"{self.kind}: changing {', '.join(changes)} changes the "
+                                 "block's layout; make a new block instead")
         except Exception:
-            self.params = old_params
+            self.params, self.given = old_params, old_given
             raise
-        if coefficients.shape != self.p.shape:
-            self.params = old_params
-            raise InputError(f"{self.kind}: changing {', '.join(changes)} changes the block's "
-                             "layout; make a new block instead")
-        self.given = given
         self.p[:] = coefficients
 
     def outputs(self) -> Outputs:

@@ -130,6 +130,11 @@ class Controller(metaclass=ABCMeta):
     #: False when they are continuous-time and the block runs the law at any Δ
     PER_SAMPLE: ClassVar[bool] = False
 
+    #: (lo, hi) when the setpoint is a signed integer word (GE's SP operand and S5's W are
+    #: 16-bit words in counts): an operator's SP must be a whole number in it; None: any
+    #: real number (the block's own SP limits apply, ``loopworks.live.serve``)
+    SP_WORD: ClassVar[tuple[int, int] | None] = None
+
     #: the context names of the PV and output spans and their defaults (port units of 100 %)
     SPANS: ClassVar[tuple[tuple[str, float], tuple[str, float]]] = (
         ("pv_span", 100.0), ("out_span", 100.0))

@@ -213,7 +213,10 @@ def _overridden(module: Module, saved: Mapping[str, Any]) -> list[str]:
     for name, block in module.blocks.items():
         given = (saved.get("blocks", {}).get(name) or {}).get("params") or {}
         for param, value in given.items():
-            if param not in block.given or not _same(block.given[param], value):
+            file_value = block.given.get(param, block.params.get(param))
+            # the file's value, or the block's default where the file gives none (an
+            # operator's write of the default overrides nothing)
+            if not _same(file_value, value) and not _same(block.params.get(param), value):
                 kept.append(f"{name}.{param} = {value!r} (file: "
                             f"{block.params.get(param)!r})")
     return kept
@@ -506,6 +509,11 @@ class LiveController:
             if elsewhere is not None:
                 raise WriteRefused("BadInvalidState", f"SP is not written now: {elsewhere} "
                                    "(set the target mode to AUTO to write SP)")
+            word = type(b).SP_WORD if isinstance(b, Controller) else None
+            if word is not None and not (v == round(v) and word[0] <= v <= word[1]):
+                raise WriteRefused("BadOutOfRange", f"SP = {v!r}: this controller's setpoint "
+                                   f"is a 16-bit word, a whole number of counts in "
+                                   f"{word[0]}..{word[1]}")
             lo, hi = self._sp_range(b)
             if not lo <= v <= hi:
                 raise WriteRefused("BadOutOfRange", f"SP = {v:g} is outside {lo:g}..{hi:g}")

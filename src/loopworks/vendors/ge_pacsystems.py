@@ -739,6 +739,8 @@ class GEPIDBlock(Controller, Block):
                                    man_out="manual_command")
     AUTOMATIC: ClassVar[dict[str, Any]] = {"man": 0.0}
     MANUAL: ClassVar[dict[str, Any]] = {"man": 1.0}
+    #: every word is a signed 16-bit integer, the SP operand too (spec 1.1)
+    SP_WORD: ClassVar[tuple[int, int] | None] = (-32768, 32767)
     ACTION: ClassVar[Action] = Action("direct_acting", "=", True)  # Config Word bit 0, spec 1.3
     #: a relay test puts the block in Manual with the relay's output as Manual Command; the
     #: integral tracks the output in Manual, so Auto continues from it (spec 1.7)

@@ -553,6 +553,8 @@ class S5PID(Controller, Block):
     ROLES: ClassVar[Roles] = Roles(sp="w", pv="x", out="y", ff="z", mode="auto", man_out="yh")
     AUTOMATIC: ClassVar[dict[str, Any]] = {"auto": "AUTO"}
     MANUAL: ClassVar[dict[str, Any]] = {"auto": "MAN"}
+    #: W is a 16-bit fixed-point data-block word (spec 2.2)
+    SP_WORD: ClassVar[tuple[int, int] | None] = (-32768, 32767)
     #: XW = W - X with K > 0 is reverse acting (Siemens calls it "direct"), spec 2.5
     ACTION: ClassVar[Action] = Action("k", "<", 0)
     #: a relay test puts the block in Manual (D 11.0 = 0) following YH; DW 48 keeps the

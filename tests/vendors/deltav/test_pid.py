@@ -1094,3 +1094,19 @@ def test_retune_bumpless_ignores_changes_outside_p(make: Make) -> None:
     before = b.x.copy()
     b.set_params(reset=20.0, rate=1.0, out_hi_lim=90.0)
     assert np.array_equal(b.x, before)
+
+
+def test_a_retune_is_judged_on_its_own_values(make: Make) -> None:
+    """BETA applies only with the two-degrees-of-freedom structure (spec 4.3): a live BETA
+    write on a one-degree block was accepted (the rule read the names given before the
+    change), never applied, and then every later tuning write was refused naming beta
+    (found by an operator: the loop's tuning was locked, across restarts). The change itself
+    is refused now, and the block keeps taking other changes."""
+    b = make(gain=0.5, reset=20.0, **F64)
+    with pytest.raises(ParameterError, match="'beta' is used only with structure"):
+        b.set_params(beta=0.5)
+    assert "beta" not in b.given and b.params["beta"] == 1.0
+    b.set_params(gain=1.0)
+    assert b.params["gain"] == 1.0
+    b.set_params(structure="two_degrees_of_freedom", beta=0.5)  # together: accepted
+    assert b.params["beta"] == 0.5
