@@ -117,3 +117,33 @@ def test_bad_input_is_refused() -> None:
         area_ratio(np.ones(10), -1.0)
     with pytest.raises(ValueError, match="finite"):
         area_ratio(np.array([1.0, math.nan, -1.0]), DT)
+
+
+def test_noise_on_a_stiction_cycle_does_not_make_half_cycles() -> None:
+    """Half cycles are the oscillation's (spec 4.3: "for each half cycle of e"): on a late-
+    peaked cycle with noise every sign change of the noise started a "half cycle", the
+    median R of those fragments was about 1 and a stiction cycle read `no_stiction` (found by
+    an independent reference: R 1.06 over 751 "half cycles" of a record holding about
+    105). Given the oscillation's period, the half cycles are its own and R is the cycle's."""
+    clean = triangle_half_cycles(rise_s=20.0, fall_s=5.0, count=40)  # R = 4, P = 50 s
+    e = clean + 0.05 * np.random.default_rng(3).standard_normal(len(clean))
+    fragments = area_ratio(e, DT)
+    assert fragments.half_cycles > 200  # the noise's sign changes counted as half cycles
+    res = area_ratio(e, DT, period=50.0 / DT)
+    assert res.verdict == "stiction"
+    assert 36 <= res.half_cycles <= 38  # 38 complete half cycles in the record
+    # the peak is the raw signal's (the published method): noise near the top of the slow
+    # rise takes it early, so R reads low, not high
+    assert 2.0 < res.ratio <= 4.2 and res.ratio > fragments.ratio + 0.5
+
+
+def test_an_oscillation_the_noise_hides_is_not_measured() -> None:
+    """A small sine under large noise: the few lobes that leave the noise (or several
+    merged) say nothing of the oscillation's shape; fewer than a third of the half cycles
+    its period implies stand out, so the method abstains and says why (a linear loop under a
+    slow external sine read late peaks, R = 2.0, on 5 such lobes of 66)."""
+    rng = np.random.default_rng(5)
+    e = 0.15 * sine(30.0, 3000.0) + rng.standard_normal(30000)
+    res = area_ratio(e, DT, period=30.0 / DT)
+    assert res.verdict == "undetermined" and res.half_cycles == 0
+    assert "stand above the noise, of the 200 its period" in res.reason

@@ -380,3 +380,28 @@ def test_a_valve_seen_on_its_travel_whose_process_fit_is_refused_still_gets_advi
     assert d.recommendation is not None and d.recommendation["recommended"] is None
     assert "Repair or replace the valve" in d.recommendation["summary"]
     assert "S = 1.5 %" in d.recommendation["summary"]
+
+
+def test_a_linear_loop_under_a_slow_noisy_sine_is_not_called_sticky() -> None:
+    """A flow loop with a linear valve, a 0.5 % external sine at 300 s (12 times its
+    ultimate period) and 0.3 % transmitter noise was called `stiction` (found by an
+    independent reference): Horch's slow-disturbance false positive, and the curve fit and
+    the area ratio measuring hundreds of noise fragments as "half cycles" (SI 0.62 on 13.6 s
+    half cycles of a 304 s oscillation). The half-cycle methods now measure the oscillation's
+    own half cycles, and abstain when the noise hides most of them."""
+    import dataclasses
+
+    from loopworks.analysis.synthetic import simulate_loop
+
+    for seed in (1, 2):
+        loop = simulate_loop(loop_type="self-regulating", controller="pid", valve="linear",
+                             noise=0.3, gain=0.6, time_constant=33.0, dead_time=5.5,
+                             walk_std=0.3 / math.sqrt(300.0), sine_amplitude=0.5,
+                             sine_period=300.0, seed=seed)
+        d = diagnose(dataclasses.replace(loop.data, position=None), "self-regulating",
+                     recommend=False)
+        assert d.oscillation is not None and d.oscillation.detected
+        assert d.verdict != "stiction", d.reason
+        votes = {e.key: e for e in d.evidence}
+        for key in ("area_ratio", "curve_fit"):
+            assert "stand above the noise" in votes[key].reason or votes[key].vote != "stiction"

@@ -266,3 +266,17 @@ def test_a_level_model_is_predicted_from_the_record(whitening: float) -> None:
     m = 1 if whitening == 0.0 else INCREMENT_SAMPLES
     assert np.isnan(model[:m]).all()
     assert np.allclose(model[m + d:], pv[m + d:], rtol=0.0, atol=1e-9)
+
+
+def test_the_action_is_the_term_that_moves_the_output() -> None:
+    """A reverse PI whose integral is far faster than the historian's period (Ti = 1 s read
+    every 5 s) leaves the proportional coefficient near 0 and of either sign: it was read as
+    direct acting, and the valve fit's process gain took the wrong sign (found by an
+    independent reference). The action is the sign of the term that moves OP most."""
+    from loopworks.analysis.synthetic import simulate_loop
+
+    for kc, ti in ((0.2, 1.0), (0.5, 10.0)):
+        loop = simulate_loop(loop_type="self-regulating", valve="linear", kc=kc, ti=ti,
+                             gain=1.0, time_constant=3.0, dead_time=1.0, noise=0.05,
+                             walk_std=0.02, sample_period=5.0, seed=1)
+        assert fit_controller(loop.data).action == "reverse", (kc, ti)

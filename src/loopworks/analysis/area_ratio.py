@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from loopworks.analysis import Verdict
-from loopworks.analysis.oscillation import band_crossings
+from loopworks.analysis.oscillation import band_crossings, cycle_half_cycles
 
 #: R above this -> stiction. The paper's criterion is R > 1 (asymmetric half cycles); a margin
 #: above 1 guards against noise and sampling. Assumption: the margin's size was not verified in
@@ -40,29 +40,36 @@ class AreaRatio:
     reason: str
 
 
-def half_cycle_ratios(e: np.ndarray, dt: float, band: float = 0.0) -> np.ndarray:
+def half_cycle_ratios(e: np.ndarray, dt: float, band: float = 0.0,
+                      period: float | None = None) -> np.ndarray:
     """A1/A2 of every complete half cycle of the control error ``e`` (sample period dt in s).
 
     Half cycles lie between successive zero crossings z_i < z_{i+1} of e (interpolated
     linearly; with ``band`` > 0 only crossings between excursions beyond ±band count, so noise
-    around zero does not split a half cycle). The part before the first crossing and after the
+    around zero does not split a half cycle; with ``period``, the oscillation's period in
+    samples, the half cycles of that oscillation, :func:`~loopworks.analysis.oscillation.
+    cycle_half_cycles`, and ``band`` is not used). The part before the first crossing and after the
     last is incomplete and not used. Within a half cycle, with t_p the sample of the largest
     |e| and |e| taken as the straight-line interpolant through 0 at the crossings and the
-    samples between them (trapezoids)::
+    samples between them (trapezoids; a sample of the other sign than the half cycle's, noise
+    within the band or beside a crossing found on the smoothed signal, counts as 0)::
 
         A1 = ∫_{z_i}^{t_p} |e| dt,   A2 = ∫_{t_p}^{z_{i+1}} |e| dt,   R_i = A1/A2
 
     A half cycle with no sample strictly between its crossings is skipped.
     """
     x = np.asarray(e, dtype=np.float64)
-    z = band_crossings(x, band)
+    pairs = (cycle_half_cycles(x, period)[0] if period is not None
+             else itertools.pairwise(band_crossings(x, band)))
     out: list[float] = []
-    for z0, z1 in itertools.pairwise(z):
+    for z0, z1 in pairs:
         k0, k1 = math.floor(z0) + 1, math.ceil(z1) - 1  # samples strictly inside
         if k1 < k0:
             continue
         k = np.arange(k0, k1 + 1)
-        v = np.abs(x[k0:k1 + 1])
+        lobe = x[k0:k1 + 1]
+        sign = 1.0 if lobe.sum() >= 0.0 else -1.0
+        v = np.maximum(lobe * sign, 0.0)
         p = int(np.argmax(v))
         t = np.concatenate(([z0], k[:p + 1].astype(np.float64)))
         a1 = float(np.trapezoid(np.concatenate(([0.0], v[:p + 1])), t)) * dt
@@ -74,11 +81,12 @@ def half_cycle_ratios(e: np.ndarray, dt: float, band: float = 0.0) -> np.ndarray
 
 
 def area_ratio(e: np.ndarray, dt: float, threshold: float = STICTION_THRESHOLD,
-               band: float = 0.0) -> AreaRatio:
+               band: float = 0.0, period: float | None = None) -> AreaRatio:
     """Singhal & Salsbury's (2005) area-ratio stiction index of the control error ``e``.
 
     R_i = A1/A2 per complete half cycle (:func:`half_cycle_ratios`: A1 the area of |e| before
-    the half cycle's peak, A2 after it). The index is the **median** of the R_i: a half cycle
+    the half cycle's peak, A2 after it; ``band`` and ``period`` (samples) say which crossings
+    bound a half cycle, there). The index is the **median** of the R_i: a half cycle
     whose peak sits on a noise spike near one end gives an A1 or A2 near 0 and an R_i that is
     huge or near 0; a ratio is heavy-tailed, so one such half cycle would move a mean but not
     the median. R ≈ 1 for symmetric (sinusoidal) half cycles, R > 1 for a peak that comes late
@@ -96,7 +104,11 @@ def area_ratio(e: np.ndarray, dt: float, threshold: float = STICTION_THRESHOLD,
     x = np.asarray(e, dtype=np.float64)
     if x.ndim != 1 or not np.all(np.isfinite(x)):
         raise ValueError("e must be a 1-D signal of finite samples")
-    r = half_cycle_ratios(x, dt, band)
+    if period is not None:
+        why = cycle_half_cycles(x, period)[1]
+        if why:
+            return AreaRatio(math.nan, 0, "undetermined", f"e: {why}")
+    r = half_cycle_ratios(x, dt, band, period)
     n = len(r)
     ratio = float(np.median(r)) if n else math.nan
     if n < MIN_HALF_CYCLES:

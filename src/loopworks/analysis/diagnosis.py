@@ -212,7 +212,7 @@ class Diagnosis:
 
 def _battery(data: LoopData, loop_type: LoopType, osc: Oscillation) -> list[Evidence]:
     """Every applicable method's vote (module docstring, rule 3)."""
-    out = _methods(data, loop_type)
+    out = _methods(data, loop_type, osc.period_s / data.dt if osc.detected else None)
     if osc.detected:
         return out
     return [Evidence(e.key, e.method, "undetermined", e.weight, e.value,
@@ -221,19 +221,21 @@ def _battery(data: LoopData, loop_type: LoopType, osc: Oscillation) -> list[Evid
             for e in out]
 
 
-def _methods(data: LoopData, loop_type: LoopType) -> list[Evidence]:
-    """Each method's own vote by its published rule."""
+def _methods(data: LoopData, loop_type: LoopType, period: float | None = None
+             ) -> list[Evidence]:
+    """Each method's own vote by its published rule; the half-cycle methods measure the half
+    cycles of the oscillation of ``period`` samples when one was detected."""
     e = data.sp - data.pv
     out: list[Evidence] = []
     if loop_type == "self-regulating":
         h = horch_test(data.op, data.pv, data.dt, loop_type)
         out.append(Evidence("horch", "Horch (1999) cross-correlation of OP and PV", h.verdict,
                             WEIGHTS["horch"], h.asymmetry * 90.0, h.reason))
-        a = area_ratio(e, data.dt)
+        a = area_ratio(e, data.dt, period=period)
         out.append(Evidence("area_ratio", "area ratio of the error's half cycles (Singhal & "
                             "Salsbury 2005)", a.verdict, WEIGHTS["area_ratio"], a.ratio,
                             a.reason))
-    c = curve_fit_loop(data.op, data.pv, data.dt, loop_type)
+    c = curve_fit_loop(data.op, data.pv, data.dt, loop_type, period=period)
     signal = "OP" if loop_type == "self-regulating" else "PV"
     out.append(Evidence("curve_fit", f"curve fitting of the {signal}'s half cycles (He et al. "
                         "2007)", c.verdict, WEIGHTS["curve_fit"], c.si, c.reason))

@@ -659,7 +659,8 @@ def model_pv(data: LoopData, fit: ValveFit) -> FloatArray:
 def fit_controller(data: LoopData) -> ControllerFit:
     """Identify the PI controller by linear least squares of its velocity form (module
     docstring): ΔOP_k = θ1·Δe_k + θ2·e_k with e = SP - PV, Kc = |θ1|, Ti = dt·θ1/θ2, direct
-    action when θ1 < 0. Scans are used where SP, PV, OP are finite at k and k-1, OP is inside
+    action when the coefficient of the term that moves OP more (|θ1|·σ(Δe) against
+    |θ2|·σ(e)) is negative. Scans are used where SP, PV, OP are finite at k and k-1, OP is inside
     (0, 100) % (not saturated) and, when the record has a mode, the loop is automatic
     (mode ≥ 1) at both. A derivative action is ignored (it lowers R²)."""
     dt = data.dt
@@ -687,7 +688,12 @@ def fit_controller(data: LoopData) -> ControllerFit:
     theta, *_ = np.linalg.lstsq(A, z, rcond=None)
     r2 = 1.0 - float(((z - A @ theta) ** 2).sum()) / sst
     th1, th2 = float(theta[0]), float(theta[1])
-    action = "direct" if th1 < 0.0 else "reverse"
+    # the action is the sign of the term that moves OP most: at a historian's period an
+    # integral much faster than the sampling leaves θ1 near 0 and of either sign (a reverse
+    # PI with Ti = 1 s read every 5 s was "direct, Ti = inf", and the valve fit's process
+    # gain took the wrong sign)
+    p_part, i_part = abs(th1) * float(np.std(de[use])), abs(th2) * float(np.std(ek[use]))
+    action = "direct" if (th1 if p_part >= i_part else th2) < 0.0 else "reverse"
     kc = abs(th1)
     ti = dt * th1 / th2 if th1 * th2 > 0.0 else math.inf
     integral = (f"Ti = {ti:.4g} s" if math.isfinite(ti)
