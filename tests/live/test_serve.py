@@ -449,3 +449,50 @@ def test_a_word_setpoint_takes_whole_counts_of_a_16_bit_word(tmp_path: Path) -> 
         ctl.write("op", "operator", loop, "SP", 1200.0)
         scans(ctl, 2)
         assert ctl.snapshot()[f"{loop}.SP"][0] == 1200.0
+
+
+def test_an_operators_manual_output_ends_with_manual(tmp_path: Path) -> None:
+    """GE: an operator's OUT goes to the Manual Command input, a write into word 14 each
+    sweep (spec vendor-blocks 1.2). It stayed latched after the return to Auto, so word 14
+    no longer copied CV (spec 1.7 step 13: "so a switch to Manual is bumpless") and the next
+    switch to Manual jumped to the old OUT (found by an operator). Leaving MAN ends the
+    write."""
+    path = tmp_path / "words.toml"
+    path.write_text(WORD_LOOPS, encoding="utf-8")
+    split = split_scenario(load_scenario(path))
+    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    scans(ctl, 4)
+    ctl.write("op", "operator", "ge", "MODE", MAN)
+    ctl.write("op", "operator", "ge", "OUT", 17000.0)
+    scans(ctl, 4)
+    assert ctl.snapshot()["ge.OUT"][0] == 17000.0
+    ctl.write("op", "operator", "ge", "MODE", AUTO)
+    ctl.write("op", "operator", "ge", "SP", 15000.0)  # Auto moves CV away from 17000
+    scans(ctl, 20)
+    auto_out = ctl.snapshot()["ge.OUT"][0]
+    assert abs(auto_out - 17000.0) > 100.0
+    ctl.write("op", "operator", "ge", "MODE", MAN)
+    scans(ctl, 1)
+    assert ctl.snapshot()["ge.OUT"][0] == pytest.approx(auto_out, abs=50.0)  # no jump back
+
+
+def test_a_ge_tuning_write_is_a_value_its_word_holds(tmp_path: Path) -> None:
+    """GE's tuning lives in 16-bit words (spec vendor-blocks 1.2/1.5: Kp = word 6/100, Ki =
+    word 8/1000): KP 4.505 was answered Good and published as typed while the block ran
+    word 6 = 451, 4.51 (and an ISA's TI 1500 s ran as 1000/word 8 = 1000 s; found by an
+    operator). A value off the word's grid is refused naming what it would run as, and the
+    block keeps its tuning; a value on the grid is taken."""
+    path = tmp_path / "words.toml"
+    path.write_text(WORD_LOOPS, encoding="utf-8")
+    split = split_scenario(load_scenario(path))
+    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    scans(ctl, 2)
+    ge = ctl.module.blocks["ge"]
+    for name, value, runs in (("KP", 4.505, "4.51"), ("KI", 0.0123, "0.012")):
+        refused = refusal(ctl, "ge", name, value)
+        assert refused.code == "BadOutOfRange"
+        assert f"it would run as {runs}" in str(refused)
+    assert (ge.params["kp"], ge.params["ki"]) == (0.5, 0.05)
+    assert ge.parameter_words()[6] == 50
+    ctl.write("op", "operator", "ge", "KP", 4.51)
+    assert ge.params["kp"] == 4.51 and ge.parameter_words()[6] == 451

@@ -139,6 +139,11 @@ class Controller(metaclass=ABCMeta):
     SPANS: ClassVar[tuple[tuple[str, float], tuple[str, float]]] = (
         ("pv_span", 100.0), ("out_span", 100.0))
 
+    def stored_params(self) -> dict[str, Any]:
+        """The parameters as the vendor's storage holds them, where it quantises what was
+        given (GE's 16-bit words); empty when every parameter runs as given."""
+        return {}
+
     @classmethod
     def out_span(cls, params: Mapping[str, Any]) -> float:
         """The output's units of 100 % of its span (``SPANS``' default: 100 for an output in

@@ -498,6 +498,13 @@ class LiveController:
                 raise WriteRefused("BadOutOfRange", f"mode {mode} cannot be requested (the "
                                    "block sets it itself)")
             b.set_inputs({loop.mode: float(loop.modes.index(mode))})
+            if mode != "MAN" and loop.man_out is not None:
+                # a manual output written as a program write each scan (GE's Manual Command,
+                # NaN = no write) ends with manual: latched, it kept rewriting word 14 in
+                # Auto, which no longer tracked CV, and the next Manual jumped to it
+                port = next(p for p in b.INPUTS if p.name == loop.man_out)
+                if math.isnan(port.default):
+                    b.set_inputs({loop.man_out: math.nan})
             return
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise WriteRefused("BadTypeMismatch", f"{name} takes a number, not {value!r}")
@@ -536,10 +543,19 @@ class LiveController:
                                    "scale sets what PV, SP and OUT mean, so changing it in "
                                    "another mode would bump the output; the loop's target "
                                    f"mode is {self._mode_name(loop) or '?'}")
+            key = name.lower()
+            before = b.given.get(key, b.params.get(key))
             try:
-                b.set_params(**{name.lower(): v})
+                b.set_params(**{key: v})
             except LoopworksError as exc:
                 raise WriteRefused("BadOutOfRange", str(exc)) from None
+            stored = b.stored_params().get(key) if isinstance(b, Controller) else None
+            if stored is not None and not math.isclose(float(stored), v, rel_tol=1e-9):
+                # published as typed, run as the word holds it (TI 1500 s ran as 1000 s)
+                b.set_params(**{key: before})
+                raise WriteRefused("BadOutOfRange", f"{name} = {v!r} is not a value the "
+                                   f"block's word holds: it would run as {stored!r}; write "
+                                   "that, or another value on the word's grid")
         else:
             raise WriteRefused("BadNotWritable", f"{loop_name}.{name} is not writable")
 

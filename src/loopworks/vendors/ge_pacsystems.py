@@ -269,7 +269,7 @@ gives ``cv`` = 8000, 8000, 8150, 8300 (the ``t`` column is the controller clock)
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from typing import Any, ClassVar
 
 from loopworks.blocks.block import Block
@@ -1136,6 +1136,17 @@ class GEPIDBlock(Controller, Block):
         """The user words 3-13 of the reference array this block runs with (spec 1.2)."""
         return dict(self._words)
 
+    def stored_params(self) -> dict[str, Any]:
+        """The parameters as the words hold them (:func:`word_params` of
+        :meth:`parameter_words`): Kp 4.505 runs as word 6 = 451, 4.51."""
+        w = self._words
+
+        def signed(n: int) -> int:
+            x = w[n] & 0xFFFF
+            return x - 65536 if x >= 32768 else x
+
+        return word_params(self.kind, signed, lambda n: w[n] & 0xFFFF)
+
 
 @register
 class GEPIDIndependent(GEPIDBlock):
@@ -1250,6 +1261,16 @@ def from_reference_array(words: Sequence[int], kind: str | None = None,
     if algorithm in by_word and by_word[algorithm] != kind:
         raise ParameterError(f"reference array: word 2 = {algorithm} says {by_word[algorithm]}, "
                              f"not {kind}")
+    params = word_params(kind, signed, unsigned)
+    params.update(options)
+    cls: type[GEPIDBlock] = GEPIDIndependent if kind == "ge.pid_ind" else GEPIDISA
+    return cls(**params)
+
+
+def word_params(kind: str, signed: Callable[[int], int], unsigned: Callable[[int], int]
+                ) -> dict[str, Any]:
+    """The parameters user words 3-13 hold (``signed(n)``, ``unsigned(n)``: word n read so),
+    with the raw scalings of :func:`from_reference_array` (spec 1.2/1.5)."""
     params: dict[str, Any] = {
         "sample_period": unsigned(3) / 100.0,
         "deadband_pos": float(signed(4)),
@@ -1269,6 +1290,4 @@ def from_reference_array(words: Sequence[int], kind: str | None = None,
                                  "allowed 0..32767 (0 = no integral)")
         params.update(kc=signed(6) / 100.0, td=signed(7) / 100.0,
                       ti=math.inf if w8 == 0 else 1000.0 / w8)
-    params.update(options)
-    cls: type[GEPIDBlock] = GEPIDIndependent if kind == "ge.pid_ind" else GEPIDISA
-    return cls(**params)
+    return params
