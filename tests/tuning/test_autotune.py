@@ -400,3 +400,47 @@ def test_a_second_stage_that_cannot_switch_is_told_apart() -> None:
     assert "no_oscillation" in message and "second stage" in message
     assert "--bias-ratio" in message and "larger --amplitude" not in message
     assert info.value.run.stage.max() == 2.0  # the symmetric stage had converged
+
+
+STRUCTURED_LOOP = """
+[simulation]
+dt = 0.1
+duration = 400.0
+
+[blocks.ctl]
+{controller}
+sp = {sp}
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 10.0
+dead_time = 2.0
+u0 = {sp}
+y0 = {sp}
+
+[wires]
+"process.u" = "ctl.{out}"
+"ctl.pv" = "process.y"
+"""
+
+
+@pytest.mark.parametrize(("controller", "sp", "out", "key", "kept"), [
+    ('kind = "deltav.pid"\ngain = 0.5\nreset = 10.0\ninitial_out = 50.0\n'
+     'structure = "pi_action_on_error_d_action_on_pv"', 50.0, "out", "structure",
+     "pi_action_on_error_d_action_on_pv"),
+    ('kind = "ge.pid_isa"\nkc = 0.5\nti = 10.0\nbias = 16000\nupper_clamp = 32000\n'
+     "derivative_on_pv = true", 16000.0, "cv", "derivative_on_pv", True)])
+def test_a_retuning_keeps_the_structure_the_user_chose(controller: str, sp: float, out: str,
+                                                      key: str, kept: object) -> None:
+    """`tune --controller PID` printed DeltaV's STRUCTURE as PID action on error and GE's
+    derivative on PV as False: the rule's law was realised in the ideal form (b = c = 1),
+    while the generic pid kept its own c (found by an engineer: 21 % of a setpoint step
+    apart from the generic pid tuned alike). The structure the user chose is kept, as
+    docs/conversion.md says setpoint weights pass through."""
+    from loopworks.sim.tune import tune_loop
+
+    sc = parse_scenario(STRUCTURED_LOOP.format(controller=controller, sp=sp, out=out))
+    report = tune_loop(sc.module, "ctl", sc.dt, rule="amigo", controller="PID")
+    assert report.conversion.params[key] == kept
+    assert float(report.conversion.ideal.td) > 0.0

@@ -36,6 +36,20 @@ def test_ge_isa_to_ind_g11() -> None:
     assert c.exact
 
 
+def test_a_ge_target_keeps_its_every_sweep_sample_period() -> None:
+    """GE's Sample Period 0 means every sweep (spec vendor-blocks 1.2, word 3; the block's
+    default): a conversion or a `tune` of a GE loop at that default was refused, after the
+    whole relay test, "'sample_period' = 0.0 is out of range: allowed (0, inf)" (found by an
+    engineer). It stays 0 and the law runs at the loop's scan."""
+    c = convert("pid", {"k": 2.0, "ti": 10.0}, "ge.pid_isa", sample_time=0.1,
+                target={"sample_period": 0.0})
+    assert c.params["sample_period"] == 0.0 and c.params["word8"] == 100
+    create_block("ge.pid_isa", **{k: v for k, v in c.params.items()
+                                  if not k.startswith("word")})
+    with pytest.raises(ParameterError, match="'sample_period' = -1"):
+        convert("pid", {"k": 2.0, "ti": 10.0}, "ge.pid_isa", target={"sample_period": -1})
+
+
 def test_ge_words_as_source() -> None:
     # spec 1.5: Kp = word6/100, Kd = word7/100 s, Ki = word8/1000 /s; ISA word 8 = 1000/Ti
     ideal, exact, _ = to_ideal("ge.pid_ind", {"word6": 400, "word7": 0, "word8": 1500})

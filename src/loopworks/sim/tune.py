@@ -427,7 +427,7 @@ def tune_loop(module: Module, loop: str, dt: float, *, rule: str | None = None,
     :func:`loopworks.tuning.rules.default_rule` for what was identified) for a ``controller``
     of type P, PI or PID, and the result in the loop controller's own parameters
     (:func:`loopworks.tuning.convert.from_loop_units`, the module's dt as sample time)."""
-    from loopworks.tuning.convert import from_loop_units
+    from loopworks.tuning.convert import from_loop_units, setpoint_weights
     from loopworks.tuning.rules import default_rule, tune
 
     run = relay_test(module, loop, dt, **relay_options)
@@ -438,6 +438,9 @@ def tune_loop(module: Module, loop: str, dt: float, *, rule: str | None = None,
     ideal = tuning.ideal()
     ctrl = module.blocks[loop]
     context = {k: v for k, v in ctrl.params.items() if v is not None}
+    # the structure the user chose (DeltaV's STRUCTURE, GE's derivative on PV, the pid's b
+    # and c) is kept: it was set to the ideal form's (derivative on error) for every vendor
+    context.update(setpoint_weights(run.kind, ctrl.params, dt))
     # the relay oscillated under the loop's own action, so that action is the right one
     conversion = from_loop_units(run.kind, ideal.kc, ideal.ti, ideal.td,
                                  direct=_interface(ctrl).direct_acting(ctrl.params),

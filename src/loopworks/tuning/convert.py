@@ -334,6 +334,16 @@ def to_ideal(kind: str, params: Mapping[str, Any], *, sample_time: float | None 
     return law.ideal, exact, _note(list(law.notes) + why, exact)
 
 
+def setpoint_weights(kind: str, params: Mapping[str, Any],
+                     sample_time: float | None = None) -> dict[str, float]:
+    """The setpoint weights ``b``, ``c`` of the law a ``kind`` block with ``params`` runs (the
+    pid's b and c, DeltaV's STRUCTURE, GE's derivative on PV, ...), as a target context
+    takes them: a retuning keeps the structure the user chose."""
+    dt = None if sample_time is None else number("sample_time", sample_time)
+    law = _law_of(kind, params, dt, None)
+    return {"b": law.b, "c": law.c}
+
+
 class _Read(dict[str, Any]):
     """A context that remembers every name looked up in it (``get``, ``in``, ``[]``), given
     or not: what a controller's ``from_law`` reads is the list of its target settings."""

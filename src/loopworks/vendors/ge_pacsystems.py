@@ -958,11 +958,16 @@ class GEPIDBlock(Controller, Block):
                  context: Mapping[str, Any]) -> Realisation:
         """Words 6-8 rounded half up (and the values they stand for, in native arithmetic;
         the unrounded values with context ``arithmetic = "float"``), the action, derivative
-        on PV for c = 0, and ``sample_period`` = the context's or ``dt``."""
+        on PV for c = 0, and ``sample_period`` = the context's or ``dt`` (a context's 0, the
+        block's default "every sweep", stays 0: the law runs at the scan ``dt``)."""
         kind = cls.kind
         ideal = law.ideal
+        every_sweep = False
         if "sample_period" in context:
-            dt = number("sample_period", context["sample_period"], kind=kind)
+            period = number("sample_period", context["sample_period"], lo_open=False,
+                            kind=kind)
+            every_sweep = period == 0.0
+            dt = dt if every_sweep else period
         pv_span, cv_span = cls.spans(context)
         k = ideal.kc * cv_span / pv_span
         arithmetic = str(context.get("arithmetic", "native")).lower()
@@ -1013,7 +1018,9 @@ class GEPIDBlock(Controller, Block):
                    derivative_on_pv=law.c == 0.0 and ideal.td > 0.0)
         if not native:
             out["arithmetic"] = "float"
-        if dt is not None:
+        if every_sweep:
+            out["sample_period"] = 0.0
+        elif dt is not None:
             out["sample_period"] = dt
         return Realisation(out, dt)
 
