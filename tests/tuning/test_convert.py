@@ -334,7 +334,7 @@ def test_settings_beyond_double_precision_are_refused_with_the_values() -> None:
 
 @pytest.mark.parametrize("to_kind, target, name", [
     ("pid", {"zz": "1"}, "zz"), ("pid", {"k": "5"}, "k"),
-    ("s5.pid", {"arithmetic": "bogus"}, "arithmetic"), ("ge.pid_isa", {"form": "series"}, "form"),
+    ("s5.pid", {"rounding": "floor"}, "rounding"), ("ge.pid_isa", {"form": "series"}, "form"),
     ("ge.pid_ind", {"word8": "3"}, "word8"), ("e2.pid", {"kp": "2"}, "kp")])
 def test_a_target_setting_the_target_does_not_take_is_refused(
         to_kind: str, target: dict[str, str], name: str) -> None:
@@ -346,11 +346,13 @@ def test_a_target_setting_the_target_does_not_take_is_refused(
         convert("pid", {"k": 2.0, "ti": 10.0}, to_kind, sample_time=1.0, target=target)
 
 
-def test_ge_arithmetic_must_be_native_or_float() -> None:
-    """`-t arithmetic=bogus` read as native; it is one of native, float (spec: GE words)."""
+@pytest.mark.parametrize("kind", ["ge.pid_isa", "s5.pid"])
+def test_arithmetic_must_be_native_or_float(kind: str) -> None:
+    """`-t arithmetic=bogus` read as native; it is one of native, float (spec: GE words; the
+    S5's native arithmetic decides the dead zone a conversion states)."""
     with pytest.raises(ParameterError, match=r"'arithmetic' = 'bogus' is not allowed: "
                                              r"expected one of native, float"):
-        convert("pid", {"k": 2.0, "ti": 10.0}, "ge.pid_ind", sample_time=1.0,
+        convert("pid", {"k": 2.0, "ti": 10.0}, kind, sample_time=1.0,
                 target={"arithmetic": "bogus"})
 
 

@@ -899,3 +899,26 @@ def test_resume_from_saved_state_equals_uninterrupted_run(params: dict[str, Any]
     resumed.load_state(saved)
     got = [dict(resumed.step(1.0, **inp)) for inp in seq[150:]]
     assert got == expected[150:]
+
+
+@pytest.mark.parametrize(("k", "ti"), [(1235, 13), (500, 100), (600, 1), (1000, 600)])
+def test_the_stated_integral_dead_zone_is_the_blocks(k: int, ti: int) -> None:
+    """A tuned S5 loop in native arithmetic settled 0.8 % of a 2 % step short: its I element
+    (dY = round(K·round(TI·XW/1024)/1024), spec 2.2/2.13) left Y still for |XW| up to 39
+    counts, and tune said nothing (found by an engineer). The zone a conversion now states is
+    the one the block shows: Y still at the zone's edge, moving one count beyond it."""
+    from loopworks import create_block
+    from loopworks.tuning.convert import convert
+    from loopworks.vendors.siemens_s5 import integral_dead_zone
+
+    zone = integral_dead_zone(k, ti, 1024.0)
+    assert zone == {(1235, 13): 39, (500, 100): 15, (600, 1): 512, (1000, 600): 0}[(k, ti)]
+    for xw, moves in ((zone, False), (zone + 1, True)):
+        b = create_block("s5.pid", k=k, r=1024, ti=ti, td=0, bgog=32000, bgug=0, y0=1000,
+                         no_z=True)
+        ys = [b.step(0.1, w=1000 + xw, x=1000, auto="AUTO")["y"].value for _ in range(4)]
+        assert (ys[-1] != ys[0]) == moves, (xw, ys)
+    c = convert("pid", {"k": 1235 / 1024, "ti": 0.1 * 1024 / 13}, "s5.pid", sample_time=0.1)
+    if (k, ti) == (1235, 13):
+        assert (c.params["k"], c.params["ti"]) == (1235, 13)
+        assert "up to 39 counts (3.9 % of the PV span" in c.note

@@ -294,6 +294,21 @@ def s5_round(q: float, mode: float) -> float:
     return f if math.floor(f * 0.5) * 2.0 == f else f + 1.0
 
 
+def integral_dead_zone(k: float, ti: float, scale: float, rounding: str = "nearest_even"
+                       ) -> int:
+    """The largest steady |XW| (counts) for which the native I element leaves Y still (the
+    module docstring's dead zone): dY = round(K·round(TI·XW/scale)/scale) = 0 with P and D at
+    rest, as the kernel computes them (``s5_mul``); 0 when TI = 0 or K = 0 (no I element)."""
+    mode = float(_ROUNDINGS.index(rounding))
+    if ti == 0.0 or k == 0.0:
+        return 0
+    for xw in range(1, 32768):
+        di = s5_round(ti * xw / scale, mode)
+        if s5_round(k * di / scale, mode) != 0.0:
+            return xw - 1
+    return 32767
+
+
 @primitive
 def s5_word(v: float, native: bool, wrap: bool) -> float:
     """A 16-bit intermediate: saturated to -32768..32767 or wrapped (native); float: v."""
@@ -679,6 +694,23 @@ class S5PID(Controller, Block):
             "ti": word("ti", ti_c * scale, kind, 9999.0), "td": td_word,
             "scale": scale_name, "dd_decay": d}
         notes = [f"S5 words for TA = {dt:g} s."]
+        arithmetic = str(context.get("arithmetic", "native")).lower()
+        if arithmetic not in ("native", "float"):
+            raise ParameterError(f"{kind}: parameter 'arithmetic' = {arithmetic!r} is not "
+                                 "allowed: expected one of native, float")
+        if arithmetic == "float":
+            out["arithmetic"] = "float"
+        ti_word = int(out["ti"])
+        if arithmetic == "native" and ti_word > 0:
+            zone = integral_dead_zone(k_word, ti_word, scale)
+            if zone > 0:
+                notes.append(
+                    f"In native arithmetic (rounding half to even) the I element does not "
+                    f"move Y for a steady |XW| "
+                    f"of up to {zone} counts ({100.0 * zone / pv_span:.3g} % of the PV span; "
+                    "its words round K·TI·XW to 0): the loop can settle that far from the "
+                    "setpoint (arithmetic = float has no dead zone; a larger TI word, from "
+                    "a larger R or a longer TA, narrows it).")
         if k_word > 1500 and td_word > 0:
             notes.append("|k| > 1500 with a D part can overflow the 16-bit products in native "
                          "arithmetic (spec 2.2).")
