@@ -444,3 +444,19 @@ def test_a_retuning_keeps_the_structure_the_user_chose(controller: str, sp: floa
     report = tune_loop(sc.module, "ctl", sc.dt, rule="amigo", controller="PID")
     assert report.conversion.params[key] == kept
     assert float(report.conversion.ideal.td) > 0.0
+
+
+def test_a_wrong_action_is_named_as_the_reason_of_no_oscillation() -> None:
+    """A process of negative gain under a reverse-acting pid: the relay's first step drove
+    the PV away from the setpoint (by K·d, never to switch), and the refusal advised "a
+    larger --amplitude" (found by an engineer). It names the action."""
+    from loopworks.sim.tune import RelayTestRefused, tune_loop
+
+    text = STRUCTURED_LOOP.format(controller='kind = "pid"\nk = 0.5\nti = 10.0\nbias = 50.0',
+                                  sp=50.0, out="out").replace("gain = 1.0", "gain = -1.0")
+    sc = parse_scenario(text)
+    with pytest.raises(RelayTestRefused, match=r"moved away from the setpoint .* the "
+                                               r"controller's action is the wrong one"):
+        tune_loop(sc.module, "ctl", sc.dt)
+    right = parse_scenario(text.replace("gain = -1.0", "gain = 1.0"))
+    assert tune_loop(right.module, "ctl", right.dt).identification is not None

@@ -112,7 +112,22 @@ def default_loop(module: Module) -> str:
                      + ", ".join(names))
 
 
-def _why(outcome: str, relay: Relay, dt: float) -> str:
+def _drifted_away(pv: np.ndarray, sp: float, band: float) -> tuple[float, float] | None:
+    """(|SP - PV| at the start, at the end) when the PV ended further from the setpoint
+    than it started by more than 3·``band`` (the relay's hysteresis or the noise), else
+    None. A relay that never switched while the PV left the setpoint pushed it the wrong
+    way: with the right action its first step carries the PV through the setpoint (a
+    switch), or towards it when the loop was not at rest, and a stuck valve leaves it."""
+    e = np.abs(sp - np.asarray(pv, dtype=np.float64))
+    e = e[np.isfinite(e)]
+    if len(e) < 8:
+        return None
+    first, last = float(np.median(e[:5])), float(np.median(e[-5:]))
+    return (first, last) if last - first > 3.0 * band else None
+
+
+def _why(outcome: str, relay: Relay, dt: float, pv: np.ndarray | None = None,
+         noise: float = 0.0) -> str:
     """One line: why a relay test that ended with ``outcome`` gives no identification (a
     second stage that stops switching after the symmetric one cycled is told apart: its
     lower level or shifted point cannot carry the PV through the band, and a larger
@@ -137,6 +152,18 @@ def _why(outcome: str, relay: Relay, dt: float) -> str:
                           "oscillation (a larger --amplitude: 2d must move a sticky valve)",
         "bad_input": "the PV or SP went Bad or non-finite during the test",
     }
+    band = max(float(prm["hysteresis"]), noise, 1e-9)
+    away = (_drifted_away(pv, float(relay.u[0]), band)
+            if outcome == "no_oscillation" and pv is not None else None)
+    if away is not None:
+        # the relay drove the output one way and the PV left the setpoint (found by an
+        # engineer: a process of negative gain under a reverse-acting PID got the hint "a
+        # larger --amplitude")
+        return (f"the relay did not switch for {prm['max_half_period']:g} s, and the PV "
+                f"moved away from the setpoint (|SP - PV| {away[0]:.3g} at first, "
+                f"{away[1]:.3g} at the end) while the relay drove the output one way: the "
+                "controller's action is the wrong one for this process (the process gain "
+                "has the other sign: change direct/reverse action)")
     return reasons.get(outcome, f"the test ended with '{outcome}'")
 
 
@@ -320,7 +347,7 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
         except IdentificationRefused as exc:
             run.refusal = str(exc)
     else:
-        run.refusal = _why(outcome, relay, dt)
+        run.refusal = _why(outcome, relay, dt, run.pv, noise)
     extra = (2.0 * run.identification.period if run.identification else 10.0 * dt) \
         if handback is None else handback
     spliced.blocks[RELAY].set_inputs({"enable": 0.0})
