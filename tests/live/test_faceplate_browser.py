@@ -149,7 +149,9 @@ def test_the_overview_lists_every_loop_with_its_values(page: Any, run: Run) -> N
         cell = tile.locator(f'[data-v="{name}"]')
         assert "q-good" in (cell.get_attribute("class") or ""), name
         float(cell.text_content() or "")  # a number, Good
-    assert "% of PV span" in (tile.text_content() or "")
+    # the built-in DeltaV PID's PV is in its PV_SCALE's engineering units (each value in the
+    # units its block declares; all were "% of PV span", GE's counts too)
+    assert "EU" in (tile.text_content() or "")
     assert text(page, '.tile [data-v="badge"]') == ""  # not stale
     tile.click()
     page.wait_for_url(run.base + "/loop/pid")
@@ -162,7 +164,7 @@ def test_the_faceplate_shows_the_loop_and_its_trend_advances(page: Any, run: Run
     n0, x0 = page.evaluate("[window.__lw.trendLength, window.__lw.lastX]")
     assert text(page, "#mode-actual") == "AUTO" and text(page, "#mode-target") == "AUTO"
     assert "q-good" in (page.locator("#v-PV").get_attribute("class") or "")
-    assert text(page, "#face .u") == "% of PV span"
+    assert text(page, "#face .u") == "EU"
     assert page.locator("#comp").count() == 1  # the built-in loop's stiction compensator
     assert "deltav.stick_slip" in text(page, "#comp")
     assert text(page, "#comp-state").startswith("OFF")  # the first variant: compensation off

@@ -496,3 +496,22 @@ def test_a_ge_tuning_write_is_a_value_its_word_holds(tmp_path: Path) -> None:
     assert ge.parameter_words()[6] == 50
     ctl.write("op", "operator", "ge", "KP", 4.51)
     assert ge.params["kp"] == 4.51 and ge.parameter_words()[6] == 451
+
+
+def test_each_value_is_published_in_its_blocks_units(tmp_path: Path) -> None:
+    """PV, SP and OUT were all "% of PV span" and tuning had no units (found by an
+    operator): GE's and S5's are counts, the generic pid's its PV's and output's own units,
+    and a tuning parameter carries the unit its block declares."""
+    path = tmp_path / "words.toml"
+    path.write_text(WORD_LOOPS, encoding="utf-8")
+    split = split_scenario(load_scenario(path))
+    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    units = {loop: {v.name: v.units for v in variables}
+             for loop, variables in ctl.loops().items()}
+    assert units["ge"]["PV"] == units["ge"]["SP"] == units["ge"]["OUT"] == "counts"
+    assert units["ge"]["KI"] == "repeats/s"
+    assert units["s5"]["PV"] == "count"
+    generic, _ = make()
+    assert {v.name: v.units for v in generic.loops()["pid"]}["PV"] == "EU"  # deltav.pid
+    cascade = {v.name: v.units for v in make_cascade().loops()["primary"]}
+    assert cascade["PV"] == "PV units" and cascade["OUT"] == "output units"

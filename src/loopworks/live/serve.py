@@ -206,6 +206,13 @@ def _requested_mode(value: Any) -> str:
                        f"or a name of {', '.join(MODES)}")
 
 
+def _units(unit: str) -> str:
+    """A block's declared unit as an operator reads it: the generic ``pv`` and ``out`` (the
+    PV's and the output's own units) named so, the others as declared."""
+    return {"pv": "PV units", "out": "output units", "out/pv": "output units/PV unit"}.get(
+        unit, unit)
+
+
 def _overridden(module: Module, saved: Mapping[str, Any]) -> list[str]:
     """The parameters a checkpoint ``saved`` (``Module.state_dict``) sets to another value
     than ``module``'s (the scenario file's), as ``block.param = saved (file value)``."""
@@ -322,13 +329,18 @@ class LiveController:
 
     def variables(self, loop: Loop) -> list[Variable]:
         b = loop.block
+        # each value in the units its block declares (GE's and S5's counts, DeltaV's EU; the
+        # generic pid works in its PV's and output's own units): all were "% of PV span"
+        pv_unit = _units(b.INPUTS[b._in_index[loop.pv]].unit)
+        out_unit = _units(b.OUTPUTS[b._out_index[loop.out]].unit)
+        params = {p.name: p for p in b.PARAMS}
         out: list[Variable] = [
-            Variable("PV", _input(b, loop.pv)[0], "double", False, "% of PV span",
+            Variable("PV", _input(b, loop.pv)[0], "double", False, pv_unit,
                      "process variable as the controller reads it"),
-            Variable("SP", self.working_sp(loop)[0], "double", True, "% of PV span",
+            Variable("SP", self.working_sp(loop)[0], "double", True, pv_unit,
                      "working setpoint (writable by an operator, not while it comes from "
                      "a cascade input)"),
-            Variable("OUT", _output(b, loop.out)[0], "double", True, "% of OUT span",
+            Variable("OUT", _output(b, loop.out)[0], "double", True, out_unit,
                      "controller output (writable by an operator in MAN)"),
         ]
         if loop.mode is not None:
@@ -340,7 +352,8 @@ class LiveController:
             out.append(Variable("MODE_ACTUAL", self.mode_actual(loop)[0], "mode", False,
                                 "", "actual mode, as the block computed it"))
         for name in loop.tuning:
-            out.append(Variable(name.upper(), float(b.params[name]), "double", True, "",
+            out.append(Variable(name.upper(), float(b.params[name]), "double", True,
+                                _units(params[name].unit) if name in params else "",
                                 f"tuning parameter {name}"
                                 + (" (written in OOS only)" if is_scale(name) else "")))
         for name in ("SCANS", "OVERRUNS", "LATE_P99_MS", "LATE_MAX_MS", "COMM_ERRORS",
