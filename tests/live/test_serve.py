@@ -515,3 +515,36 @@ def test_each_value_is_published_in_its_blocks_units(tmp_path: Path) -> None:
     assert {v.name: v.units for v in generic.loops()["pid"]}["PV"] == "EU"  # deltav.pid
     cascade = {v.name: v.units for v in make_cascade().loops()["primary"]}
     assert cascade["PV"] == "PV units" and cascade["OUT"] == "output units"
+
+
+def test_out_is_advertised_writable_only_where_it_can_be_written(tmp_path: Path) -> None:
+    """E2's OUT was advertised writable "in MAN", but the block has no mode and every write
+    was refused (found by an operator): its OUT is read-only, as written."""
+    text = WORD_LOOPS + """
+[blocks.e2]
+kind = "e2.pid"
+throttling_range = 20.0
+kp = 1.0
+ki = 0.2
+update_interval = 1.0
+output_at_setpoint = 50.0
+error_sign = "setpoint_minus_input"
+sp = 50.0
+
+[blocks.p_e2]
+kind = "process.first_order"
+gain = 1.0
+time_constant = 10.0
+y0 = 50.0
+"""
+    text = text.replace('"s5.x" = "p_s5.y"\n', '"s5.x" = "p_s5.y"\n"p_e2.u" = "e2.out"\n'
+                        '"e2.pv" = "p_e2.y"\n')
+    path = tmp_path / "e2.toml"
+    path.write_text(text, encoding="utf-8")
+    split = split_scenario(load_scenario(path))
+    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    writable = {loop: {v.name: v.writable for v in variables}
+                for loop, variables in ctl.loops().items()}
+    assert writable["e2"]["OUT"] is False and "MODE" not in writable["e2"]
+    assert writable["ge"]["OUT"] is True  # GE: Manual Command, in MAN
+    assert refusal(ctl, "e2", "OUT", 60.0).code == "BadNotWritable"

@@ -334,14 +334,18 @@ class LiveController:
         pv_unit = _units(b.INPUTS[b._in_index[loop.pv]].unit)
         out_unit = _units(b.OUTPUTS[b._out_index[loop.out]].unit)
         params = {p.name: p for p in b.PARAMS}
+        # OUT is written in MAN: a block without a mode to put in MAN (E2) takes no OUT (it
+        # was advertised writable and every write refused)
+        manual = loop.mode is not None and loop.man_out is not None
         out: list[Variable] = [
             Variable("PV", _input(b, loop.pv)[0], "double", False, pv_unit,
                      "process variable as the controller reads it"),
             Variable("SP", self.working_sp(loop)[0], "double", True, pv_unit,
                      "working setpoint (writable by an operator, not while it comes from "
                      "a cascade input)"),
-            Variable("OUT", _output(b, loop.out)[0], "double", True, out_unit,
-                     "controller output (writable by an operator in MAN)"),
+            Variable("OUT", _output(b, loop.out)[0], "double", manual, out_unit,
+                     "controller output (writable by an operator in MAN)" if manual else
+                     "controller output (this block has no manual mode to write it in)"),
         ]
         if loop.mode is not None:
             out.append(Variable("MODE", self.mode(loop)[0], "mode", True, "",
