@@ -548,3 +548,28 @@ y0 = 50.0
     assert writable["e2"]["OUT"] is False and "MODE" not in writable["e2"]
     assert writable["ge"]["OUT"] is True  # GE: Manual Command, in MAN
     assert refusal(ctl, "e2", "OUT", 60.0).code == "BadNotWritable"
+
+
+def test_a_ge_dead_band_is_set_edge_by_edge_as_the_plc_takes_it(tmp_path: Path) -> None:
+    """GE's dead band edges are a pair (spec vendor-blocks 1.7 step 2: both 0, or DB+ > 0 and
+    DB- < 0); written one node at a time, each edge alone was refused against the other, so
+    the band could not be switched on (found by an operator). With the block's
+    on_parameter_error = "ok_off" the server takes the words as the PLC does: between the two
+    writes the PID does not solve (ok OFF, CV held), and OUT is published Bad,
+    configuration error, until the pair is valid."""
+    path = tmp_path / "words.toml"
+    path.write_text(WORD_LOOPS.replace('sample_period = 0.5\n',
+                                       'sample_period = 0.5\non_parameter_error = "ok_off"\n'),
+                    encoding="utf-8")
+    split = split_scenario(load_scenario(path))
+    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    scans(ctl, 2)
+    assert ctl.snapshot()["ge.OUT"][1] & 0xC0 != 0  # not Bad
+    ctl.write("op", "operator", "ge", "DEADBAND_POS", 5.0)
+    scans(ctl, 2)
+    assert ctl.snapshot()["ge.OUT"][1] == st.BAD_CONFIGURATION_ERROR
+    ctl.write("op", "operator", "ge", "DEADBAND_NEG", -5.0)
+    scans(ctl, 2)
+    assert ctl.snapshot()["ge.OUT"][1] & 0xC0 != 0
+    words = ctl.module.blocks["ge"].parameter_words()
+    assert (words[4], words[5]) == (5, -5)

@@ -420,6 +420,12 @@ class LiveController:
         if any(src.split(".", 1)[0] in feeds for point, src in self.writes
                if point in self.unwritten):
             return value, st.BAD_NO_COMM_LUV
+        b = loop.block
+        if "ok" in b._out_index and _output(b, "ok")[0] < 0.5:
+            # GE's ok OFF: the PID is not solving (a parameter pair the PLC refuses, a
+            # setpoint beyond its word, power flow off) and CV holds (spec vendor-blocks
+            # 1.7 steps 1-2): an operator must not read a held CV as a working loop
+            return value, st.BAD_CONFIGURATION_ERROR
         return value, status
 
     def mode(self, loop: Loop) -> tuple[int, int]:
