@@ -211,3 +211,33 @@ def test_figures_drawn_in_a_forked_child_or_here_on_failure(tmp_path: Path) -> N
     assert where == ("child" if sys.platform.startswith("linux") else "here"), run.stderr
     assert again == "here"
     assert raised == "raised: a bad figure"
+
+
+def test_a_loop_driving_no_valve_gets_no_valve_figures() -> None:
+    """The valve a loop drives is followed through compensators, not through a process or
+    another controller: a loop whose process feeds another loop's feedforward, and a cascade
+    primary, got the other loop's valve travel and a signature plot of its valve (found by a
+    user of the reports). The cascade's secondary keeps its valve."""
+    from loopworks.sim.scenario import load_scenario
+
+    root = Path(__file__).resolve().parents[2]
+    sc = load_scenario(root / "examples" / "cascade.toml")
+    result = sc.module.run(200.0, sc.dt)
+    assert result.valve_of("primary") is None
+    assert result.valve_of("secondary") is not None
+    assert "valve travel" not in result.metrics("primary")
+    assert "valve travel" in result.metrics("secondary")
+    sc = load_scenario(root / "examples" / "compensators_side_by_side.toml")
+    both = sc.module.run(10.0, sc.dt)
+    for loop in both.controllers():  # each through its compensator to its own valve
+        valve = both.valve_of(loop)
+        assert valve == loop.replace("pid_", "valve_"), (loop, valve)
+
+
+def test_the_output_axis_is_in_the_controllers_units() -> None:
+    """The report's output axis said "controller output (%)" over GE counts of 16000-19500
+    and a DeltaV OUT_SCALE of 0..200 EU (found by a user of the reports)."""
+    kinds = {"g": "ge.pid_ind", "s": "s5.pid", "d": "deltav.pid", "p": "pid", "e": "e2.pid"}
+    result = SimResult(np.arange(3.0), {}, {}, kinds=kinds)
+    assert {k: result.out_units(k) for k in kinds} == {
+        "g": "counts", "s": "counts", "d": "EU", "p": "%", "e": "%"}

@@ -8,6 +8,7 @@ import json
 import math
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pyarrow.parquet as pq
@@ -257,6 +258,21 @@ def test_best_row(scenario: Path) -> None:
         result.best("nope")
 
 
+def test_the_best_of_a_signed_metric_is_the_nearest_zero() -> None:
+    """"Best instance by final error = -0.5068" was the largest error of the sweep (values
+    -0.51 .. +0.37; found by a user of the summaries): a signed metric ranks by its size."""
+    from loopworks.sim.sweep import SweepResult
+    from loopworks.sim.sweep_report import summary_table
+
+    result = SweepResult({"variant": ["a", "a", "a"], "point": [0, 1, 2], "seed": [1, 2, 3],
+                          "pid.k": [1.0, 2.0, 3.0], "final error": [-0.51, 0.37, -0.05],
+                          "IAE": [3.0, 1.0, 2.0]}, ["pid.k"], "grid",
+                         metrics=["final error", "IAE"])
+    assert result.best("final error")["pid.k"] == 3.0
+    assert result.best("IAE")["pid.k"] == 2.0
+    assert summary_table(result, "final error")[0][4] == -0.05
+
+
 def test_a_dask_local_cluster_gives_the_local_numbers(scenario: Path) -> None:
     import distributed  # the test extras install it (the cluster extra)
 
@@ -473,3 +489,38 @@ def test_a_swept_out_scale_scores_output_travel_in_each_instances_span(
             assert row[name] == pytest.approx(expected[name], rel=1e-9), name
         travel.append(row["output travel"])
     assert travel[0] != pytest.approx(travel[1], rel=0.05)  # the runs differ: a real check
+
+
+def test_sweep_figures_sort_the_grid_and_share_one_colour_scale(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A 1-D grid given as `30,5,15,10` was drawn joined in that order (a zig-zag), heat-map
+    axes kept the order given, and each variant's heat map had its own colour scale (one
+    yellow was 0.55 in one panel and 0.41 beside it; found by a user of the summaries). The
+    points are joined in x order, the axes sorted, one scale spans every variant and the
+    best instance is ringed."""
+    from loopworks.sim import sweep_report
+    from loopworks.sim.sweep import SweepResult
+
+    kept: list[Any] = []
+    monkeypatch.setattr(sweep_report, "_save", lambda fig, path: kept.append(fig) or path)
+    one = SweepResult({"variant": ["a"] * 4, "point": [0, 1, 2, 3], "seed": [1, 2, 3, 4],
+                       "pid.ti": [30.0, 5.0, 15.0, 10.0], "IAE": [4.0, 1.0, 3.0, 2.0]},
+                      ["pid.ti"], "grid", grid_shape=(4,), metrics=["IAE"])
+    sweep_report.figures(one, tmp_path, "IAE")
+    line = kept[0].axes[0].lines[0]
+    assert list(line.get_xdata()) == [5.0, 10.0, 15.0, 30.0]
+    assert list(line.get_ydata()) == [1.0, 2.0, 3.0, 4.0]
+    cols: dict[str, list[Any]] = {"variant": [], "point": [], "seed": [], "x": [], "y": [],
+                                  "IAE": []}
+    for v, offset in (("a", 0.0), ("b", 10.0)):
+        for k, (x, y) in enumerate(((3.0, 1.0), (1.0, 1.0), (3.0, 2.0), (1.0, 2.0))):
+            for name, value in zip(cols, (v, k, k, x, y, offset + x + y), strict=True):
+                cols[name].append(value)
+    two = SweepResult(cols, ["x", "y"], "grid", grid_shape=(2, 2), metrics=["IAE"])
+    sweep_report.figures(two, tmp_path, "IAE")
+    heat = kept[1]
+    images = [ax.images[0] for ax in heat.axes if ax.images]
+    assert [im.get_clim() for im in images] == [(2.0, 15.0)] * 2
+    assert [t.get_text() for t in heat.axes[0].get_xticklabels()] == ["1", "3"]
+    assert images[0].get_array()[0, 0] == 2.0  # x = 1, y = 1: the corner, sorted
+    assert any(line.get_label() == "best" for line in heat.axes[0].lines)

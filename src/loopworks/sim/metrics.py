@@ -55,6 +55,9 @@ class MetricInfo:
     not_available: str
 
 
+#: the metrics whose sign is a direction, not a size: the best of them is the one nearest 0
+SIGNED = ("final error", "step size")
+
 _NONFINITE = "a sample in the window is NaN or infinite (a Bad value)"
 _INTEGRAL = "the run has fewer than 2 scans (no scan period), or " + _NONFINITE
 

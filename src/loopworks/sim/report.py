@@ -158,8 +158,8 @@ def overview_plot(results: dict[str, SimResult], loop: str, path: Path, title: s
         rows.append(("position", "valve position (%)"))
         if all("command" in s for s in sigs.values()):
             rows.append(("command", "valve command (%)"))
-    else:
-        rows.append(("out", "controller output (%)"))
+    else:  # in the unit the controller's output is in (GE's counts read as % before)
+        rows.append(("out", f"controller output ({first.out_units(loop)})"))
     last = list(sigs.values())[-1]
     z0, z1 = zoom_span(first.t, window, last.get("command", last["out"]))
     fig, axes = plt.subplots(len(rows), 2, figsize=(14, 2.7 * len(rows) + 1.2), squeeze=False,
@@ -269,7 +269,8 @@ def _trend_figure(result: SimResult, title: str,
                 color="0.6")
     for loop in loops:
         ax.plot(result.t, result.out(loop), label=f"{loop} OUT", lw=0.8)
-    ax.set_ylabel("controller output (%)")
+    units = {result.out_units(loop) for loop in loops}
+    ax.set_ylabel(f"controller output ({units.pop() if len(units) == 1 else 'output units'})")
     if valves:
         ax = axes[2, 0]
         for valve in valves:

@@ -105,6 +105,16 @@ class SimResult:
         """The output of controller ``loop`` (its OUT role: ``out``, GE's ``cv``, S5's ``y``)."""
         return self[f"{loop}.{self._roles_of(loop).out}"]
 
+    def out_units(self, loop: str) -> str:
+        """The unit controller ``loop``'s output is in, as its kind declares it: ``%`` for
+        an output in %, or in the loop's own output units (the generic pid), ``counts``
+        (GE, S5), ``EU`` (DeltaV's OUT_SCALE)."""
+        from loopworks.catalog import block_class
+
+        cls = block_class(self.kinds[loop])
+        unit = cls.OUTPUTS[[p.name for p in cls.OUTPUTS].index(self._roles_of(loop).out)].unit
+        return {"out": "%", "count": "counts"}.get(unit, unit or "%")
+
     def _roles_of(self, loop: str) -> Roles:
         if loop not in self.kinds:
             raise KeyError(f"no block '{loop}'; blocks: {', '.join(self.kinds)}")
@@ -116,7 +126,12 @@ class SimResult:
 
     def valve_of(self, loop: str) -> str | None:
         """The first block with a ``position`` output downstream of the loop's output along
-        the wires (through compensators), or None."""
+        the wires, through the blocks that pass a signal on (compensators, calculations, a
+        relay) and not through a process, a sensor, a load or another controller: a loop
+        whose output feeds a process that another loop's valve follows drives no valve (it
+        got that loop's valve figures: a cascade primary its secondary's), or None."""
+        controllers = set(self.controllers())
+        stops = ("process.", "sensor.", "disturbance.")
         frontier, seen = [loop], {loop}
         while frontier:
             block = frontier.pop(0)
@@ -128,7 +143,8 @@ class SimResult:
                     if f"{nxt}.position" in self.values:
                         return nxt
                     seen.add(nxt)
-                    frontier.append(nxt)
+                    if nxt not in controllers and not self.kinds.get(nxt, "").startswith(stops):
+                        frontier.append(nxt)
         return None
 
     def working_sp(self, loop: str) -> np.ndarray:

@@ -355,11 +355,16 @@ class SweepResult:
         return self.to_arrow().to_pandas()
 
     def best(self, metric: str, *, largest: bool = False) -> dict[str, Any]:
-        """The row with the smallest (``largest``: the largest) finite ``metric``."""
+        """The row with the smallest (``largest``: the largest) finite ``metric``; a signed
+        one (``metrics.SIGNED``: final error, step size) by its size, |value| (the smallest
+        final error was the most negative, the largest error of the sweep)."""
+        from loopworks.sim.metrics import SIGNED
+
         if metric not in self.columns:
             raise KeyError(f"no metric '{metric}'; metrics: {', '.join(self.metrics)}")
-        values = [v if isinstance(v, float) and math.isfinite(v) else math.nan
-                  for v in self.columns[metric]]
+        size = metric.rpartition(": ")[2] in SIGNED  # "loop: final error" too
+        values = [(abs(v) if size else v) if isinstance(v, float) and math.isfinite(v)
+                  else math.nan for v in self.columns[metric]]
         finite = [i for i, v in enumerate(values) if not math.isnan(v)]
         if not finite:
             raise KeyError(f"'{metric}' is n/a in every instance")

@@ -100,7 +100,10 @@ def figures(result: SweepResult, directory: Path, metric: str | None = None) -> 
             for i, v in enumerate(variants):
                 keep = vcol == v
                 x = _floats(xs)[keep] if numeric else np.arange(int(keep.sum()))
-                ax.plot(x, _floats(result.columns[m])[keep], "o-", ms=3,
+                # joined in x order, not the order given (`--vary pid.ti=30,5,15,10` drew a
+                # zig-zag no response has)
+                order = np.argsort(x, kind="stable") if numeric else np.arange(len(x))
+                ax.plot(x[order], _floats(result.columns[m])[keep][order], "o-", ms=3,
                         color=colours[i % len(colours)], label=v)
             ax.set_title(m, fontsize=9)
             ax.grid(True, alpha=0.3)
@@ -117,22 +120,41 @@ def figures(result: SweepResult, directory: Path, metric: str | None = None) -> 
         xn, yn = result.varied
         fig, axes = plt.subplots(1, len(variants), figsize=(5.2 * len(variants) + 0.6, 4.4),
                                  squeeze=False, layout="constrained")
+        # one colour scale for every variant (a colour is a value, panel to panel), and the
+        # best instance ringed
+        allz = _floats(result.columns[chosen])
+        lo, hi = ((float(np.nanmin(allz)), float(np.nanmax(allz))) if np.isfinite(allz).any()
+                  else (0.0, 1.0))
+        try:
+            best = result.best(chosen)
+        except KeyError:
+            best = None
+
+        def axis(values: Any) -> list[Any]:
+            """The grid's values along an axis, sorted when numeric (the order given
+            otherwise)."""
+            seen = list(dict.fromkeys(values))
+            return (sorted(seen) if all(isinstance(u, int | float) for u in seen) else seen)
+
         for ax, v in zip(axes[0], variants, strict=True):
             keep = vcol == v
-            xv = list(dict.fromkeys(np.array(result.columns[xn], dtype=object)[keep]))
-            yv = list(dict.fromkeys(np.array(result.columns[yn], dtype=object)[keep]))
+            xv = axis(np.array(result.columns[xn], dtype=object)[keep])
+            yv = axis(np.array(result.columns[yn], dtype=object)[keep])
             z = np.full((len(yv), len(xv)), math.nan)
             for xval, yval, zval in zip(np.array(result.columns[xn], dtype=object)[keep],
                                         np.array(result.columns[yn], dtype=object)[keep],
                                         _floats(result.columns[chosen])[keep], strict=True):
                 z[yv.index(yval), xv.index(xval)] = zval
-            im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis")
+            im = ax.imshow(z, origin="lower", aspect="auto", cmap="viridis", vmin=lo, vmax=hi)
+            if best is not None and best["variant"] == v:
+                ax.plot(xv.index(best[xn]), yv.index(best[yn]), "s", ms=22, mfc="none",
+                        mec="red", mew=2.0, label="best")
+                ax.legend(loc="upper right", fontsize=7, markerscale=0.4)
             ax.set_xticks(range(len(xv)), [f"{x:g}" if isinstance(x, float) else str(x)
                                            for x in xv], rotation=45, fontsize=8)
             ax.set_yticks(range(len(yv)), [f"{y:g}" if isinstance(y, float) else str(y)
                                            for y in yv], fontsize=8)
-            middle = float(np.nanmean([np.nanmin(z), np.nanmax(z)])) if np.isfinite(z).any() \
-                else 0.0
+            middle = 0.5 * (lo + hi)
             for (r, c), val in np.ndenumerate(z):
                 if math.isfinite(val):  # dark text on the light (high) end of viridis
                     ax.text(c, r, f"{val:.3g}", ha="center", va="center", fontsize=7,
@@ -216,15 +238,20 @@ def write_results(result: SweepResult, directory: Path) -> list[Path]:
 
 def summary_table(result: SweepResult, metric: str) -> list[tuple[str, float, float, float,
                                                                     float]]:
-    """(variant, median, 5th percentile, 95th percentile, best) of ``metric``."""
+    """(variant, median, 5th percentile, 95th percentile, best) of ``metric``; the best is
+    the smallest, of a signed metric the nearest 0 (``metrics.SIGNED``)."""
+    from loopworks.sim.metrics import SIGNED
+
     rows = []
     vcol = np.array(result.columns["variant"])
     values = _floats(result.columns[metric])
+    signed = metric.rpartition(": ")[2] in SIGNED
     for v in dict.fromkeys(result.columns["variant"]):
         d = values[(vcol == v) & np.isfinite(values)]
         if d.size:
+            best = float(d[np.argmin(np.abs(d))]) if signed else float(d.min())
             rows.append((v, float(np.median(d)), float(np.percentile(d, 5)),
-                         float(np.percentile(d, 95)), float(d.min())))
+                         float(np.percentile(d, 95)), best))
         else:
             rows.append((v, math.nan, math.nan, math.nan, math.nan))
     return rows
