@@ -212,8 +212,8 @@ def signature_plot(results: dict[str, SimResult], loop: str, path: Path,
     if not all("position" in s for s in sigs.values()):
         return False
     n = len(sigs)
-    fig, axes = plt.subplots(1, n, figsize=(5.2 * n + 0.6, 5.4), squeeze=False, sharex=True,
-                             sharey=True, layout="constrained")
+    fig, axes = plt.subplots(1, n, figsize=(max(5.2 * n, 6.4) + 0.6, 5.8), squeeze=False,
+                             sharex=True, sharey=True, layout="constrained")
     for ax, (variant, s) in zip(axes[0], sigs.items(), strict=True):
         keep = _scored(results[variant].t, window)
         same = "command" not in s or np.array_equal(s["command"][keep], s["out"][keep])
@@ -235,7 +235,8 @@ def signature_plot(results: dict[str, SimResult], loop: str, path: Path,
               else f"scored window {window[0]:g}..{window[1]:g} s")
     fig.legend(list(legend.values()), list(legend), loc="outside lower center", ncol=2,
                frameon=False)
-    fig.suptitle(f"{loop}: valve position vs controller output and vs valve command\n"
+    # on three lines: one panel's width cut the one-line title at both ends
+    fig.suptitle(f"{loop}: valve position\nvs controller output and vs valve command\n"
                  f"{scored}")
     fig.savefig(path, dpi=100)
     plt.close(fig)
