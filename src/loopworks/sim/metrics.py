@@ -89,6 +89,12 @@ METRICS: tuple[MetricInfo, ...] = (
                "step away from the setpoint (stalled or creeping: read the final error), or "
                "the PV stayed inside the band for less than half the time it took to get "
                "there (the record is too short to show that it stays: a slow oscillation)"),
+    MetricInfo("decay ratio", "ratio (1)", "second peak excursion / first peak excursion beyond y∞ "
+               "after the step (spec 4.1; 0.25 is quarter decay): the peaks of the first two "
+               "lobes above +2 % of |Δr| separated by an undershoot below -2 %",
+               "no step, the response has not settled (see settling time), it does not "
+               "overshoot y∞ by more than 2 % of |Δr|, or no second peak leaves that band "
+               "(the ratio is then below 2 % / the overshoot, more than the band resolves)"),
     MetricInfo("final error", "PV units", "SP − PV at the last scan of the window", _NONFINITE),
     MetricInfo("PV std", "PV units", "standard deviation of the PV over the window",
                "fewer than 2 samples in the window, or " + _NONFINITE),
@@ -198,16 +204,18 @@ class StepMetrics:
     overshoot_pct: float
     rise_time_s: float
     settling_time_s: float
+    decay_ratio: float = math.nan
 
 
 def step_metrics(t: np.ndarray, y: np.ndarray, r: float, band: float = 0.02) -> StepMetrics:
     """Overshoot, 10-90 % rise time and settling time of ``y`` toward setpoint ``r`` (the
     module docstring gives the definitions and when the response counts as settled)."""
     y = np.asarray(y, dtype=np.float64)
-    size, over, rise, settle = _step_rows(np.asarray(t, dtype=np.float64), y[None, :],
-                                          np.array([float(r)]), np.zeros(1, dtype=np.int64),
-                                          band)
-    return StepMetrics(float(size[0]), float(over[0]), float(rise[0]), float(settle[0]))
+    size, over, rise, settle, decay = _step_rows(
+        np.asarray(t, dtype=np.float64), y[None, :], np.array([float(r)]),
+        np.zeros(1, dtype=np.int64), band)
+    return StepMetrics(float(size[0]), float(over[0]), float(rise[0]), float(settle[0]),
+                       float(decay[0]))
 
 
 def _per_row(f: Any, x: np.ndarray) -> np.ndarray:
@@ -231,11 +239,35 @@ def _first(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 STAY = 0.5
 
 
+def decay_ratio(excursion: np.ndarray, band: float) -> float:
+    """Second peak excursion / first peak excursion (spec 4.1) of a step response's
+    ``excursion`` beyond its final value, (y - y∞)·sign(Δr) from the step on: the first peak
+    is the largest excursion of the first lobe above +``band``, the second that of the next
+    lobe above +band after the response went below -band (an undershoot). NaN when there is
+    no overshoot beyond the band, or no second peak beyond it (a decay the ±band cannot
+    resolve from noise; the ratio is then below band / first peak)."""
+    x = np.asarray(excursion, dtype=np.float64)
+    over = np.flatnonzero(x > band)
+    if not over.size:
+        return math.nan
+    under = np.flatnonzero((x < -band) & (np.arange(len(x)) > over[0]))
+    if not under.size:
+        return math.nan
+    again = np.flatnonzero((x > band) & (np.arange(len(x)) > under[0]))
+    if not again.size:
+        return math.nan
+    first = float(x[over[0]:under[0]].max())
+    later = np.flatnonzero((x < -band) & (np.arange(len(x)) > again[0]))
+    second = float(x[again[0]:later[0] if later.size else len(x)].max())
+    return second / first
+
+
 def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
-               band: float = 0.02) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+               band: float = 0.02) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                            np.ndarray]:
     """:func:`step_metrics` of each row i of ``y`` from sample ``start[i]`` on (the samples
     before it are not part of the response), toward ``r[i]``: (step size, overshoot %, rise
-    time s, settling time s), NaN where the data cannot support a figure."""
+    time s, settling time s, decay ratio), NaN where the data cannot support a figure."""
     nan = math.nan
     rows, n = y.shape
     k = np.arange(n)
@@ -249,8 +281,9 @@ def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
     over = np.full(rows, nan)
     rise = np.full(rows, nan)
     settle = np.full(rows, nan)
+    decay = np.full(rows, nan)
     if not moves.any():
-        return size, over, rise, settle
+        return size, over, rise, settle, decay
     sel = np.flatnonzero(moves)
     y, r, start, y0, d = y[sel], r[sel], start[sel], y0[sel], dr[sel]
     sgn = np.where(d > 0, 1.0, -1.0)[:, None]
@@ -279,7 +312,9 @@ def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
     peak = np.where(after, (y - yinf[:, None]) * sgn, -math.inf).max(axis=1)
     over[sel] = np.where(settled, np.maximum(0.0, peak) / mag * 100.0, nan)
     settle[sel] = np.where(settled, np.where(any_out, t_end - t[start], 0.0), nan)
-    return size, over, rise, settle
+    for j in np.flatnonzero(settled & (peak > tol)):  # an overshoot beyond the band
+        decay[sel[j]] = decay_ratio((y[j, start[j]:] - yinf[j]) * sgn[j, 0], float(tol[j]))
+    return size, over, rise, settle, decay
 
 
 def _count_reversals(y: np.ndarray, threshold: float) -> int:
@@ -428,14 +463,14 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     changed = np.diff(np.concatenate([before, sp], axis=1), axis=1) != 0.0
     has_change = changed.any(axis=1)
     start = np.where(has_change, n - 1 - changed[:, ::-1].argmax(axis=1), 0)
-    size, over, rise, settle = _step_rows(t, pv, sp[:, -1], start)
+    size, over, rise, settle, decay = _step_rows(t, pv, sp[:, -1], start)
     # ITAE's t from the setpoint step (spec 4.1) when the window holds one change, else from
     # the window's start (regulatory, or a setpoint that moves: a cascade secondary's changes
     # every scan, and its last change is no step to weigh from)
     t0 = np.where(changed.sum(axis=1) == 1, start, 0)
     since = t[None, :] - t[t0][:, None]
     if window is not None:  # a regulatory window (no setpoint change in it): no step figures
-        for fig in (size, over, rise, settle):
+        for fig in (size, over, rise, settle, decay):
             fig[~has_change] = math.nan
     spread = n >= 2
     with np.errstate(over="ignore", invalid="ignore"):
@@ -448,6 +483,7 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
             "overshoot %": over,
             "rise time s": rise,
             "settling time s (2 %)": settle,
+            "decay ratio": decay,
             # n/a when a sample of the window is Bad, as the table says (not only the last)
             "final error": np.where(np.isfinite(e).all(axis=1), e[:, -1], math.nan),
             "PV std": _per_row(np.std, pv) if spread else np.full(len(pv), math.nan),
