@@ -67,7 +67,8 @@ def composition(loops: list[SimulatedLoop]) -> str:
 
 def evaluate(loops: list[SimulatedLoop], diagnose: Diagnose) -> str:
     """Score ``diagnose`` on ``loops``: sensitivity (sticky loops called sticky), specificity
-    (clean loops called clean) and balanced accuracy, overall and per group and loop type;
+    (clean loops called clean) and balanced accuracy, and how many sticky loops were called
+    no_stiction (a wrong answer, not an abstention), overall and per group and loop type;
     the median and 90th-percentile relative errors of S and J on the sticky loops the
     detector called sticky and gave an estimate for (J's only where the true J > 0), and the
     share of those S estimates within 30 % of the truth."""
@@ -80,7 +81,11 @@ def evaluate(loops: list[SimulatedLoop], diagnose: Diagnose) -> str:
         sens = float(np.mean(pos)) if pos else float("nan")
         spec = float(np.mean(neg)) if neg else float("nan")
         bal = float(np.nanmean([sens, spec])) if pos or neg else float("nan")
-        text = f"n {len(items):4d}  sens {sens:6.3f}  spec {spec:6.3f}  bal.acc {bal:6.3f}"
+        # sticky loops called no_stiction: the wrong answers among the misses (the others
+        # are undetermined)
+        wrong = sum(v["verdict"] == "no_stiction" for x, v in items if x.label == "stiction")
+        text = (f"n {len(items):4d}  sens {sens:6.3f}  spec {spec:6.3f}  bal.acc {bal:6.3f}  "
+                f"sticky->no {wrong:3d}")
         for name in ("s", "j"):
             errs = [abs(float(v[name]) - getattr(x, name)) / getattr(x, name)
                     for x, v in items if x.label == "stiction" and v["verdict"] == "stiction"

@@ -674,11 +674,15 @@ def diagnose(
         st = result.stiction
         console.print(f"stiction: S = {st['s']:.3g} %, J = {st['j']:.3g} % (resolution "
                       f"{st['resolution']:.3g} %, deadband {st['deadband']:.3g} %), fit "
-                      f"R² = {st['r2']:.3f}", markup=False)
+                      f"R² = {st['r2']:.3f} (of the {_R2_OF[st['r2_of']]})", markup=False)
     if result.recommendation is not None:
         console.print(f"recommendation: {result.recommendation['summary']}", markup=False)
     if output is not None:
         console.print(f"wrote {output / 'report.html'}", markup=False)
+
+
+#: what a diagnosis's fit R² is of (``stiction.r2_of``)
+_R2_OF = {"pv": "PV, through the fitted process", "position": "recorded valve position"}
 
 
 @app.command("compile")

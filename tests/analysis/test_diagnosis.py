@@ -223,7 +223,8 @@ def test_a_few_bad_samples_are_held_not_a_crash() -> None:
 
 
 @pytest.mark.parametrize(("s", "gain", "vote"), [
-    (3.0, 0.2, "stiction"), (MIN_S / 2.0, 0.2, "no_stiction"), (3.0, 0.001, "no_stiction"),
+    (3.0, 0.2, "stiction"), (MIN_S / 2.0, 0.2, "undetermined"),
+    (MIN_S / 2.0, MIN_R2_GAIN / 2.0, "no_stiction"), (3.0, 0.001, "no_stiction"),
     (3.0, MIN_R2_GAIN / 2.0, "undetermined"), (1.5 * MAX_S, 0.2, "undetermined"),
     (0.6, -0.05, "undetermined"), (MIN_S / 2.0, -0.05, "undetermined"),
     (MIN_S / 2.0, -NO_R2_GAIN / 2.0, "no_stiction"), (0.6, -NO_R2_GAIN / 2.0, "undetermined")])
@@ -235,7 +236,9 @@ def test_the_valve_fit_vote(s: float, gain: float, vote: str) -> None:
     # at S 0.56 % and gain -5 % were voted no_stiction, and called so; found by a user), and
     # so does one with S < MIN_S more than NO_R2_GAIN worse (a sticky level record's first
     # 378 samples, S 0.08 % at gain -12 %, was called no_stiction at 0.5; found by a check on
-    # the StictionGPT records): within NO_R2_GAIN of the linear valve it found the valve linear
+    # the StictionGPT records): within NO_R2_GAIN of the linear valve it found the valve
+    # linear. A band below MIN_S that explains MIN_R2_GAIN or more abstains too (a sticky
+    # valve recorded every 5 s fitted S = 0.27 % explaining 24 % and was voted against)
     r2_lin = 0.5
     fit = ValveFit(s, 0.0, 0.0, s, {"model": "fopdt"}, r2_lin + gain * (1.0 - r2_lin), r2_lin,
                    "", True)
@@ -405,3 +408,59 @@ def test_a_linear_loop_under_a_slow_noisy_sine_is_not_called_sticky() -> None:
         votes = {e.key: e for e in d.evidence}
         for key in ("area_ratio", "curve_fit"):
             assert "stand above the noise" in votes[key].reason or votes[key].vote != "stiction"
+
+
+def test_the_valve_fit_against_keeps_the_oscillation_methods_from_deciding() -> None:
+    """A linear loop under a 400 s external sine recorded every 10 s: Horch and the area
+    ratio voted stiction on the cycle's shape, the valve fitted to the same record found no
+    stick band, and the verdict was `stiction` with S and J from the fit that voted against
+    and a retuning that made the loop worse (found by an engineer). The valve fit's vote
+    against holds the verdict at undetermined, unless the recorded valve travel votes for."""
+    oscillation = [_vote("horch", "stiction"), _vote("area_ratio", "stiction")]
+    verdict, _, score, reason = verdict_of([*oscillation, _vote("valve_fit", "no_stiction")])
+    assert (verdict, score) == ("undetermined", 1.0)
+    assert "finds no stick band" in reason
+    assert verdict_of([*oscillation, _vote("valve_fit", "no_stiction"),
+                       _vote("valve_travel", "stiction", 2.0)])[0] == "stiction"
+    assert verdict_of(oscillation)[0] == "stiction"  # no valve fit vote: as before
+
+
+def test_a_cycle_of_few_samples_a_period_gets_no_horch_or_area_vote() -> None:
+    """A 26 s stiction cycle recorded every 10 s (2.6 samples a period) was called
+    no_stiction at 0.75 by Horch's "even CCF" and an area ratio over hundreds of "half
+    cycles" (found by an engineer): both abstain below MIN_PERIOD_SAMPLES, and so does the
+    valve fit's vote against (a stick band in such a cycle does not show in the record)."""
+    import dataclasses
+
+    from loopworks.analysis.diagnosis import MIN_PERIOD_SAMPLES
+    from loopworks.analysis.synthetic import simulate_loop
+
+    loop = simulate_loop(loop_type="self-regulating", controller="deltav.pid",
+                         valve="choudhury", s=5.0, j=5.0, noise=0.005, gain=1.0,
+                         time_constant=20.0, dead_time=3.0, kc=10.0 / 3.0, ti=20.0,
+                         walk_std=0.5 / math.sqrt(300.0), sample_period=10.0, seed=1)
+    d = diagnose(dataclasses.replace(loop.data, position=None), "self-regulating",
+                 recommend=False)
+    assert d.oscillation is not None and d.oscillation.detected
+    assert d.oscillation.period_s / loop.data.dt < MIN_PERIOD_SAMPLES
+    votes = {e.key: e for e in d.evidence}
+    for key in ("horch", "area_ratio", "valve_fit"):
+        assert votes[key].vote != "no_stiction"
+    for key in ("horch", "area_ratio"):
+        assert f"fewer than {MIN_PERIOD_SAMPLES}" in votes[key].reason
+    assert d.verdict != "no_stiction", d.reason
+
+
+def test_the_fit_r2_says_which_signal_it_is_of() -> None:
+    """With a position column S and J come from the valve's travel and the printed "fit R²"
+    was the position's, beside a PV-OP plot whose model explains far less of the PV (found
+    by an engineer): the estimate says which signal its R² is of."""
+    from loopworks.analysis.synthetic import simulate_loop
+
+    loop = simulate_loop(loop_type="integrating", valve="choudhury", s=3.0, j=1.0,
+                         noise=0.02, gain=0.05, dead_time=3.0, walk_std=0.01,
+                         sample_period=1.0, seed=3)
+    with_position = diagnose(loop.data, "integrating", recommend=False)
+    assert with_position.verdict == "stiction", with_position.reason
+    assert with_position.stiction is not None
+    assert with_position.stiction["r2_of"] == "position"

@@ -126,6 +126,12 @@ MAX_S = 10.0
 #: loop has its own load and a 1 % SP step, so only a gross mismatch, an unstable fitted loop,
 #: is read as one]
 REPRODUCE_FACTOR = 10.0
+#: Horch's test and the area ratio abstain on an oscillation of fewer samples a period, and
+#: the valve fit's vote against too [ours]: a half cycle of fewer than 4 samples has no
+#: placed peak and a stick band in it does not show (a 26 s stiction cycle recorded every
+#: 10 s, 2.6 samples, was called no_stiction by all three). Not more: at 9.3 samples an
+#: external sine's area ratio, 0.82, was the vote that kept a false valve fit from a verdict
+MIN_PERIOD_SAMPLES = 8
 #: the score a verdict needs (rule 4): one full vote's worth of net evidence
 DECIDE = 1.0
 #: what an estimate of S and J from a record means (docs/diagnose.md, "Why J is not
@@ -228,13 +234,18 @@ def _methods(data: LoopData, loop_type: LoopType, period: float | None = None
     e = data.sp - data.pv
     out: list[Evidence] = []
     if loop_type == "self-regulating":
+        coarse = (f"; abstains: the oscillation's period is {period:.3g} samples, fewer than "
+                  f"{MIN_PERIOD_SAMPLES}, too few to place its CCF zero crossings or its "
+                  "half cycles' peaks" if period is not None and period < MIN_PERIOD_SAMPLES
+                  else "")
         h = horch_test(data.op, data.pv, data.dt, loop_type)
-        out.append(Evidence("horch", "Horch (1999) cross-correlation of OP and PV", h.verdict,
-                            WEIGHTS["horch"], h.asymmetry * 90.0, h.reason))
+        out.append(Evidence("horch", "Horch (1999) cross-correlation of OP and PV",
+                            "undetermined" if coarse else h.verdict,
+                            WEIGHTS["horch"], h.asymmetry * 90.0, h.reason + coarse))
         a = area_ratio(e, data.dt, period=period)
         out.append(Evidence("area_ratio", "area ratio of the error's half cycles (Singhal & "
-                            "Salsbury 2005)", a.verdict, WEIGHTS["area_ratio"], a.ratio,
-                            a.reason))
+                            "Salsbury 2005)", "undetermined" if coarse else a.verdict,
+                            WEIGHTS["area_ratio"], a.ratio, a.reason + coarse))
     c = curve_fit_loop(data.op, data.pv, data.dt, loop_type, period=period)
     signal = "OP" if loop_type == "self-regulating" else "PV"
     out.append(Evidence("curve_fit", f"curve fitting of the {signal}'s half cycles (He et al. "
@@ -263,18 +274,22 @@ def _valve_fit_vote(fit: ValveFit) -> Evidence:
 def _fit_vote(s: float, gain: float) -> Verdict:
     """A fitted valve's vote (rule 3): stiction when S ≥ :data:`MIN_S` and the stiction
     explains at least :data:`MIN_R2_GAIN` of what a linear valve leaves unexplained (``gain``);
-    no stiction when S is below :data:`MIN_S` or ``gain`` in [0, :data:`NO_R2_GAIN`). A fit
+    no stiction when S is below :data:`MIN_S` (explaining less than MIN_R2_GAIN) or ``gain``
+    in [0, :data:`NO_R2_GAIN`). A fit
     that explains *less* than the linear valve abstains: S = J = 0 is one of the valves it
     could have chosen, so it did not find its best, and its S says nothing either way (sticky
     level loops fitted so were called no_stiction) - with S ≥ MIN_S for any gain < 0, with S
     below it for gain < -NO_R2_GAIN (a fit as good as the linear valve's, within the
     no-stiction share, is one that found the valve linear; a fit 12 % worse with S = 0.08 %
-    called a sticky level loop no_stiction)."""
+    called a sticky level loop no_stiction). A band below MIN_S that explains MIN_R2_GAIN or
+    more is no evidence against stiction either: it abstains (a sticky valve recorded every
+    5 s, whose noisy OP shook it loose between samples, fitted S = 0.27 % explaining 24 % and
+    was voted against at weight 2)."""
     if s >= MIN_S and gain >= MIN_R2_GAIN:
         return "stiction"
     if gain < (0.0 if s >= MIN_S else -NO_R2_GAIN):
         return "undetermined"
-    if s < MIN_S or gain < NO_R2_GAIN:
+    if (s < MIN_S and gain < MIN_R2_GAIN) or gain < NO_R2_GAIN:
         return "no_stiction"
     return "undetermined"
 
@@ -326,6 +341,15 @@ def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
     against = [e.key for e in evidence if e.vote == "no_stiction" and e.weight > 0]
     tally = (f"score {score:+.2g} of {total:g} (for: {', '.join(for_) or 'none'}; against: "
              f"{', '.join(against) or 'none'})")
+    vetoed = "valve_fit" in against and not any(k in for_ for k in SUFFICIENT)
+    if score >= DECIDE and vetoed:
+        # the valve, fitted to this record, finds no stick band worth its parameters; the
+        # oscillation methods read the cycle's shape, which an external oscillation
+        # mimics (a linear loop under a 400 s sine recorded every 10 s: Horch and the area
+        # ratio for, the valve fit against; never so on the simulated set's sticky loops)
+        return "undetermined", 0.0, score, (
+            tally + ": the oscillation methods' shape evidence against the valve fit's, "
+            "which finds no stick band in the same record")
     if score >= DECIDE and (len(for_) >= 2 or any(k in for_ for k in SUFFICIENT)):
         return "stiction", abs(score) / total, score, tally
     if score <= -DECIDE:
@@ -366,7 +390,16 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     ctl = fit_controller(data)
     sign = 0.0 if not ctl.ok else (1.0 if ctl.action == "reverse" else -1.0)
     fit = fit_valve(data, lt, gain_sign=sign)
-    evidence.append(_valve_fit_vote(fit))
+    vote = _valve_fit_vote(fit)
+    if (vote.vote == "no_stiction" and osc.detected
+            and osc.period_s / data.dt < MIN_PERIOD_SAMPLES):
+        # a cycle of a few samples: the record cannot show a stick band in it, so finding
+        # none is no evidence (a 26 s stiction cycle recorded every 10 s was voted against)
+        vote = replace(vote, vote="undetermined", reason=(
+            f"{vote.reason}; abstains: the oscillation's period is "
+            f"{osc.period_s / data.dt:.3g} samples, fewer than {MIN_PERIOD_SAMPLES}: a stick "
+            "band in it does not show in the record"))
+    evidence.append(vote)
     travel = fit_travel(data)
     if travel is not None:
         evidence.append(_valve_travel_vote(travel))
@@ -377,8 +410,10 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     stiction: dict[str, Any] | None = None
     model = rec = None
     r2 = (fit.r2, fit.r2_linear)  # of the fit S and J come from
+    r2_of = "pv"
     if verdict == "stiction" and travel is not None and travel.ok:
         r2 = (travel.r2, travel.r2_linear)
+        r2_of = "position"
         # measured on the stem: better than the estimate through the process
         fit = replace(fit, s=travel.s, j=travel.j, resolution=travel.j,
                       deadband=travel.s - travel.j,
@@ -386,7 +421,7 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
         if not fit.ok:  # the stem shows it; the process fit was refused: no loop model
             stiction = {"s": travel.s, "j": travel.j, "resolution": travel.j,
                         "deadband": travel.s - travel.j, "r2": travel.r2,
-                        "r2_linear": travel.r2_linear, "process": None,
+                        "r2_linear": travel.r2_linear, "r2_of": "position", "process": None,
                         "reason": travel.reason}
             if recommend:
                 rec = _no_options(
@@ -397,7 +432,7 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     if verdict == "stiction" and fit.ok:
         model = model_pv(data, fit)
         stiction = {"s": fit.s, "j": fit.j, "resolution": fit.resolution,
-                    "deadband": fit.deadband, "r2": r2[0], "r2_linear": r2[1],
+                    "deadband": fit.deadband, "r2": r2[0], "r2_linear": r2[1], "r2_of": r2_of,
                     "process": dict(fit.process),
                     "reason": f"{fit.reason} {SAMPLED.format(dt=data.dt)}"}
         if recommend:

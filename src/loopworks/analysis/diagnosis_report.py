@@ -159,7 +159,10 @@ def write_report(result: Diagnosis, data: LoopData, directory: Path) -> Path:
     st_html = "" if st is None else (
         f"<h2>How sticky</h2><p>S = {st['s']:.3g} %, J = {st['j']:.3g} % (resolution "
         f"{st['resolution']:.3g} %, deadband {st['deadband']:.3g} %), fit R² = "
-        f"{st['r2']:.3f}. {html.escape(str(st.get('reason', '')))}</p>")
+        f"{st['r2']:.3f} (of the "
+        + ("recorded valve position" if st.get("r2_of") == "position"
+           else "PV, through the fitted process")
+        + f"). {html.escape(str(st.get('reason', '')))}</p>")
     rec = result.recommendation
     rec_html = "" if rec is None else (
         f"<h2>What to do</h2><p>{html.escape(rec['summary'])}</p>")
