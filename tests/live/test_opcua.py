@@ -605,3 +605,18 @@ def test_a_generic_pid_loop_s_modes_on_opcua_are_its_own(tmp_path: Path) -> None
     secondary = ctl.module.blocks["secondary"]
     assert secondary.u[secondary._in_index["mode"]] == 0.0  # the pid's own MAN
     assert secondary.u[secondary._in_index["man_out"]] == 42.0
+
+
+def test_a_write_to_a_node_that_does_not_exist_says_so(served: Served) -> None:
+    """An operator writing a loop's MODE that the loop does not have got
+    BadUserAccessDenied (asyncua checks rights first; found by an operator): it is
+    BadNodeIdUnknown, and the controller sees no write."""
+    served.reset()
+
+    async def scenario() -> None:
+        async with session(served, "op", "op-pass") as client:
+            assert await write_code(client, "pid.NO_SUCH", double(1.0)) == "BadNodeIdUnknown"
+            assert served.controller.writes == []
+            assert await write_code(client, "pid.SP", double(61.0)) == "Good"
+
+    asyncio.run(scenario())

@@ -81,9 +81,11 @@ def test_loop_metrics_window_and_valve() -> None:
     m = metrics.loop_metrics(t, sp, pv, out, position=pos, window=(5.0, 9.0))
     assert m["IAE"] == pytest.approx(0 + 1 + 0 + 1 + 0)
     assert m["PV peak to peak"] == pytest.approx(2.0)
-    assert m["output travel"] == pytest.approx(4.0)
+    # travel and reversals count the move into the window's first scan (spec 4.1: Σ over
+    # k0..k1 of |y_k - y_k-1|): 0 -> 1 at t = 5, then four more
+    assert m["output travel"] == pytest.approx(5.0)
     assert m["valve travel"] == pytest.approx(1.0)
-    assert m["output reversals"] == 3.0
+    assert m["output reversals"] == 4.0
     with pytest.raises(ValueError, match="window"):
         metrics.loop_metrics(t, sp, pv, out, window=(20.0, 30.0))
 
@@ -152,17 +154,21 @@ def test_non_finite_samples_make_their_figures_na() -> None:
 
 def test_one_sample_window_has_no_spread_or_travel() -> None:
     """A window holding one scan: the integrals use the run's scan period (0.5 s), but a
-    standard deviation, peak to peak, travel or reversal count of one sample is n/a (it used
-    to read 0, a perfect loop)."""
+    standard deviation or peak to peak of one sample is n/a (it used to read 0, a perfect
+    loop); its travel is the move into it (spec 4.1), with no reversal; a one-scan run has
+    no travel either."""
     t = np.arange(0.0, 5.0, 0.5)
     sp = np.full(10, 2.0)
     pv = np.linspace(0.0, 1.0, 10)
     m = metrics.loop_metrics(t, sp, pv, pv, position=pv, command=pv, window=(2.0, 2.2))
     assert m["IAE"] == pytest.approx((2.0 - pv[4]) * 0.5)
-    for name in ("PV std", "PV peak to peak", "output travel", "output reversals",
-                 "valve travel", "valve reversals", "valve-command travel",
-                 "valve-command reversals"):
+    for name in ("PV std", "PV peak to peak"):
         assert math.isnan(m[name]), name
+    for name in ("output", "valve", "valve-command"):
+        assert m[f"{name} travel"] == pytest.approx(pv[4] - pv[3]), name
+        assert m[f"{name} reversals"] == 0.0, name
+    one = metrics.loop_metrics(t[:1], sp[:1], pv[:1], pv[:1], window=(0.0, 0.0))
+    assert math.isnan(one["output travel"]) and math.isnan(one["output reversals"])
 
 
 def test_valve_command_travel_and_reversals() -> None:
@@ -474,3 +480,21 @@ def test_decay_ratio_of_a_second_order_step_is_its_analytic_value() -> None:
                                np.zeros_like(t))
     assert row["decay ratio"] == pytest.approx(math.exp(-2 * math.pi * 0.2 / math.sqrt(0.96)),
                                                rel=1e-3)
+
+
+def test_travel_counts_the_move_into_the_windows_first_scan() -> None:
+    """Spec 4.1: travel Σ|Δy_k| over k = k0..k1, Δy_k0 = y_k0 - y_k0-1. A window starting on
+    a setpoint step's scan held the step but lost its proportional kick: output travel
+    21.78 against 36.97 from a window 50 s earlier (found by a user of the reports)."""
+    t = np.arange(11.0)
+    sp = np.where(t >= 5.0, 51.0, 50.0)
+    out = np.where(t >= 5.0, 65.0, 50.0)
+    position = np.where(t >= 6.0, 64.0, 50.0)
+    pv = np.full_like(t, 50.0)
+    on_step = metrics.loop_metrics(t, sp, pv, out, position=position, window=(5.0, 10.0))
+    assert on_step["step size"] == 1.0  # the step, against the scan before the window
+    assert on_step["output travel"] == 15.0 and on_step["valve travel"] == 14.0
+    later = metrics.loop_metrics(t, sp, pv, out, position=position, window=(7.0, 10.0))
+    assert later["output travel"] == 0.0 and later["valve travel"] == 0.0
+    whole = metrics.loop_metrics(t, sp, pv, out, position=position)
+    assert whole["output travel"] == 15.0

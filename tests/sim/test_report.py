@@ -43,8 +43,10 @@ def loop_result(pv_amp: float, stem_rate: float, dither: float) -> SimResult:
 
 
 def two_variants() -> dict[str, SimResult]:
-    # over the window (401 scans, 400 moves): PV std 2 -> 1 (-50 %), stem travel
-    # 0.01·400 = 4 -> 0.015·400 = 6 (+50 %), command travel 4 -> 400·2·0.055 = 44 (+1000 %)
+    # over the window (401 scans, and 401 moves with the one into its first scan, spec 4.1:
+    # Σ|Δy_k| over k0..k1): PV std 2 -> 1 (-50 %), stem travel 0.01·401 = 4.01 ->
+    # 0.015·401 = 6.015 (+50 %), command travel 4.01 -> 400·2·0.055 + 0.125 = 44.125 (the
+    # dither's moves alternate 0.015 ± 0.11; the one into scan 400 is +0.125)
     return {"off": loop_result(2.0, 0.01, 0.0), "on": loop_result(1.0, 0.015, 0.055)}
 
 
@@ -68,10 +70,10 @@ def test_metrics_include_the_valve_command() -> None:
     """The table's valve-command rows are the valve's op input as wired (the compensated
     signal), not the controller output."""
     m = two_variants()["on"].metrics(window=WINDOW)
-    assert m["valve-command travel"] == pytest.approx(400 * 0.11)
-    assert m["valve-command reversals"] == 399.0
-    assert m["valve travel"] == pytest.approx(400 * 0.015)
-    assert m["output travel"] == pytest.approx(400 * 0.015)
+    assert m["valve-command travel"] == pytest.approx(400 * 0.11 + 0.125)
+    assert m["valve-command reversals"] == 400.0
+    assert m["valve travel"] == pytest.approx(401 * 0.015)
+    assert m["output travel"] == pytest.approx(401 * 0.015)
 
 
 def test_headline_against_the_first_variant(tmp_path: Path) -> None:
@@ -102,7 +104,7 @@ def test_table_has_units_and_every_metric_is_defined(tmp_path: Path) -> None:
                     r"<td class=u>([^<]+)</td><td>([^<]+)</td><td>([^<]+)</td></tr>", page)
     assert row is not None
     assert row.group(2) == "% of span"
-    assert float(row.group(3)) == pytest.approx(4.0) and float(row.group(4)) == 44.0
+    assert float(row.group(3)) == pytest.approx(4.01) and float(row.group(4)) == 44.12
     linked = set(re.findall(r'<a href="#(m-[^"]+)">', page))
     defined = set(re.findall(r'<tr id="(m-[^"]+)">', page))
     assert linked and linked <= defined

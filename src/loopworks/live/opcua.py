@@ -527,7 +527,11 @@ class LoopServer:
             results: list[ua.StatusCode] = []
             for item in params.NodesToWrite:
                 node = self._by_nodeid.get(item.NodeId)
-                if node is None or item.AttributeId != AttributeIds.Value:
+                if node is None and item.NodeId not in server.iserver.aspace:
+                    # no such node: said so, not "access denied" (asyncua checks the user's
+                    # rights first; found by an operator writing a loop's missing MODE)
+                    results.append(_code("BadNodeIdUnknown"))
+                elif node is None or item.AttributeId != AttributeIds.Value:
                     results += await original(ua.WriteParameters(NodesToWrite=[item]),
                                               user=user)
                 else:

@@ -100,7 +100,8 @@ METRICS: tuple[MetricInfo, ...] = (
                "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("PV peak to peak", "PV units", "largest minus smallest PV in the window",
                "fewer than 2 samples in the window, or " + _NONFINITE),
-    MetricInfo("output travel", "% of OUT span", "controller output travel Σ|ΔOUT|, in % "
+    MetricInfo("output travel", "% of OUT span", "controller output travel Σ|ΔOUT| over "
+               "the window's scans (the move into its first scan included, spec 4.1), in % "
                "of the output's span (GE counts: 32000 = 100 %, S5: 1000, DeltaV: "
                "OUT_SCALE)",
                "fewer than 2 samples in the window, or " + _NONFINITE),
@@ -445,6 +446,10 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     command = rows(command) if command is not None else None
     ts = float(t[1] - t[0]) if len(t) > 1 else math.nan  # the scan period, before windowing
     before = sp[:, :1]  # the setpoint on the scan before the window (none: the first scan's)
+    # travel Σ|Δy_k| over k = k0..k1 (spec 4.1) counts the move into the window's first
+    # scan, Δy_k0 = y_k0 - y_k0-1: the travel signals keep the scan before the window (a
+    # window starting on a setpoint step held the step but lost its proportional kick)
+    moving = [out, position, command]
     if window is not None:
         keep = (t >= window[0]) & (t <= window[1])
         if not keep.any():
@@ -452,9 +457,9 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
                              f"({t[0]:g}..{t[-1]:g} s)")
         first = int(np.argmax(keep))
         before = sp[:, first - 1:first] if first > 0 else sp[:, first:first + 1]
-        t, sp, pv, out = t[keep], sp[:, keep], pv[:, keep], out[:, keep]
-        position = position[:, keep] if position is not None else None
-        command = command[:, keep] if command is not None else None
+        lead = slice(max(first - 1, 0), first + int(keep.sum()))
+        moving = [x[:, lead] if x is not None else None for x in moving]
+        t, sp, pv = t[keep], sp[:, keep], pv[:, keep]
     n = len(t)
     e = sp - pv
     ae = np.abs(e)
@@ -489,14 +494,16 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
             "PV std": _per_row(np.std, pv) if spread else np.full(len(pv), math.nan),
             "PV peak to peak": np.ptp(pv, axis=1) if spread else np.full(len(pv), math.nan),
         }
+    out_moves, position_moves, command_moves = moving
+    assert out_moves is not None
     result["output travel"], result["output reversals"] = _signal_metrics(
-        out * (100.0 / np.reshape(np.asarray(out_span, dtype=np.float64), (-1, 1))),
+        out_moves * (100.0 / np.reshape(np.asarray(out_span, dtype=np.float64), (-1, 1))),
         reversal_threshold)
-    if position is not None:
+    if position_moves is not None:
         result["valve travel"], result["valve reversals"] = _signal_metrics(
-            position, reversal_threshold)
-    if command is not None:
+            position_moves, reversal_threshold)
+    if command_moves is not None:
         result["valve-command travel"], result["valve-command reversals"] = _signal_metrics(
-            command, reversal_threshold)
+            command_moves, reversal_threshold)
     clean = {k: np.where(np.isfinite(v), v, math.nan) for k, v in result.items()}
     return {k: float(v[0]) for k, v in clean.items()} if one else clean
