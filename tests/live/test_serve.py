@@ -430,16 +430,22 @@ y0 = 1000.0
 """
 
 
+def live(tmp_path: Path, text: str = WORD_LOOPS) -> LiveController:
+    """The live controller of scenario ``text`` (written into ``tmp_path``), against its own
+    plant in memory."""
+    path = tmp_path / "scenario.toml"
+    path.write_text(text, encoding="utf-8")
+    split = split_scenario(load_scenario(path))
+    return LiveController(split, default_map(split), LoopbackIO(split))
+
+
 def test_a_word_setpoint_takes_whole_counts_of_a_16_bit_word(tmp_path: Path) -> None:
     """GE's SP operand and S5's W are signed 16-bit words (spec vendor-blocks 1.1, 2.2): an
     operator's SP of 40000 was accepted and published Good while the GE block skipped every
     solution (ok = 0, CV frozen) and S5 used 32767; 16500.5 was published as typed while
     the blocks used 16501 (found by an operator). Both are refused, with the range; a whole
     number in range is taken."""
-    path = tmp_path / "words.toml"
-    path.write_text(WORD_LOOPS, encoding="utf-8")
-    split = split_scenario(load_scenario(path))
-    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    ctl = live(tmp_path)
     scans(ctl, 4)
     for loop in ("ge", "s5"):
         for value in (40000.0, -40000.0, 1e9, 16500.5):
@@ -457,10 +463,7 @@ def test_an_operators_manual_output_ends_with_manual(tmp_path: Path) -> None:
     no longer copied CV (spec 1.7 step 13: "so a switch to Manual is bumpless") and the next
     switch to Manual jumped to the old OUT (found by an operator). Leaving MAN ends the
     write."""
-    path = tmp_path / "words.toml"
-    path.write_text(WORD_LOOPS, encoding="utf-8")
-    split = split_scenario(load_scenario(path))
-    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    ctl = live(tmp_path)
     scans(ctl, 4)
     ctl.write("op", "operator", "ge", "MODE", MAN)
     ctl.write("op", "operator", "ge", "OUT", 17000.0)
@@ -482,10 +485,7 @@ def test_a_ge_tuning_write_is_a_value_its_word_holds(tmp_path: Path) -> None:
     word 6 = 451, 4.51 (and an ISA's TI 1500 s ran as 1000/word 8 = 1000 s; found by an
     operator). A value off the word's grid is refused naming what it would run as, and the
     block keeps its tuning; a value on the grid is taken."""
-    path = tmp_path / "words.toml"
-    path.write_text(WORD_LOOPS, encoding="utf-8")
-    split = split_scenario(load_scenario(path))
-    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    ctl = live(tmp_path)
     scans(ctl, 2)
     ge = ctl.module.blocks["ge"]
     for name, value, runs in (("KP", 4.505, "4.51"), ("KI", 0.0123, "0.012")):
@@ -502,10 +502,7 @@ def test_each_value_is_published_in_its_blocks_units(tmp_path: Path) -> None:
     """PV, SP and OUT were all "% of PV span" and tuning had no units (found by an
     operator): GE's and S5's are counts, the generic pid's its PV's and output's own units,
     and a tuning parameter carries the unit its block declares."""
-    path = tmp_path / "words.toml"
-    path.write_text(WORD_LOOPS, encoding="utf-8")
-    split = split_scenario(load_scenario(path))
-    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    ctl = live(tmp_path)
     units = {loop: {v.name: v.units for v in variables}
              for loop, variables in ctl.loops().items()}
     assert units["ge"]["PV"] == units["ge"]["SP"] == units["ge"]["OUT"] == "counts"
@@ -539,10 +536,7 @@ y0 = 50.0
 """
     text = text.replace('"s5.x" = "p_s5.y"\n', '"s5.x" = "p_s5.y"\n"p_e2.u" = "e2.out"\n'
                         '"e2.pv" = "p_e2.y"\n')
-    path = tmp_path / "e2.toml"
-    path.write_text(text, encoding="utf-8")
-    split = split_scenario(load_scenario(path))
-    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    ctl = live(tmp_path, text)
     writable = {loop: {v.name: v.writable for v in variables}
                 for loop, variables in ctl.loops().items()}
     assert writable["e2"]["OUT"] is False and "MODE" not in writable["e2"]
@@ -557,12 +551,8 @@ def test_a_ge_dead_band_is_set_edge_by_edge_as_the_plc_takes_it(tmp_path: Path) 
     on_parameter_error = "ok_off" the server takes the words as the PLC does: between the two
     writes the PID does not solve (ok OFF, CV held), and OUT is published Bad,
     configuration error, until the pair is valid."""
-    path = tmp_path / "words.toml"
-    path.write_text(WORD_LOOPS.replace('sample_period = 0.5\n',
-                                       'sample_period = 0.5\non_parameter_error = "ok_off"\n'),
-                    encoding="utf-8")
-    split = split_scenario(load_scenario(path))
-    ctl = LiveController(split, default_map(split), LoopbackIO(split))
+    ctl = live(tmp_path, WORD_LOOPS.replace(
+        'sample_period = 0.5\n', 'sample_period = 0.5\non_parameter_error = "ok_off"\n'))
     scans(ctl, 2)
     assert ctl.snapshot()["ge.OUT"][1] & 0xC0 != 0  # not Bad
     ctl.write("op", "operator", "ge", "DEADBAND_POS", 5.0)
