@@ -460,3 +460,19 @@ def test_a_wrong_action_is_named_as_the_reason_of_no_oscillation() -> None:
         tune_loop(sc.module, "ctl", sc.dt)
     right = parse_scenario(text.replace("gain = -1.0", "gain = 1.0"))
     assert tune_loop(right.module, "ctl", right.dt).identification is not None
+
+
+def test_a_large_hysteresis_read_as_integrating_says_so() -> None:
+    """A T = 5 L plant relay-tested with a hysteresis of 1.2 (a PV amplitude of 1.9) was read
+    as integrating, and the warning blamed "T above about 25 L" (found by an engineer): it
+    names the hysteresis and the amplitude, and a smaller --hysteresis."""
+    from loopworks.sim.tune import tune_loop
+
+    sc = parse_scenario(STRUCTURED_LOOP.format(
+        controller='kind = "pid"\nk = 0.5\nti = 10.0\nbias = 50.0', sp=50.0, out="out"))
+    idn = tune_loop(sc.module, "ctl", sc.dt, hysteresis=1.2).identification
+    assert idn.process_type == "integrating"
+    lag = [w for w in idn.warnings if "lag-dominant" in w]
+    assert lag and "ε = 1.2" in lag[0] and "a smaller --hysteresis" in lag[0], lag
+    assert tune_loop(sc.module, "ctl", sc.dt, hysteresis=1.0).identification.process_type \
+        == "self_regulating"

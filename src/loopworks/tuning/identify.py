@@ -556,9 +556,12 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
                 notes.append(
                     f"the two stages' mean outputs differ by {abs(mean_du):.3g}, under "
                     f"{LAG_DOMINANT_SHIFT:.0%} of d: an integrating process, or a "
-                    "self-regulating one so lag-dominant (T above about 25 L) that the relay "
-                    "cannot tell it from one; it is tuned as integrating, as SIMC treats T > "
-                    "8 L (process='self_regulating' and a larger offset measure its K and T)")
+                    "self-regulating one the relay cannot tell from one: so lag-dominant (T "
+                    "above about 25 L), or behind a hysteresis that is much of the PV's "
+                    f"amplitude (here ε = {eps:.3g}, a = {a:.3g}: a T = 5 L plant read so at ε "
+                    "= 0.63 a, not at 0.57 a); it is tuned as integrating, as SIMC treats T > "
+                    "8 L (a smaller --hysteresis, or process='self_regulating' and a larger "
+                    "offset, measure its K and T)")
                 warnings.append(notes[-1])
         if kind == "self_regulating":
             k_static = mean_dy / mean_du
