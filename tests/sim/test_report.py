@@ -243,3 +243,24 @@ def test_the_output_axis_is_in_the_controllers_units() -> None:
     result = SimResult(np.arange(3.0), {}, {}, kinds=kinds)
     assert {k: result.out_units(k) for k in kinds} == {
         "g": "counts", "s": "counts", "d": "EU", "p": "%", "e": "%"}
+
+
+def test_a_loop_keeps_its_colour_in_every_trend_panel() -> None:
+    """The colour cycle ran on across each panel's lines: a loop's PV was green and its OUT
+    another loop's colour, and three compensator outputs shared one grey (found by a user of
+    the reports). A loop's PV, SP, OUT, compensator output and valve share its colour."""
+    from matplotlib.colors import to_hex
+
+    from loopworks.sim.report import _trend_figure
+    from loopworks.sim.scenario import load_scenario
+
+    root = Path(__file__).resolve().parents[2]
+    sc = load_scenario(root / "examples" / "compensators_side_by_side.toml")
+    _, axes = _trend_figure(sc.module.run(20.0, sc.dt), "t", None)
+    colour = {line.get_label(): to_hex(line.get_color()) for ax in axes for line in ax.lines}
+    for name in ("none", "knocker", "dither_kicker"):
+        same = {colour[f"pid_{name} PV"], colour[f"pid_{name} SP"], colour[f"pid_{name} OUT"],
+                colour[f"valve_{name} position"]}
+        assert len(same) == 1, (name, same)
+    assert colour["comp_knocker op_out"] == colour["pid_knocker OUT"]
+    assert len({colour[f"pid_{n} OUT"] for n in ("none", "knocker", "dither_kicker")}) == 3

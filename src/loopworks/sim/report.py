@@ -258,24 +258,36 @@ def _trend_figure(result: SimResult, title: str,
     panels = 2 + (1 if valves else 0)
     fig, axes = plt.subplots(panels, 1, sharex=True, figsize=(12, 2.6 * panels + 0.6),
                              squeeze=False, layout="constrained")
+    # one colour per loop in every panel (its PV solid and SP dashed, its compensator's
+    # output thin, its OUT, its valve): the colour cycle ran on across a panel's lines, so a
+    # loop's PV and its OUT were different colours
+    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    colour = {loop: cycle[i % len(cycle)] for i, loop in enumerate(loops)}
+    owner = {result.valve_of(loop): loop for loop in loops}
     ax = axes[0, 0]
     for loop in loops:
-        ax.plot(result.t, result.pv(loop), label=f"{loop} PV", lw=0.8)
-        ax.plot(result.t, result.working_sp(loop), label=f"{loop} SP", ls="--", lw=1.0)
+        ax.plot(result.t, result.pv(loop), label=f"{loop} PV", lw=0.8, color=colour[loop])
+        ax.plot(result.t, result.working_sp(loop), label=f"{loop} SP", ls="--", lw=1.0,
+                color=colour[loop])
     ax.set_ylabel("PV, SP (PV units)")
     ax = axes[1, 0]
     for comp in comps:
         port = "signal_out" if f"{comp}.signal_out" in result.values else "op_out"
-        ax.plot(result.t, result[f"{comp}.{port}"], label=f"{comp} {port}", lw=0.6,
-                color="0.6")
+        source = (result.wires.get(f"{comp}.signal_in")
+                  or result.wires.get(f"{comp}.op_in") or "")
+        fed = next((lp for lp in loops if source.startswith(f"{lp}.")), None)
+        ax.plot(result.t, result[f"{comp}.{port}"], label=f"{comp} {port}", lw=0.5,
+                alpha=0.6, color=colour[fed] if fed is not None else "0.6")
     for loop in loops:
-        ax.plot(result.t, result.out(loop), label=f"{loop} OUT", lw=0.8)
+        ax.plot(result.t, result.out(loop), label=f"{loop} OUT", lw=0.8, color=colour[loop])
     units = {result.out_units(loop) for loop in loops}
     ax.set_ylabel(f"controller output ({units.pop() if len(units) == 1 else 'output units'})")
     if valves:
         ax = axes[2, 0]
         for valve in valves:
-            ax.plot(result.t, result[f"{valve}.position"], label=f"{valve} position", lw=0.8)
+            driver = owner.get(valve)
+            ax.plot(result.t, result[f"{valve}.position"], label=f"{valve} position", lw=0.8,
+                    color=colour[driver] if driver is not None else None)
         ax.set_ylabel("valve position (%)")
     for a in axes[:, 0]:
         if window is not None:
