@@ -330,3 +330,14 @@ def test_a_tab_separated_export_reads_as_its_csv(tmp_path: Path) -> None:
     mixed = write(tmp_path, "t,sp,pv,op\n" + "".join(
         f"{k},50,\t{50 + k % 3},40\n" for k in range(5)), "mixed.csv")
     np.testing.assert_array_equal(read_csv(mixed).pv, [50, 51, 52, 50, 51])
+
+
+def test_a_simulate_csv_without_a_mapping_is_offered_its_block_ports(tmp_path: Path) -> None:
+    """A CSV that `loopworks simulate` writes names its ports block.port: the error offers
+    them, the setpoint the controller worked to (DeltaV's working_sp) first, not its SP
+    input, which it is not in CAS or while SP tracks PV (found by an engineer)."""
+    path = write(tmp_path, "t,pid.sp,pid.working_sp,pid.pv,pid.out\n0,50,50,50,50\n"
+                           "1,50,50,50,50\n2,50,50,50,50\n")
+    with pytest.raises(FileFormatError, match=r"perhaps 'pid\.working_sp', 'pid\.sp' "
+                                              r"\(--columns sp=pid\.working_sp\)"):
+        read_csv(path)

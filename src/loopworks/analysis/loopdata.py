@@ -273,8 +273,12 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
         elif role in REQUIRED:
             looked = ", ".join(ALIASES[role])
             # a module's CSV (loopworks simulate) names its ports block.port: offer those
-            near = [names[i] for i, h in enumerate(lower)
-                    if h.rpartition(".")[2] in ALIASES[role] and "." in h]
+            # the setpoint the controller worked to first (DeltaV's working_sp: its SP
+            # input is not it in CAS or while SP tracks PV)
+            ports = ("working_sp", *ALIASES[role]) if role == "sp" else ALIASES[role]
+            near = sorted((names[i] for i, h in enumerate(lower)
+                           if h.rpartition(".")[2] in ports and "." in h),
+                          key=lambda n: ports.index(n.lower().rpartition(".")[2]))
             hint = (f"; perhaps {', '.join(repr(n) for n in near)} (--columns "
                     f"{role}={near[0]})" if near else "")
             raise FileFormatError(f"{source}, line {line}: no {MEANING[role]} column: looked "
