@@ -267,6 +267,28 @@ def test_drifting_means_give_a_warning_and_a_wide_uncertainty() -> None:
     assert idn.uncertainty["process_gain"] > 0.05 * abs(idn.process_gain)
 
 
+def test_the_cycles_analysed_are_those_the_relay_judged_converged() -> None:
+    # spec 3.4: the relay ends its symmetric stage on the scan of the switch up that closes the
+    # last of its stable cycles, and that scan is the second stage's first; the identification
+    # analysed the two cycles before those (one the relay never judged stationary: on a
+    # second-order plant still settling it read a period of 11.55 s for cycles of 12.3 and
+    # 12.4 s, and a static gain of 0.29 for a true 1)
+    rec = relay_record({"kind": "process.sopdt", "gain": 1.0, "time_constant_1": 10.0,
+                        "time_constant_2": 5.0, "dead_time": 1.0}, 0.1, 400.0, amplitude=5.0,
+                       amplitude_down=2.5, biased_stage=True)
+    assert rec["phase"][-1] == CONVERGED
+    high = rec["relay"] > 0
+    ups = np.flatnonzero(high[1:] & ~high[:-1]) + 1
+    second = int(np.flatnonzero(rec["stage"] == 2.0)[0])
+    assert second in ups  # the closing switch up is the second stage's first scan
+    closing = ups[ups <= second][-3:]
+    periods = np.diff(rec["t"][closing])
+    idn = _identify(rec, 5.0, 2.5, 0.0)
+    assert idn.period == pytest.approx(float(np.mean(periods)), abs=1e-9)
+    assert not any("symmetric stage is not stationary" in w for w in idn.warnings)
+    assert abs(idn.process_gain - 1.0) < 0.3
+
+
 def test_the_relay_does_not_converge_on_drifting_cycle_means() -> None:
     # spec 3.4: stable cycles must agree; under a slow load ramp the 2nd and 3rd cycles agree
     # in period and amplitude within 5 % (the old test alone converged there), but the relay's

@@ -761,11 +761,13 @@ def fopdt_from_gain(k: float, ku: float, pu: float) -> tuple[float, float]:
 
 def _window(high: np.ndarray, mask: np.ndarray, cycles: int, what: str) -> tuple[int, int]:
     """(i0, i1): the samples of the last ``cycles`` full cycles inside ``mask`` (the sample
-    before the mask starts is looked at too, so a switch on its first sample counts)."""
+    before the mask starts is looked at too, so a switch on its first sample counts, and the
+    sample after it ends: the relay ends a stage on the scan of the switch that closes its
+    last converged cycle, and that scan is the next stage's first)."""
     idx = np.flatnonzero(mask)
     if len(idx) == 0:
         raise InputError(f"the relay test has no {what} stage to analyse")
-    ups = _slice_switches(high, int(idx[0]), int(idx[-1])).ups
+    ups = _slice_switches(high, int(idx[0]), min(int(idx[-1]) + 1, len(high) - 1)).ups
     if len(ups) < cycles + 1:
         raise InputError(f"the {what} relay stage has {max(len(ups) - 1, 0)} full cycles; "
                          f"the analysis needs {cycles}")
