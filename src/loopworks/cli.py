@@ -419,6 +419,8 @@ def tune(
     for key, value in data["settings"].items():
         settings.add_row(key, _fmt_value(value))
     console.print(settings)
+    if data["ms"] is not None:
+        console.print(f"Ms {data['ms']:.3g} on the identified model (docs/tune.md)")
     if data["note"]:
         console.print(data["note"], markup=False)
     for warning in data["warnings"]:

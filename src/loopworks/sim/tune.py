@@ -434,6 +434,7 @@ class TuneReport:
             "rule_form": self.tuning.form,
             "tuning": {"kc": self.tuning.kc, "ti": _finite(self.tuning.ti),
                        "td": self.tuning.td},
+            "ms": self.tuning.ms,
             "settings": dict(self.conversion.params),
             "exact": self.conversion.exact,
             "note": " ".join(s for s in (self.conversion.note, *self.identification.notes)

@@ -26,11 +26,12 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from types import MappingProxyType
 
 from loopworks.blocks.forms import series_to_ideal
 from loopworks.errors import ParameterError
+from loopworks.tuning.robustness import MS_WARNING, max_sensitivity
 from loopworks.tuning.settings import Ideal, ProcessData
 
 CONTROLLERS = ("P", "PI", "PID")
@@ -74,6 +75,9 @@ class Tuning:
     td: float
     note: str = ""
     direct: bool = False
+    #: maximum sensitivity on the process model the data hold (tuning.robustness; inf:
+    #: unstable), None without a model
+    ms: float | None = None
 
     def ideal(self) -> Ideal:
         """The same controller in the ideal form (spec 3.5 via ``blocks.forms``), unfiltered
@@ -487,8 +491,47 @@ def tune(rule: str, data: ProcessData, controller: str = "PI", **options: float)
     notes = [out.note] if out.note else []
     if "pu" in model:
         notes += _not_ultimate(r.name, data)
-    return Tuning(rule=r.name, controller=ctrl, form=out.form, kc=out.kc, ti=out.ti,
-                  td=out.td, note=" ".join(notes), direct=direct)
+    tuning = Tuning(rule=r.name, controller=ctrl, form=out.form, kc=out.kc, ti=out.ti,
+                    td=out.td, direct=direct)
+    ms, on = _robustness(tuning, data)
+    if ms is not None and ms > MS_WARNING:
+        hf = _derivative_gain(tuning, data)
+        notes.append(f"Ms = {ms:.3g} on {on}: " + (
+            "the closed loop is unstable" + (
+                f" (the unfiltered derivative's gain through the dead time, Kc·Td·|K|/T = "
+                f"{hf:.3g}, is 1 or more: a derivative filter decides it)" if hf >= 1.0
+                else "") if math.isinf(ms) else
+            f"above {MS_WARNING:g}, the upper end of the usual design range 1.2-2 (Åström & "
+            "Hägglund 2006): an aggressive tuning with little margin to instability")
+            + "; 'amigo' (Ms about 1.4) or a slower rule is more robust")
+    return replace(tuning, note="; ".join(notes), ms=ms)
+
+
+def _derivative_gain(tuning: Tuning, data: ProcessData) -> float:
+    """|C·G| at high frequency, Kc·Td·|K|/T (Kc·Td·|Kv| integrating; tuning.robustness), 0
+    without derivative action or a model."""
+    ideal = tuning.ideal()
+    k = data.process_gain if data.time_constant is not None else data.integrating_gain
+    scale = data.time_constant if data.time_constant is not None else 1.0
+    return 0.0 if k is None or not scale else ideal.kc * ideal.td * abs(k) / scale
+
+
+def _robustness(tuning: Tuning, data: ProcessData) -> tuple[float | None, str]:
+    """Ms of the tuning (ideal form) on the process model the data hold (FOPDT first, then
+    integrating), and the model in words; (None, "") without a model with a dead time."""
+    ideal = tuning.ideal()
+    k, lag, tc = data.process_gain, data.dead_time, data.time_constant
+    if k is not None and lag is not None and tc is not None and k != 0.0 and lag > 0.0 \
+            and tc > 0.0:
+        return (max_sensitivity(ideal.kc, ideal.ti, ideal.td, gain=k, dead_time=lag,
+                                time_constant=tc),
+                f"the FOPDT model (K {k:.4g}, T {tc:.4g} s, L {lag:.4g} s)")
+    kv = data.integrating_gain
+    if kv is not None and lag is not None and kv != 0.0 and lag > 0.0:
+        return (max_sensitivity(ideal.kc, ideal.ti, ideal.td, gain=kv, dead_time=lag,
+                                time_constant=None),
+                f"the integrating model (Kv {kv:.4g} 1/s, L {lag:.4g} s)")
+    return None, ""
 
 
 def _not_ultimate(rule: str, data: ProcessData) -> list[str]:
