@@ -510,7 +510,8 @@ def sweep(
     scheduler: Annotated[str | None, typer.Option(
         "--scheduler", help="a Dask distributed scheduler address (tcp://HOST:PORT)")] = None,
     metric: Annotated[str | None, typer.Option(
-        "--metric", help="the metric the summary plots and ranks (default: PV std)")] = None,
+        "--metric", help="the metric the summary plots and ranks (default: PV std; with "
+        "several loops the first loop's, 'LOOP: PV std')")] = None,
     trajectory: Annotated[list[int] | None, typer.Option(
         "--trajectory", metavar="POINT", help="also write this point's full run, every "
         "signal, as trajectory_VARIANT_POINT.csv (repeatable)")] = None,
@@ -589,7 +590,8 @@ def sweep(
         from loopworks.sim.report import json_text
 
         typer.echo(json_text({
-            "instances": len(result), "design": result.design, "varied": result.varied,
+            "instances": len(set(result.columns["point"])), "runs": len(result),
+            "design": result.design, "varied": result.varied,
             "seconds": result.seconds, "metric": chosen,
             "variants": {v: {"median": a, "p5": b, "p95": c, "best": d}
                          for v, a, b, c, d in rows},

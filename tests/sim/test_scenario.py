@@ -229,6 +229,23 @@ def test_an_event_after_the_run_is_a_warning() -> None:
                            "(t = 19.5 s) of the 20 s run: it never happens"]
 
 
+def test_a_duration_off_the_scan_grid_is_a_warning_naming_the_scans_run() -> None:
+    """n = round(duration/dt) scans was said nowhere: 20.2 s in scans of 0.5 s runs 40."""
+    sc = parse_scenario(GOOD.replace("duration = 20.0", "duration = 20.2"), "x.toml")
+    assert sc.warnings == ["x.toml: [simulation] duration = 20.2 s is not a whole number of "
+                           "scans of dt = 0.5 s: the run has the nearest count, 40 scans (20 s)"]
+
+
+def test_two_events_on_one_input_at_one_time_are_refused() -> None:
+    """Which of two writes at one instant holds was only their order in the file."""
+    text = GOOD + "".join(f'\n[[events]]\nt = 5.0\nset = "{target}"\nvalue = {v}\n'
+                          for target, v in (("pid.sp", 1.0), ("pid.SP", 2.0)))
+    with pytest.raises(FileFormatError, match=r"x\.toml: .*event at t = 5 s, set = 'pid\.SP': "
+                                              r"another event sets 'pid\.sp' at the same time"):
+        parse_scenario(text, "x.toml")
+    parse_scenario(text.replace("t = 5.0\nset = \"pid.SP\"", "t = 5.5\nset = \"pid.SP\""))
+
+
 def test_a_run_that_cannot_be_recorded_is_refused_at_load() -> None:
     text = GOOD.replace("duration = 20.0", "duration = 1e12").replace("dt = 0.5", "dt = 1e-3")
     with pytest.raises(FileFormatError, match=r"bad\.toml: \[simulation\]: duration = 1e\+12 s "

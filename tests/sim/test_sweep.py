@@ -201,7 +201,7 @@ def test_monte_carlo_is_reproducible_and_processes_agree(scenario: Path) -> None
     (["valve.s=1,2"], "no block 'valve'"),
     (["pid.gain=1,2"], "'gain' is not a parameter or input of pid (pid)"),
     (["pid.k=-1,1"], "instance 0: pid.k = -1"),
-    (["pid.k=1,2", "PID.K=3"], "a name is varied twice"),
+    (["pid.k=1,2", "pid.K=3"], "a name is varied twice"),  # parameter names: any case
     (["pid.sp=uniform(0,1)", "pid.mode=choice(AUTO,BOGUS)"], "pid.mode = 'BOGUS'"),
     # a wired input: the constant was taken and silently never applied (found by a user)
     (["pid.pv=0,100"], "--vary pid.pv: the input is wired from 'tx.pv' in variant 'base': "
@@ -220,7 +220,8 @@ def test_sweep_command_writes_results_and_summary(scenario: Path, tmp_path: Path
                                       "--workers", "1", "-o", str(out), "-q", "--json"])
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
-    assert data["instances"] == 6 and data["design"] == "grid" and data["metric"] == "PV std"
+    assert (data["instances"], data["runs"]) == (3, 6)
+    assert data["design"] == "grid" and data["metric"] == "PV std"
     assert set(data["variants"]) == {"base", "faster"}
     table = pq.read_table(out / "results.parquet")
     assert table.num_rows == 6
@@ -351,6 +352,49 @@ def test_a_metric_with_no_value_is_null_in_json_and_na_in_the_table(scenario: Pa
     done = CliRunner().invoke(app, [*args[:-1], str(tmp_path / "b")])
     assert done.exit_code == 0, done.output
     assert "n/a" in done.output and "nan" not in done.output
+
+
+def test_n_a_is_null_in_the_results_files_and_the_json_counts_points_and_runs(
+        scenario: Path, tmp_path: Path) -> None:
+    """docs/sweeps.md: an n/a metric is null in results.parquet (it was a NaN value that
+    Arrow counted and averaged as data) and an empty CSV field (was "nan"); --json's
+    `instances` counts points and `runs` points × variants (`instances` was the runs)."""
+    out = tmp_path / "r"
+    done = CliRunner().invoke(app, ["sweep", str(scenario), "--vary", "pid.k=0.5,1,2",
+                                    "--workers", "1", "-q", "--json", "-o", str(out)])
+    assert done.exit_code == 0, done.output
+    data = json.loads(done.stdout)
+    assert (data["instances"], data["runs"]) == (3, 6)  # two [compare] variants
+    table = pq.read_table(out / "results.parquet")
+    assert table["overshoot %"].null_count == 6  # no setpoint step: n/a in every run
+    assert table["PV std"].null_count == 0
+    header, *rows = (out / "results.csv").read_text().splitlines()
+    at = header.split(",").index('"overshoot %"')
+    assert all(row.split(",")[at] == "" for row in rows) and "nan" not in rows[0]
+
+
+def test_a_block_named_in_capitals_is_swept_as_simulate_runs_it(tmp_path: Path) -> None:
+    """A block keeps its case as in [wires] (parameter names do not): --vary PID.k on
+    [blocks.PID] was refused ("no block 'pid'; blocks: PID, ...") or, half-fixed, crashed."""
+    text = SCENARIO.replace("[blocks.pid]", "[blocks.PID]").replace('"pid.', '"PID.')
+    text = text.replace('= "pid.out"', '= "PID.out"')
+    path = tmp_path / "caps.toml"
+    path.write_text(text, encoding="utf-8")
+    result = sweep(path, {"PID.K": "0.5,1.5"}, variant="base", workers=1)
+    assert result.varied == ["PID.k"]
+    for i in range(2):
+        row = {k: col[i] for k, col in result.columns.items()}
+        expected = _simulate_metrics(tmp_path, text, {"PID.k": row["PID.k"]}, row["seed"],
+                                     "base")
+        assert row["IAE"] == pytest.approx(expected["IAE"], rel=1e-9)
+    with pytest.raises(InputError, match="no block 'pid'"):
+        sweep(path, {"pid.k": "1,2"}, workers=1)
+    figures = result.plot(directory=str(tmp_path / "figs"))  # a str as sweep() takes
+    assert figures and all(f.is_file() for f in figures)
+    from loopworks.sim.scenario import parse_scenario
+
+    tuned = parse_scenario(text + '\n[autotune]\nloop = "PID"\nprocess_gain = ["PID.K"]\n')
+    assert tuned.autotune_test is not None and tuned.autotune_test.loop == "PID"  # was 'pid'
 
 
 def test_a_wrong_scheduler_address_or_workers_with_it_fail_before_running(

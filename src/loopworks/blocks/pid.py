@@ -25,7 +25,9 @@ velocity:    v_k = A_{k-1} + (P_k - P_{k-1}) + ΔI_k + (D_k - D_{k-1}) + (ff_k -
 both:        u_k = ratelimit(clamp(v_k, out_lo, out_hi), u_{k-1}, rate_limit·dt)
 
 At the first scan the memories are zero, the accumulator is ``bias`` and d_{k-1} = d_k, so the
-two algorithms give the same output while nothing limits it.
+two algorithms give the same output while nothing limits it. Before its first scan (what a
+block earlier in a module's order reads from it on scan 0) ``out`` is ``bias`` limited to
+out_lo..out_hi, whatever the mode: a MAN start's ``man_out`` is applied by that first scan.
 
 The effective limits of a scan are [max(out_lo, u_{k-1} - rate_limit·dt),
 min(out_hi, u_{k-1} + rate_limit·dt)] (the rate terms from the second scan on); u_k is v_k

@@ -56,7 +56,8 @@ def fixed_names(module: Module, names: Sequence[str]) -> list[str]:
     instances differing in them need different layouts (``FIXED_PARAMS``)."""
     out = []
     for name in names:
-        block, param = _split(name.lower(), "varied name")
+        block, param = _split(name, "varied name")
+        param = param.lower()  # the block keeps its case (a [wires] name), the parameter not
         b = module.blocks.get(block)
         if b is not None and param in b.FIXED_PARAMS and param not in b._in_index:
             out.append(name)
@@ -102,7 +103,8 @@ class Batch:
         params: dict[str, dict[str, Any]] = {}
         constants = {n: dict(v) for n, v in self._constants.items()}
         for name, value in changes.items():
-            block, port = _split(name.lower(), "varied name")
+            block, port = _split(name, "varied name")
+            port = port.lower()
             b = m.blocks[block]
             if port in b._in_index:
                 constants.setdefault(block, {})[port] = value

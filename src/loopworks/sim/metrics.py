@@ -163,9 +163,11 @@ stiction compensator costs: the controller output (`output travel`), the valve c
 the positioner (`valve-command travel`: the compensator adds its dither and kicks here) and the
 stem (`valve travel`, the wear). The controller output's travel is in % of its span, whatever
 its units (GE counts: 32000 = 100 %; S5: 1000; DeltaV: OUT_SCALE; the other kinds' outputs
-are in %). Reversals count the turns of a signal's moves, each move measured from the last
-point where the signal had moved by more than 0.05 % of its span, so that noise below the
-resolution is not counted and a slow ramp of small steps is one move.
+are taken as in %, 1 unit = 1 %, whatever their limits: a generic `pid` whose output runs
+-200..200 has its travel in those units, not in % of 400). Reversals count the turns of a
+signal's moves, each move measured from the last point where the signal had moved by more than
+0.05 % of its span, so that noise below the resolution is not counted and a slow ramp of small
+steps is one move.
 
 | metric | unit | definition | n/a when |
 |---|---|---|---|

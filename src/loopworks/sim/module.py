@@ -269,8 +269,16 @@ class Module:
         must parse for its port (a mode by name or code), and a parameter event must leave
         the block's parameters valid (applied in time order, as the run would)."""
         trials: dict[str, Block] = {}  # interpreted copies that take the parameter events
-        for ev in self.events:
+        seen: dict[tuple[float, str, str], int] = {}
+        for i, ev in enumerate(self.events):
             where = f"event at t = {ev.t:g} s, set = '{ev.target}'"
+            block, name = _split(ev.target, "event")
+            first = seen.setdefault((ev.t, block, name.lower()), i)
+            if first != i:
+                other = self.events[first].target
+                raise InputError(f"{where}: another event sets '{other}' at the same time; "
+                                 "which one would hold is only the order they are written "
+                                 "in: keep one")
             if self._is_parameter(ev.target):
                 block, name = _split(ev.target, "event")
                 b = self.blocks[block]
@@ -322,8 +330,8 @@ class Module:
             if not isinstance(b, Controller):
                 continue
             span = type(b).out_span(b.params)
-            mine = [{k.lower().rpartition(".")[2]: v for k, v in changes.items()
-                     if k.lower().rpartition(".")[0] == n.lower()} for changes in instances]
+            mine = [{k.rpartition(".")[2].lower(): v for k, v in changes.items()
+                     if k.rpartition(".")[0] == n} for changes in instances]
             if any(mine):
                 each = np.array([type(b).out_span({**b.params, **m}) if m else span
                                  for m in mine])

@@ -145,7 +145,7 @@ class Scenario:
               seed: int | None) -> Module:
         tables = {name: dict(table) for name, table in self.tables[variant].items()}
         for key, value in (changes or {}).items():
-            block, _, fname = key.lower().rpartition(".")
+            block, fname = split_ref(key)
             tables[block][fname] = value
         where = self.source if variant == "base" else f"{self.source} (compare.{variant})"
         return _build(self._model, tables, where, seed)
@@ -165,6 +165,14 @@ class AutotuneTest:
     #: the modules of every variant with ``process_gain`` (%PV/%OUT) written into the
     #: ``[autotune] process_gain`` parameters
     rebuild: Callable[[float], dict[str, Module]] = field(repr=False, default=lambda g: {})
+
+
+def split_ref(ref: str) -> tuple[str, str]:
+    """("block", "name") of a "block.parameter" or "block.input" reference: the block as the
+    scenario names it (block names keep their case, as in [wires]), the parameter or input
+    name in lower case (parameter names are case-insensitive in a block's table)."""
+    block, _, name = ref.rpartition(".")
+    return block, name.lower()
 
 
 def _format_validation(err: ValidationError, source: str) -> str:
@@ -261,6 +269,10 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     warnings = [f"{source}: event at t = {ev.t:g} s (set = '{ev.target}') is after the last "
                 f"scan (t = {(n - 1) * sim.dt:g} s) of the {sim.duration:g} s run: it never "
                 "happens" for ev in next(iter(modules.values())).late_events(sim.duration, sim.dt)]
+    if abs(n * sim.dt - sim.duration) > 1e-9 * max(sim.duration, 1.0):
+        warnings.append(f"{source}: [simulation] duration = {sim.duration:g} s is not a whole "
+                        f"number of scans of dt = {sim.dt:g} s: the run has the nearest "
+                        f"count, {n} scans ({n * sim.dt:g} s)")
     test = None
     if sc.autotune is not None:
         test = _autotune_test(sc, variants, source)
@@ -269,8 +281,8 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
         def rebuild(gain: float) -> dict[str, Module]:
             for table in variants.values():
                 for ref in targets:
-                    block, _, param = ref.rpartition(".")
-                    table[block.lower()][param.lower()] = gain
+                    block, param = split_ref(ref)
+                    table[block][param] = gain
             return {name: _build(sc, t, where(name), sim.seed) for name, t in variants.items()}
 
         test.rebuild = rebuild
@@ -316,11 +328,11 @@ def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]]
 
     for ref in at.process_gain:
         block, sep, param = ref.rpartition(".")
-        if not sep or block.lower() not in variants[name]:
+        if not sep or block not in variants[name]:
             raise FileFormatError(f"{where}: process_gain entry {ref!r} must be "
                                   f"'block.parameter' with a block of this scenario")
         try:
-            cls = block_class(str(variants[name][block.lower()]["kind"]))
+            cls = block_class(str(variants[name][block]["kind"]))
         except LoopworksError:
             continue  # the block's own table reports its unknown kind
         params = [p.name for p in cls.PARAMS]
@@ -329,21 +341,21 @@ def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]]
                                   f"parameter '{param}'; parameters: {', '.join(params)}")
     for ref in at.set:
         block, sep, param = ref.rpartition(".")
-        if not sep or block.lower() not in variants[name]:
+        if not sep or block not in variants[name]:
             raise FileFormatError(f"{where}: set entry {ref!r} must be 'block.parameter' with "
                                   "a block of this scenario")
 
     def build(changes: Mapping[str, Any] | None = None) -> Module:
         tables = {block: dict(table) for block, table in variants[name].items()}
         for ref, value in [*(changes or {}).items(), *at.set.items()]:
-            block, _, param = ref.lower().rpartition(".")
+            block, param = split_ref(ref)
             tables[block][param] = value
         return _build(sc, tables, f"{source} (autotune)")
 
     relay: dict[str, Any] = {"amplitude": at.amplitude, "hysteresis": at.hysteresis,
                              "start": at.start, "bias_ratio": at.bias_ratio,
                              "offset": at.offset, "stable_cycles": at.stable_cycles}
-    test = AutotuneTest(at.loop.lower(), name, relay, build)
+    test = AutotuneTest(at.loop, name, relay, build)
     from loopworks.sim.tune import check_relay_test
 
     try:  # what the test would refuse before its first scan, refused now

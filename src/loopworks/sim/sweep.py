@@ -51,7 +51,7 @@ import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import suppress
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import product
 from multiprocessing import get_context
 from pathlib import Path
@@ -341,10 +341,12 @@ class SweepResult:
         return len(self.columns["variant"])
 
     def to_arrow(self) -> Any:
-        """A pyarrow Table of the rows."""
+        """A pyarrow Table of the rows; a metric with no value (n/a, NaN here) is null, as in
+        ``metrics.json`` (an empty field in ``results.csv``)."""
         import pyarrow as pa
 
-        return pa.table(self.columns)
+        return pa.table({name: pa.array(values, from_pandas=True)
+                         for name, values in self.columns.items()})
 
     def to_pandas(self) -> Any:
         """A pandas DataFrame of the rows (pandas is optional: ``pip install pandas``)."""
@@ -371,12 +373,13 @@ class SweepResult:
         pick = (max if largest else min)(finite, key=lambda i: values[i])
         return {k: col[pick] for k, col in self.columns.items()}
 
-    def plot(self, metric: str | None = None, directory: Path | None = None) -> list[Path]:
+    def plot(self, metric: str | None = None, directory: str | Path | None = None
+             ) -> list[Path]:
         """The summary figures (:mod:`loopworks.sim.sweep_report`), written to ``directory``
         (default: the current directory); returns their paths."""
         from loopworks.sim.sweep_report import figures
 
-        return figures(self, directory or Path("."), metric)
+        return figures(self, Path(directory) if directory is not None else Path("."), metric)
 
 
 def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] | str, *,
@@ -395,7 +398,7 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     full runs (every signal, in every swept variant) the result keeps in ``.trajectories``
     (the rest keep only their metrics). Every name and value is checked
     before anything runs."""
-    from loopworks.sim.scenario import load_scenario
+    from loopworks.sim.scenario import load_scenario, split_ref
 
     texts = ([f"{k}=" + (",".join(map(str, v)) if isinstance(v, list | tuple) else str(v))
               for k, v in vary.items()] if isinstance(vary, Mapping)
@@ -403,8 +406,9 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     if not texts:
         raise InputError("nothing to vary: give at least one --vary NAME=SPEC")
     axes = [parse_vary(t) for t in texts]
+    axes = [replace(a, name=".".join(split_ref(a.name))) for a in axes]  # the column name
     names = [a.name for a in axes]
-    if len(set(n.lower() for n in names)) != len(names):
+    if len(set(names)) != len(names):
         raise InputError("a name is varied twice: " + ", ".join(names))
     if scheduler is not None:
         from loopworks.sim.cluster import check_address
@@ -473,20 +477,20 @@ def _autotune_points(sc: Any, points: Sequence[Mapping[str, Value]], names: Sequ
     point would run it: the test uses no run seed, so one test per distinct point); empty
     dicts without ``[autotune]``. Varying a parameter ``[autotune]`` writes is refused (the
     test would overwrite the value, as in ``simulate``)."""
-    from loopworks.sim.scenario import autotune_gain
+    from loopworks.sim.scenario import autotune_gain, split_ref
 
     if sc.autotune_test is None:
         return [{} for _ in points]
-    targets = [ref.lower() for ref in sc._model.autotune.process_gain]
+    targets = [".".join(split_ref(ref)) for ref in sc._model.autotune.process_gain]
     for name in names:
-        if name.lower() in targets:
+        if name in targets:
             raise InputError(f"--vary {name}: [autotune] writes this parameter from its relay "
                              f"test (as simulate does, it would overwrite each value); remove "
                              "[autotune] from the scenario to vary it")
     gains: dict[tuple[tuple[str, Value], ...], float] = {}
     out: list[dict[str, Value]] = []
     for i, point in enumerate(points):
-        key = tuple(sorted((k.lower(), v) for k, v in point.items()))
+        key = tuple(sorted(point.items()))
         if key not in gains:
             try:
                 gains[key] = autotune_gain(sc, point)[0]
@@ -502,8 +506,9 @@ def _autotune_points(sc: Any, points: Sequence[Mapping[str, Value]], names: Sequ
 def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:
     """The varied name is a parameter or an input of a block of the scenario."""
     from loopworks.catalog import block_class
+    from loopworks.sim.scenario import split_ref
 
-    block, _, fname = axis.name.lower().rpartition(".")
+    block, fname = split_ref(axis.name)
     tables = sc.tables[variants[0]]
     if block not in tables:
         raise InputError(f"--vary {axis.name}: no block '{block}' in {sc.source}; blocks: "
@@ -528,8 +533,9 @@ def _check_value(sc: Any, name: str, value: Value, variants: list[str], where: s
     """The value is allowed for the parameter (its range) or the input (a finite number or a
     name it takes)."""
     from loopworks.catalog import block_class
+    from loopworks.sim.scenario import split_ref
 
-    block, _, fname = name.lower().rpartition(".")
+    block, fname = split_ref(name)
     cls = block_class(str(sc.tables[variants[0]][block]["kind"]))
     try:
         for p in cls.PARAMS:
