@@ -289,6 +289,41 @@ def test_the_cycles_analysed_are_those_the_relay_judged_converged() -> None:
     assert abs(idn.process_gain - 1.0) < 0.3
 
 
+def test_the_static_gain_s_uncertainty_covers_a_stage_still_drifting() -> None:
+    # spec 3.3: K = Δȳ/Δū. On a second-order plant the symmetric stage's analysed cycles still
+    # carry the start-up (their output means move 0.02 off the static line while the stages'
+    # means differ by 0.17): every per-cycle K subtracts that one mean, so their spread (±0.08)
+    # hid an error of 0.22; the drift off ȳ = K·ū is now part of K's ±, and warned
+    rec = relay_record({"kind": "process.sopdt", "gain": 1.0, "time_constant_1": 10.0,
+                        "time_constant_2": 5.0, "dead_time": 1.0}, 0.1, 400.0, amplitude=5.0,
+                       amplitude_down=2.5, biased_stage=True)
+    idn = _identify(rec, 5.0, 2.5, 0.0)
+    assert abs(idn.process_gain - 1.0) <= 1.5 * idn.uncertainty["process_gain"]
+    assert any(w.startswith("process_gain = ") and "the stages' drift" in w
+               for w in idn.warnings)
+    # a dead time of 2.4 scans: the cycles alternate in length and their means move along
+    # the static line, which says nothing against K (exact to 0.1 %): no K warning
+    rec = relay_record({"kind": "process.fopdt", "gain": 1.0, "time_constant": 10.0,
+                        "dead_time": 0.6}, 0.25, 400.0, amplitude=1.0, amplitude_down=0.5,
+                       biased_stage=True)
+    idn = _identify(rec, 1.0, 0.5, 0.0)
+    assert idn.process_gain == pytest.approx(1.0, rel=2e-3)
+    assert idn.uncertainty["process_gain"] < 0.01
+    assert not any(w.startswith("process_gain = ") for w in idn.warnings)
+
+
+def test_an_integrating_gain_is_signed_as_the_static_gain_is() -> None:
+    # Kv of -0.1 /s under a direct-acting relay: -0.1 (it printed +0.1 where a
+    # self-regulating plant's K is signed)
+    rec = relay_record({"kind": "process.ipdt", "gain": -0.1, "dead_time": 2.0}, 0.1, 300.0,
+                       amplitude=1.0, hysteresis=0.02, action="direct")
+    test = RelayTest(sp=0.0, pv0=0.0, u0=0.0, amplitude=1.0, amplitude_down=1.0,
+                     hysteresis=0.02, action="direct")
+    idn = identify(rec["t"], rec["pv"], rec["u"], test, relay=rec["relay"],
+                   stage=rec["stage"], process="integrating")
+    assert idn.integrating_gain == pytest.approx(-0.1, rel=0.05)
+
+
 def test_the_relay_does_not_converge_on_drifting_cycle_means() -> None:
     # spec 3.4: stable cycles must agree; under a slow load ramp the 2nd and 3rd cycles agree
     # in period and amplitude within 5 % (the old test alone converged there), but the relay's

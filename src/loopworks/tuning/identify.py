@@ -126,7 +126,8 @@ Uncertainty. Every quantity is also estimated cycle by cycle (the amplitude, per
 each cycle; the dead time of each switch; K from each cycle of the second stage against the
 first stage's window; T from each half period or cycle), and ``uncertainty`` holds half the
 range of those estimates, for times read on the scan grid (period, dead time) at least half a
-scan; None where there is only one estimate. A quantity whose uncertainty exceeds
+scan, for K at least what the stages' drift off the static line allows (``_gain_uncertainty``);
+None where there is only one estimate. A quantity whose uncertainty exceeds
 ``SPREAD_WARNING`` (5 %, the spread 3.4 calls stable) of its value gets a warning, and so does a
 stage whose interpolated cycle means of the PV or of the output moved by more than 5 % of a or
 of d over the analysed cycles (the cycles are not stationary: a load, or a loop that was not at
@@ -586,11 +587,13 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
         if not (math.isfinite(kv) and kv > 0.0):
             raise IdentificationRefused(f"the integrating gain comes out {kv:.4g}: not "
                                         "identifiable (spec 3.2 needs a > ε)")
+        kv *= s  # signed as K is: negative under a direct-acting relay
         unc["integrating_gain"] = _half_range(2.0 * (d1 + d2) * amps / (d1 * d2 * periods))
         notes.append("integrating process: Kv = 4a/(d·P) (spec 3.2, a = ε + Kv·d·L and "
                      "P = 4L + 4ε/(Kv·d))")
     elif k_static is not None and bia is not None and means_bia is not None:
-        unc["process_gain"] = None if k_cycles is None else _half_range(k_cycles)
+        unc["process_gain"] = _gain_uncertainty(
+            k_static, k_cycles, mean_du, means_bia, None if biased_only else means_sym)
         time_constant, dead_time, unc_t = _time_constant(
             rec, high, bia, test, means_bia, k_static, centre, dead_time, s, eps,
             time_constant_method)
@@ -642,7 +645,9 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
                 and spread > SPREAD_WARNING * abs(est) * (1.0 + 1e-9):
             warnings.append(f"{key} = {est:.4g} ± {spread:.2g} ({100 * spread / abs(est):.0f} "
                             f"%): uncertain by more than {100 * SPREAD_WARNING:.0f} % (the "
-                            "spread of the per-cycle estimates; for times, at least half a scan)")
+                            "spread of the per-cycle estimates; for times, at least half a scan"
+                            + ("; for K, also the stages' drift" if key == "process_gain"
+                               else "") + ")")
     if n_cyc < 2:
         warnings.append("one cycle analysed per stage: no spread, the uncertainty is unknown")
     return Identification(
@@ -692,6 +697,24 @@ def _time_constant(rec: _Record, high: np.ndarray, bia: tuple[int, int], test: R
     estimates = np.array([_or_nan(lambda i=i: per_cycle(on[i], off[i]))[0]  # type: ignore[misc]
                           for i in range(n)])
     return tc, lag, _half_range(estimates)
+
+
+def _gain_uncertainty(k: float, k_cycles: np.ndarray | None, mean_du: float, biased: _Means,
+                      symmetric: _Means | None) -> float | None:
+    """± of K = Δȳ/Δū: the larger of the half range of the per-cycle estimates and what the
+    stages' own drift allows. Each per-cycle estimate subtracts the same symmetric-stage mean,
+    so a symmetric stage that still drifts (a start-up transient, a load moving) moved every
+    estimate alike and left their spread small. A cycle whose means moved along the plant's
+    static line (ȳ - K·ū unchanged: a cycle a scan longer, at a slightly other mean output)
+    says nothing against K; what moved off it, r = ȳ - K·ū per cycle, is the drift, so
+    ±(δr_sym + δr_bia)/(2·|Δū|), δ the max - min over a stage's cycles."""
+    spread = None if k_cycles is None else _half_range(k_cycles)
+    stages = [biased] + ([symmetric] if symmetric is not None else [])
+    if not mean_du or any(len(m.pv_cycles) < 2 for m in stages):
+        return spread
+    off_line = sum(float(np.ptp(m.pv_cycles - k * m.u_cycles)) for m in stages)
+    drift = 0.5 * off_line / abs(mean_du)
+    return drift if spread is None else max(spread, drift)
 
 
 def _half_range(x: np.ndarray) -> float | None:
