@@ -55,6 +55,18 @@ def test_reversals_ignore_moves_below_the_threshold() -> None:
     assert metrics.reversals(wiggle, 0.0) == 4
 
 
+def test_a_move_of_exactly_the_threshold_is_ignored_wherever_it_lies() -> None:
+    # spec 4.1 "moves of at most 0.05 %": a GE CV toggling by 16 counts (0.05 % of 32000) was
+    # counted at 8 <-> 24 and not at 16008 <-> 16024, by the rounding of the % scaling
+    t = np.arange(20.0)
+    for base in (8.0, 16000.0, 16008.0, 20000.0):
+        cv = base + 16.0 * (np.arange(20) % 2)
+        m = metrics.loop_metrics(t, np.zeros(20), np.zeros(20), cv, out_span=32000.0)
+        assert m["output reversals"] == 0, base
+        m = metrics.loop_metrics(t, np.zeros(20), np.zeros(20), cv * 1.001, out_span=32000.0)
+        assert m["output reversals"] == 18, base  # 16.016 counts: above it, every turn
+
+
 def test_hagglund_detector_flags_large_half_periods() -> None:
     """spec 4.2: a sine of amplitude A at ωu has 2A/ωu of |e| per half period; with a = 1 the
     limit is 2/ωu, so A = 2 flags every half period and A = 0.5 none."""

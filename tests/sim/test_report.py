@@ -245,6 +245,81 @@ def test_the_output_axis_is_in_the_controllers_units() -> None:
         "g": "counts", "s": "counts", "d": "EU", "p": "%", "e": "%"}
 
 
+GE_SCALED = """
+[simulation]
+dt = 0.1
+duration = 200.0
+
+[blocks.tt]
+kind = "sensor.transmitter"
+gain = 320.0
+
+[blocks.ge]
+kind = "ge.pid_ind"
+kp = 1.0
+ki = 0.05
+sample_period = 0.1
+sp = 16000.0
+bias = 16000.0
+load_clock_at_start = true
+
+[blocks.scale]
+kind = "deltav.calc"
+expression = "'^/PCT' := '^/CNT' / 320.0;"
+precision = "float64"
+cnt = 16000.0
+pct = 50.0
+
+[blocks.valve]
+kind = "valve.choudhury"
+s = 2.0
+j = 1.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 20.0
+dead_time = 2.0
+u0 = 50.0
+
+[wires]
+"tt.y" = "process.y"
+"ge.pv" = "tt.pv"
+"scale.cnt" = "ge.cv"
+"valve.op" = "scale.pct"
+"process.u" = "valve.position"
+
+[[events]]
+t = 100.0
+set = "ge.sp"
+value = 17600.0
+"""
+
+
+def test_the_signature_draws_an_output_in_counts_on_its_own_axis(tmp_path: Path) -> None:
+    """A GE CV (counts) scaled to the valve's % was drawn on the command's axis labelled
+    "ge output, valve command (%)": 16000-20000 "%" beside 50-62 % (found by an engineer)."""
+    from loopworks.sim.report import signature_plot
+    from loopworks.sim.scenario import parse_scenario
+
+    sc = parse_scenario(GE_SCALED)
+    run = sc.module.run(sc.duration, sc.dt)
+    import matplotlib.pyplot as plt
+
+    made: list[Any] = []
+    real = plt.close
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(plt, "close", lambda fig=None: made.append(fig))
+        assert signature_plot({"base": run}, "ge", tmp_path / "sig.png")
+    fig = made[0]
+    labels = {ax.get_xlabel() for ax in fig.axes}
+    assert labels == {"valve command (%)", "ge output (counts)"}, labels
+    for ax in fig.axes:  # each axis spans its own signal: counts on one, % on the other
+        hi = ax.get_xlim()[1]
+        assert (hi > 1000.0) == (ax.get_xlabel() == "ge output (counts)"), (ax.get_xlabel(), hi)
+    real(fig)
+
+
 def test_a_loop_keeps_its_colour_in_every_trend_panel() -> None:
     """The colour cycle ran on across each panel's lines: a loop's PV was green and its OUT
     another loop's colour, and three compensator outputs shared one grey (found by a user of

@@ -216,19 +216,28 @@ def signature_plot(results: dict[str, SimResult], loop: str, path: Path,
                              sharex=True, sharey=True, layout="constrained")
     for ax, (variant, s) in zip(axes[0], sigs.items(), strict=True):
         keep = _scored(results[variant].t, window)
+        unit = results[variant].out_units(loop)
         same = "command" not in s or np.array_equal(s["command"][keep], s["out"][keep])
         if not same:
             ax.plot(s["command"][keep], s["position"][keep], color="0.7", lw=0.5,
                     label="vs valve command")
-        ax.plot(s["out"][keep], s["position"][keep], color="C3", lw=0.9,
-                label="vs controller output")
+        # an output in counts or EU gets its own (top) axis: on the command's % axis it was
+        # drawn 320 times wide and labelled %
+        out_ax = ax if unit == "%" or same else ax.twiny()
+        out_ax.plot(s["out"][keep], s["position"][keep], color="C3", lw=0.9,
+                    label="vs controller output" + ("" if out_ax is ax else " (top axis)"))
         ax.set_title(variant + (" (valve command = controller output)"
                                 if same and "command" in s else ""))
-        ax.set_xlabel(f"{loop} output, valve command (%)")
+        if out_ax is ax:
+            ax.set_xlabel(f"{loop} output, valve command ({unit})" if "command" in s
+                          else f"{loop} output ({unit})")
+        else:
+            ax.set_xlabel("valve command (%)")
+            out_ax.set_xlabel(f"{loop} output ({unit})", color="C3")
         ax.grid(True, alpha=0.3)
     axes[0, 0].set_ylabel("valve position (%)")
     legend: dict[str, Any] = {}
-    for ax in axes[0]:
+    for ax in fig.axes:  # the panels and their top axes
         for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
             legend.setdefault(label, handle)
     scored = ("the whole run" if window is None
