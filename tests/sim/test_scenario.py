@@ -246,6 +246,62 @@ def test_two_events_on_one_input_at_one_time_are_refused() -> None:
     parse_scenario(text.replace("t = 5.0\nset = \"pid.SP\"", "t = 5.5\nset = \"pid.SP\""))
 
 
+UNITS = """
+[simulation]
+dt = 0.1
+duration = 10.0
+
+[blocks.c]
+{controller}
+
+[blocks.valve]
+kind = "valve.choudhury"
+
+[blocks.process]
+kind = "process.fopdt"
+dead_time = 1.0
+
+[wires]
+"valve.op" = "c.{out}"
+"process.u" = "valve.position"
+"""
+
+
+@pytest.mark.parametrize(("controller", "out", "said"), [
+    ('kind = "ge.pid_ind"\nkp = 1.0', "cv", "c.cv is in counts (32000 = 100 %), valve.op in % "
+     "of span: the value passes unscaled"),
+    ('kind = "deltav.pid"\nout_scale_eu_100 = 200.0', "out", "c.out is in engineering units "
+     "of a scale other than 0..100, valve.op in % of span"),
+    ('kind = "s5.pid"\nvelocity = true', "y", "velocity = true: y is the increment dY"),
+    ('kind = "deltav.pid"', "out", None),  # OUT_SCALE 0..100: EU are %
+    ('kind = "pid"', "out", None),
+])
+def test_a_wire_between_units_that_differ_is_a_warning(controller: str, out: str,
+                                                       said: str | None) -> None:
+    """A GE CV of 16000 counts opened a valve to "16000 %" (clipped, every status Good) and
+    a DeltaV OUT on 0..200 EU doubled the loop gain, without a word (found by an engineer)."""
+    sc = parse_scenario(UNITS.format(controller=controller, out=out), "u.toml")
+    if said is None:
+        assert sc.warnings == []
+    else:
+        assert len(sc.warnings) >= 1 and any(
+            w.startswith(f"u.toml: wire 'valve.op' = 'c.{out}': ") and said in w
+            for w in sc.warnings), sc.warnings
+
+
+def test_a_scaling_block_between_the_units_clears_the_warning() -> None:
+    text = UNITS.format(controller='kind = "ge.pid_ind"\nkp = 1.0', out="cv").replace(
+        '"valve.op" = "c.cv"', '"scale.cnt" = "c.cv"\n"valve.op" = "scale.pct"') + """
+[blocks.scale]
+kind = "deltav.calc"
+expression = "'^/PCT' := '^/CNT' / 320.0;"
+precision = "float64"
+cnt = 16000.0
+pct = 50.0
+"""
+    assert parse_scenario(text).warnings == []
+
+
 def test_a_run_that_cannot_be_recorded_is_refused_at_load() -> None:
     text = GOOD.replace("duration = 20.0", "duration = 1e12").replace("dt = 0.5", "dt = 1e-3")
     with pytest.raises(FileFormatError, match=r"bad\.toml: \[simulation\]: duration = 1e\+12 s "

@@ -101,6 +101,35 @@ def _codes(choices: tuple[str, ...]) -> str:
 MAX_SCANS = 2**53
 
 
+def _unit(block: Block, port: str, direction: str) -> str:
+    """A port's declared unit as one of "%", "counts", "EU" or another (unchanged): DeltaV's
+    engineering units are % when their scale is 0..100 (OUT_SCALE for its outputs and the
+    output-side inputs, PV_SCALE for the PV side), "eu" (no unit to compare) on a block
+    without the scales."""
+    ports = block.INPUTS if direction == "input" else block.OUTPUTS
+    unit = next((p.unit for p in ports if p.name == port), "")
+    unit = {"count": "counts"}.get(unit, unit)  # (a CALC's "eu" are whatever it is fed)
+    if unit == "EU":
+        scale = "out_scale" if port in ("out", "bkcal_out", "bkcal_in", "man_out", "trk_val",
+                                        "ff_val") else "pv_scale"
+        lo, hi = block.params.get(f"{scale}_eu_0"), block.params.get(f"{scale}_eu_100")
+        if lo is None or hi is None:
+            return "eu"  # a block without the scales (the stick-slip CALC): what it is fed
+        if (float(lo), float(hi)) == (0.0, 100.0):
+            return "%"
+    return unit
+
+
+def _unit_text(block: Block, unit: str, side: int) -> str:
+    """``unit`` in words; counts with the block's count of 100 % (``Controller.SPANS``, side
+    0 the PV's, 1 the output's)."""
+    if unit == "counts":
+        spans = getattr(block, "SPANS", None)
+        return f"counts ({spans[side][1]:g} = 100 %)" if spans else "counts"
+    return {"%": "% of span",
+            "EU": "engineering units of a scale other than 0..100"}.get(unit, unit)
+
+
 def scan_count(duration: float, dt: float, what: str = "duration", least: int = 1) -> int:
     """n = round(duration/dt) scans, at t_k = k·dt; InputError unless dt and duration are
     finite and > 0 and give at least ``least`` scans and at most ``MAX_SCANS``. ``what``
@@ -312,6 +341,38 @@ class Module:
         (the last scan executes at t = (n - 1)·dt, n = round(duration/dt))."""
         last = (scan_count(duration, dt) - 1) * dt
         return [ev for ev in self.events if ev.t > last + 1e-9]
+
+    def unit_warnings(self) -> list[str]:
+        """Wires whose two ends declare units that cannot hold one quantity unscaled: a % port
+        fed from counts (GE's 16-bit words) or from engineering units (DeltaV's scales when
+        they are not 0..100), or the reverse; and a velocity controller's increment fed to a
+        valve's position command. The run would take one number for the other (a GE CV of
+        16000 counts opened a valve to "16000 %", clipped to 100, with every status Good), so
+        ``simulate`` says so; a scaling block between them (``deltav.calc``) clears it."""
+        from loopworks.blocks.controller import Controller
+
+        out = []
+        for dest, src in self.wires.items():
+            (db, dp), (sb, sp) = _split(dest, "wire input"), _split(src, "wire output")
+            if db not in self.blocks or sb not in self.blocks:
+                continue
+            d_unit = _unit(self.blocks[db], dp.lower(), "input")
+            s_unit = _unit(self.blocks[sb], sp.lower(), "output")
+            if d_unit != s_unit and {d_unit, s_unit} <= {"%", "counts", "EU"}:
+                out.append(f"wire '{dest}' = '{src}': {src} is in "
+                           f"{_unit_text(self.blocks[sb], s_unit, 1)}, {dest} in "
+                           f"{_unit_text(self.blocks[db], d_unit, 0)}: the value passes unscaled; "
+                           "scale it between them (a deltav.calc, e.g. "
+                           "\"'^/PCT' := '^/CNT' / 320.0;\" for GE counts to %)")
+            source = self.blocks[sb]
+            if isinstance(source, Controller) and sp.lower() == source.ROLES.out \
+                    and self.blocks[db].kind.startswith("valve.") and dp.lower() == "op":
+                why = type(source).incremental(source.params)
+                if why is not None:
+                    out.append(f"wire '{dest}' = '{src}': {why}, and a valve's op is a "
+                               "position: an integrating actuator (a motor drive) takes an "
+                               "increment")
+        return out
 
     def signals(self) -> list[str]:
         """Every input and output, ``"block.port"``, in the order a run records them."""

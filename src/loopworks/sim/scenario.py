@@ -269,6 +269,8 @@ def parse_scenario(text: str, source: str = "<scenario>") -> Scenario:
     warnings = [f"{source}: event at t = {ev.t:g} s (set = '{ev.target}') is after the last "
                 f"scan (t = {(n - 1) * sim.dt:g} s) of the {sim.duration:g} s run: it never "
                 "happens" for ev in next(iter(modules.values())).late_events(sim.duration, sim.dt)]
+    for line in dict.fromkeys(w for m in modules.values() for w in m.unit_warnings()):
+        warnings.append(f"{source}: {line}")
     if abs(n * sim.dt - sim.duration) > 1e-9 * max(sim.duration, 1.0):
         warnings.append(f"{source}: [simulation] duration = {sim.duration:g} s is not a whole "
                         f"number of scans of dt = {sim.dt:g} s: the run has the nearest "
