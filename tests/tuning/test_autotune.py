@@ -364,6 +364,53 @@ def test_half_a_scan_of_rounding_is_not_a_warning() -> None:
     assert not [w for w in report.identification.warnings if w.startswith("dead_time")]
 
 
+STICKY_LOOP = """
+[simulation]
+dt = 0.1
+duration = 300.0
+
+[blocks.pid]
+kind = "pid"
+k = 2.0
+ti = 10.0
+sp = 50.0
+bias = 50.0
+
+[blocks.valve]
+kind = "valve.choudhury"
+s = {s}
+j = {j}
+y0 = 50.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 10.0
+dead_time = 2.0
+u0 = 50.0
+y0 = 50.0
+
+[wires]
+"valve.op" = "pid.out"
+"process.u" = "valve.position"
+"pid.pv" = "process.y"
+"""
+
+
+def test_a_relay_through_a_sticky_valve_says_the_model_is_unreliable() -> None:
+    """A stick-slip of S 2 %, J 1 % on K 1, T 10 s, L 2 s read K 3.6 ± 0.07, T 39 s and no
+    warning (found by an outside tune audit): the cycle holds the valve's sticking."""
+    from loopworks.sim.tune import tune_loop
+
+    sticky = tune_loop(parse_scenario(STICKY_LOOP.format(s=2.0, j=1.0)).module, "pid", 0.1)
+    said = [w for w in sticky.identification.warnings if "cycled through valve 'valve'" in w]
+    assert len(said) == 1 and "stick-slip S = 2 %, J = 1 %" in said[0]
+    assert said[0] in sticky.as_dict()["warnings"]
+    linear = tune_loop(parse_scenario(STICKY_LOOP.format(s=0.0, j=0.0)).module, "pid", 0.1)
+    assert linear.identification.process_gain == pytest.approx(1.0, rel=0.02)
+    assert not [w for w in linear.identification.warnings if "cycled through" in w]
+
+
 LAG_LOOP = CLIPPED_LOOP.replace("sp = {sp}", "sp = 50.0\nbias = 50.0").replace(
     "time_constant = 10.0", "time_constant = {T}").replace("dt = 0.5", "dt = 0.1")
 

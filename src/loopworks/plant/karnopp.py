@@ -401,6 +401,12 @@ class Karnopp(Block):
     COEFFS: ClassVar[tuple[str, ...]] = COEFFS
     STATES: ClassVar[tuple[str, ...]] = STATES
 
+    def nonlinearity(self) -> str | None:
+        """The stem's friction in words (Fs, Fc), None without static or Coulomb friction."""
+        f_s, f_c = self.friction_forces()
+        return (f"static friction Fs = {f_s:.4g} N, Coulomb Fc = {f_c:.4g} N"
+                if f_s > 0.0 or f_c > 0.0 else None)
+
     def friction_forces(self) -> tuple[float, float]:
         """(Fs, Fc) in N from whichever parameter set was given (module docstring)."""
         prm: dict[str, Any] = self.params

@@ -734,6 +734,11 @@ class _StictionValve(_Valve):
 
     COEFFS: ClassVar[tuple[str, ...]] = STICTION_COEFFS
 
+    def nonlinearity(self) -> str | None:
+        """The valve's stick-slip in words (S, J in % of span), None without any."""
+        s, j = stiction_sj(self.kind, self.params, set(self.given))
+        return f"stick-slip S = {s:g} %, J = {j:g} %" if s > 0.0 or j > 0.0 else None
+
     def coefficients(self) -> dict[str, float]:
         s, j = stiction_sj(self.kind, self.params, set(self.given))
         fs, fd = bands_from_sj(s, j)
@@ -787,6 +792,11 @@ class Backlash(_Valve):
     summary = "valve backlash (deadband) of total width b (plant-and-tuning 1.5)"
     kernel = staticmethod(backlash_kernel)
     HAS_START: ClassVar[bool] = True
+
+    def nonlinearity(self) -> str | None:
+        """The backlash in words, None when b = 0."""
+        b = float(self.params["b"])
+        return f"a backlash of {b:g} %" if b > 0.0 else None
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("b", 2.0, _PCT, "total backlash width b (spec 1.5; = Choudhury S with J = 0)",
               lo=0.0, lo_open=False),
@@ -810,6 +820,11 @@ class Resolution(_Valve):
     kind = "valve.resolution"
     summary = "valve resolution limit with memory (stick-slip snap, plant-and-tuning 1.5)"
     kernel = staticmethod(resolution_kernel)
+
+    def nonlinearity(self) -> str | None:
+        """The resolution in words, None when r = 0."""
+        r = float(self.params["r"])
+        return f"a resolution of {r:g} %" if r > 0.0 else None
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("r", 1.0, _PCT, "resolution r: the position snaps to the op when |op - y| > r "
               "(spec 1.5; = Choudhury S = J = r without the tracking branch)", lo=0.0,

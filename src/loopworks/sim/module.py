@@ -101,6 +101,28 @@ def _codes(choices: tuple[str, ...]) -> str:
 MAX_SCANS = 2**53
 
 
+def downstream_valve(loop: str, wires: Mapping[str, str], kinds: Mapping[str, str],
+                     controllers: set[str], is_valve: Callable[[str], bool]) -> str | None:
+    """The first block with a position output (``is_valve``) downstream of block ``loop``
+    along ``wires`` (dest -> src), through the blocks that pass a signal on (compensators,
+    calculations, a relay), not through a process, a sensor, a load or a controller."""
+    stops = ("process.", "sensor.", "disturbance.")
+    frontier, seen = [loop], {loop}
+    while frontier:
+        block = frontier.pop(0)
+        for dest, src in wires.items():
+            if src.rsplit(".", 1)[0] == block:
+                nxt = dest.rsplit(".", 1)[0]
+                if nxt in seen:
+                    continue
+                if is_valve(nxt):
+                    return nxt
+                seen.add(nxt)
+                if nxt not in controllers and not kinds.get(nxt, "").startswith(stops):
+                    frontier.append(nxt)
+    return None
+
+
 def _unit(block: Block, port: str, direction: str) -> str:
     """A port's declared unit as one of "%", "counts", "EU" or another (unchanged): DeltaV's
     engineering units are % when their scale is 0..100 (OUT_SCALE for its outputs and the

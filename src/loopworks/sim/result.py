@@ -130,22 +130,10 @@ class SimResult:
         relay) and not through a process, a sensor, a load or another controller: a loop
         whose output feeds a process that another loop's valve follows drives no valve (it
         got that loop's valve figures: a cascade primary its secondary's), or None."""
-        controllers = set(self.controllers())
-        stops = ("process.", "sensor.", "disturbance.")
-        frontier, seen = [loop], {loop}
-        while frontier:
-            block = frontier.pop(0)
-            for dest, src in self.wires.items():
-                if src.rsplit(".", 1)[0] == block:
-                    nxt = dest.rsplit(".", 1)[0]
-                    if nxt in seen:
-                        continue
-                    if f"{nxt}.position" in self.values:
-                        return nxt
-                    seen.add(nxt)
-                    if nxt not in controllers and not self.kinds.get(nxt, "").startswith(stops):
-                        frontier.append(nxt)
-        return None
+        from loopworks.sim.module import downstream_valve
+
+        return downstream_valve(loop, self.wires, self.kinds, set(self.controllers()),
+                                lambda name: f"{name}.position" in self.values)
 
     def working_sp(self, loop: str) -> np.ndarray:
         """The setpoint a controller worked to: its ``working_sp`` role's output when it has

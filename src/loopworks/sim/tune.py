@@ -346,6 +346,10 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
                                           amplitude_estimate=amplitude_estimate)
         except IdentificationRefused as exc:
             run.refusal = str(exc)
+        else:
+            why = _through_nonlinear_valve(module, loop)
+            if why is not None:
+                run.identification.warnings.append(why)
     else:
         run.refusal = _why(outcome, relay, dt, run.pv, noise)
     extra = (2.0 * run.identification.period if run.identification else 10.0 * dt) \
@@ -364,6 +368,27 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
                                f"{run.t[-1] - start if len(run.t) else 0.0:.0f} s and gives no "
                                f"identification: {run.refusal}", run)
     return run
+
+
+def _through_nonlinear_valve(module: Module, loop: str) -> str | None:
+    """The warning for a relay that cycled through a valve with stick-slip, backlash or a
+    resolution (its ``nonlinearity()``), None through a linear valve or none."""
+    from loopworks.sim.module import downstream_valve
+
+    valve = downstream_valve(
+        loop, module.wires, {n: b.kind for n, b in module.blocks.items()},
+        set(controllers(module)), lambda n: "position" in module.blocks[n]._out_index)
+    if valve is None:
+        return None
+    describe = getattr(module.blocks[valve], "nonlinearity", None)
+    what = describe() if describe is not None else None
+    if what is None:
+        return None
+    return (f"the relay cycled through valve '{valve}' ({module.blocks[valve].kind}: {what}): "
+            "the relay's cycle holds the valve's sticking and jumps, which the analysis reads "
+            "as plant (a stick-slip of S = 2 %, J = 1 % made K = 1, T = 10 s read K 3.6, T "
+            "39 s, with no spread), so the model and the settings from it can be far off; "
+            "test with the valve's stiction compensated, or identify from a step test")
 
 
 def _check_levels(loop: str, u0: float, relay: dict[str, Any]) -> None:
