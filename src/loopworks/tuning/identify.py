@@ -159,6 +159,9 @@ MIN_DEAD_TIME_SCANS = 2
 #: Relative half-range of the per-cycle estimates above which a quantity gets a warning (the
 #: "≤ 5 % spread" of stable cycles, plant-and-tuning 3.4 item 4).
 SPREAD_WARNING = 0.05
+#: above this relative difference of a symmetric relay's high and low half periods, a load
+#: (or a loop not at rest) biases the cycle (spec 3.4 item 6; osPID's 20 %)
+ASYMMETRY_LIMIT = 0.2
 #: below this share of the relay amplitude d, the two stages' mean outputs are the same and
 #: the process is taken as integrating (an integrator's mean input is its load, whatever the
 #: relay) [ours: a lag-dominant FOPDT, T/L 25, shifts it by 0.97 % of d; T/L 20 by more]
@@ -503,6 +506,8 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
         raise IdentificationRefused(
             f"the PV amplitude {a:.4g} is not above the hysteresis ε = {eps:.4g}: the relay "
             "identified no point (spec 3.1 needs a > ε)")
+    if not biased_only:
+        _check_symmetry(t, ups, sw_sym.downs, warnings)
     d = 0.5 * (d_up + (d_down if biased_only else d_up))
 
     def ku_of(amp: float) -> float:  # Ku of one cycle under the convention (harmonic: DF)
@@ -715,6 +720,31 @@ def _gain_uncertainty(k: float, k_cycles: np.ndarray | None, mean_du: float, bia
     off_line = sum(float(np.ptp(m.pv_cycles - k * m.u_cycles)) for m in stages)
     drift = 0.5 * off_line / abs(mean_du)
     return drift if spread is None else max(spread, drift)
+
+
+def _check_symmetry(t: np.ndarray, ups: np.ndarray, downs: np.ndarray,
+                    warnings: list[str]) -> None:
+    """A symmetric relay's analysed half periods should be equal (spec 3.4 item 6: a load
+    during the test biases the oscillation, unequal half periods; osPID acts above 20 %): a
+    warning when they differ by more than ASYMMETRY_LIMIT of their mean. A loop not at rest
+    when the test began is such a load: a lag plant (K 1, T 50 s, L 2 s) still 10.8 below SP
+    cycled 17.1 s at the high level and 2.3 s at the low, and read Kv 2.4 times too small,
+    "converged". Not a refusal: the static gain from two stages' means held (an E2 loop still
+    settling, 10.5 s and 2.4 s, read K within 2 %)."""
+    on = [float(t[dn] - t[up]) for up, dn in _pairs(ups[:-1], downs)]
+    off = [float(t[up] - t[dn]) for dn, up in _pairs(downs, ups[1:])]
+    if not on or not off:
+        return
+    t_on, t_off = float(np.mean(on)), float(np.mean(off))
+    gap = abs(t_on - t_off) / (0.5 * (t_on + t_off))
+    said = (f"the symmetric relay's half periods are unequal ({t_on:.3g} s at the high level, "
+            f"{t_off:.3g} s at the low; {100 * gap:.0f} %): a load moved the loop during the "
+            "test, or it was not at rest when the test began (spec 3.4 items 1 and 6)")
+    if gap > ASYMMETRY_LIMIT:
+        warnings.append(f"{said}; above {100 * ASYMMETRY_LIMIT:.0f} % the cycle's amplitude "
+                        "and period, and Ku, Pu and an integrating gain read from them, are "
+                        "biased: let the loop settle (a later --start) or test when the load is "
+                        "steady")
 
 
 def _half_range(x: np.ndarray) -> float | None:
