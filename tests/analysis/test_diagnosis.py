@@ -164,6 +164,33 @@ def test_the_spec_sticky_loop_is_found_and_measured() -> None:
     assert d.model_pv is not None and np.isfinite(d.model_pv).all()
 
 
+def test_an_op_in_counts_is_refused_or_read_in_percent_of_its_span() -> None:
+    """S and J are % of the valve's span (spec 1.2). A GE CV in counts (32000 = 100 %) was
+    read as 16000 "%": no fit, undetermined; a DeltaV OUT of 95-104 EU on 0..200 was clipped
+    at 100 by the valve model and its sticky valve voted no_stiction (found by an engineer).
+    The OP outside 0..100 is refused naming --op-range; with the span given, the counts record
+    is diagnosed as the same record in % is."""
+    data = _spec_loop("choudhury", 3.0, 1.0)
+    counts = dataclasses.replace(data, op=data.op * 320.0)
+    with pytest.raises(InputError, match=r"the OP runs .* outside 0\.\.100: .*--op-range LO:HI"):
+        diagnose(counts, recommend=False)
+    in_pct = diagnose(data, recommend=False)
+    in_counts = diagnose(counts, recommend=False, op_range=(0.0, 32000.0))
+    assert in_counts.verdict == in_pct.verdict == "stiction"
+    assert in_counts.stiction is not None and in_pct.stiction is not None
+    assert in_counts.stiction["s"] == pytest.approx(in_pct.stiction["s"], rel=1e-6)
+    offset = dataclasses.replace(data, op=50.0 + data.op * 2.0)  # EU: 0 % at 50, 100 % at 250
+    assert diagnose(offset, recommend=False, op_range=(50.0, 250.0)).stiction["s"] == \
+        pytest.approx(in_pct.stiction["s"], rel=1e-6)
+    with pytest.raises(InputError, match=r"op_range = \(1\.0, 1\.0\)"):
+        diagnose(data, recommend=False, op_range=(1.0, 1.0))
+
+
+def test_the_op_range_option_is_checked() -> None:
+    run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--op-range", "0-100"])
+    assert run.exit_code == 2 and "--op-range 0-100: expected LO:HI" in run.output
+
+
 def test_a_clean_loop_and_an_external_oscillation_are_not_called_sticky() -> None:
     clean = diagnose(_spec_loop("linear", 0.0, 0.0, walk_std=0.05), recommend=False)
     assert clean.verdict != "stiction", clean.reason

@@ -359,14 +359,16 @@ def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
 
 def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
              columns: Mapping[str, str] | str | None = None, *, recommend: bool = True,
-             samples: int = 24) -> Diagnosis:
+             samples: int = 24, op_range: tuple[float, float] = (0.0, 100.0)) -> Diagnosis:
     """Diagnose one loop (module docstring) from ``data``: a :class:`LoopData`, or the path
     of a historian CSV (read by :func:`~loopworks.analysis.loopdata.read_csv` with
     ``columns``; a repeated time stamp keeps the later row, as a historian's hold does, and
     the data's ``resampled`` note says so). ``loop_type``: ``"self-regulating"`` (also
     ``"flow"``, ``"pressure"``, ``"temperature"``) or ``"integrating"`` (``"level"``), any
     letter case (:func:`~loopworks.analysis.loop_type_of`). ``recommend``: simulate the
-    options for a sticky valve (``samples`` draws of the fit's uncertainty each)."""
+    options for a sticky valve (``samples`` draws of the fit's uncertainty each).
+    ``op_range``: the OP's units at 0 % and 100 % of the valve's span (:func:`op_in_percent`;
+    S, J and every OP figure are in % of it)."""
     lt = loop_type_of(loop_type)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise InputError(f"samples = {samples!r}: expected a whole number >= 1 (the draws of "
@@ -375,7 +377,7 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
         if isinstance(columns, str):  # the CLI's text form, "sp=FIC101.SV,pv=..."
             columns = parse_columns(columns)
         data = read_csv(data, columns, duplicates="last")
-    data = _bad_as_nan(data)
+    data = op_in_percent(_bad_as_nan(data), op_range)
     quality = check_quality(data)
     seized = seized_valve(data)
     if seized is not None:
@@ -459,6 +461,38 @@ def _seized_diagnosis(data: LoopData, loop_type: LoopType, quality: Quality,
         "stroke the valve and repair or replace it.")
     return Diagnosis("stiction", SEIZED_CONFIDENCE, loop_type, data.source, quality, None,
                      evidence, 1.0, seized.reason + gate, None, rec)
+
+
+#: the share of OP samples that may lie outside 0..100 % (by more than OP_MARGIN) before the
+#: OP is taken to be in other units
+OP_OUTSIDE_SHARE = 0.01
+OP_MARGIN = 1.0
+
+
+def op_in_percent(data: LoopData, op_range: tuple[float, float] = (0.0, 100.0)) -> LoopData:
+    """The record with its OP in % of the valve's span, op% = 100·(op - lo)/(hi - lo) for
+    ``op_range`` = (lo, hi), the OP's units at 0 % and 100 %. Every method reads the OP in %:
+    the valve model clips it to 0..100 and S, J are % of the span. InputError naming the
+    range when more than OP_OUTSIDE_SHARE of the OP lies outside 0..100 % by more than
+    OP_MARGIN: an OP in counts or engineering units (a GE CV of 16000 counts read as 16000 %
+    gave no fit at all; a DeltaV OUT of 95-104 EU on 0..200 was clipped at 100 and its sticky
+    valve voted no_stiction)."""
+    lo, hi = (float(v) for v in op_range)
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi != lo):
+        raise InputError(f"op_range = {op_range!r}: two different finite numbers expected "
+                         "(the OP's units at 0 % and 100 % of the valve's span)")
+    op = data.op if (lo, hi) == (0.0, 100.0) else 100.0 * (data.op - lo) / (hi - lo)
+    seen = op[np.isfinite(op)]
+    outside = np.count_nonzero((seen < -OP_MARGIN) | (seen > 100.0 + OP_MARGIN))
+    if len(seen) and outside > OP_OUTSIDE_SHARE * len(seen):
+        given = "" if (lo, hi) == (0.0, 100.0) else f" (after --op-range {lo:g}:{hi:g})"
+        raise InputError(
+            f"{data.source or 'the record'}: the OP runs {float(np.min(seen)):.6g} to "
+            f"{float(np.max(seen)):.6g}{given}, {100 * outside / len(seen):.0f} % of it outside "
+            "0..100: diagnose reads the OP in % of the valve's span (S and J are % of it); give "
+            "the OP's units at 0 % and 100 % with --op-range LO:HI (0:32000 for GE counts, "
+            "0:200 for a DeltaV OUT_SCALE of 0..200 EU)")
+    return data if op is data.op else replace(data, op=op)
 
 
 def _bad_as_nan(data: LoopData) -> LoopData:
