@@ -50,6 +50,21 @@ def test_a_valve_that_does_not_move_is_found() -> None:
     assert "block valve" in d.reason and "transmitter" in d.reason
 
 
+def test_a_recorded_position_that_moves_with_the_op_is_no_seized_valve() -> None:
+    """A stuck transmitter over a valve that moves: the rule called it seized although the
+    recorded position went from 50 to 100 % (found by an engineer); the position, in any span,
+    says the valve answers. A position that stays put keeps the finding."""
+    op, pv = _stuck()
+    record = _record(op, pv)
+    moving = LoopData(t=record.t, sp=record.sp, pv=pv, op=op, mode=record.mode,
+                      position=0.5 + op / 200.0)  # another span and offset
+    assert seized_valve(moving) is None
+    assert diagnose(moving, recommend=False).verdict == "undetermined"  # the PV is frozen
+    still = LoopData(t=record.t, sp=record.sp, pv=pv, op=op, mode=record.mode,
+                     position=np.full(len(op), 30.0))
+    assert seized_valve(still) is not None
+
+
 def test_each_condition_of_the_rule() -> None:
     op, pv = _stuck()
     # the OP travels less than MIN_OP_TRAVEL

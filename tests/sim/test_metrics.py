@@ -510,3 +510,27 @@ def test_travel_counts_the_move_into_the_windows_first_scan() -> None:
     assert later["output travel"] == 0.0 and later["valve travel"] == 0.0
     whole = metrics.loop_metrics(t, sp, pv, out, position=position)
     assert whole["output travel"] == 15.0
+
+
+def test_a_velocity_output_is_scored_on_the_position_its_increments_build() -> None:
+    """metrics.md: S5 in velocity mode outputs the increment dY; its output travel was
+    Σ|ΔdY| (528.8 % where the actuator travelled 303 %) and its reversals those of the
+    increments (found by an engineer). Now Σ|dY| and the turns of Σ dY."""
+    import loopworks
+    from loopworks.sim.module import Module
+    from loopworks.sim.result import SimResult
+
+    dy = np.array([0.0, 10.0, 10.0, -5.0, -5.0, 20.0, 0.0, 0.0])  # counts per scan
+    t = np.arange(len(dy), dtype=float)
+    values = {"c.y": dy, "c.x": np.zeros_like(dy), "c.w": np.zeros_like(dy)}
+    kinds = {"c": "s5.pid"}
+    m = SimResult(t, values, {}, kinds=kinds, out_spans={"c": 1000.0},
+                  incremental=frozenset({"c"})).metrics("c")
+    assert m["output travel"] == pytest.approx(100.0 * 50.0 / 1000.0)  # Σ|dY| = 50 counts
+    assert m["output reversals"] == 2  # up 20, down 10, up 20
+    positional = SimResult(t, values, {}, kinds=kinds, out_spans={"c": 1000.0}).metrics("c")
+    assert positional["output travel"] == pytest.approx(100.0 * 70.0 / 1000.0)  # Σ|ΔdY|
+    velocity = Module({"c": loopworks.create_block("s5.pid", velocity=True)})
+    assert velocity.incremental_outputs() == {"c"}
+    assert Module({"c": loopworks.create_block("s5.pid")}).incremental_outputs() == set()
+

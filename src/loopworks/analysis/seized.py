@@ -20,7 +20,9 @@ PV holds exactly one value, of at least :data:`MIN_RUN_FRACTION` of the record, 
 * the OP travels (maximum - minimum) at least :data:`MIN_OP_TRAVEL` % of span;
 * it moves one way: its net move is at least :data:`MIN_MONOTONE` of that travel (a
   controller winding up, not noise around a held output);
-* the error SP - PV is non-zero and of one sign at every sample of the run.
+* the error SP - PV is non-zero and of one sign at every sample of the run;
+* a recorded valve position, if any, does not move with the OP (correlation below 0.9): a
+  valve seen moving is not seized, whatever the PV does.
 """
 
 from __future__ import annotations
@@ -56,6 +58,22 @@ class Seized:
     reason: str
 
 
+#: a recorded position whose correlation with the OP over the run is at least this follows it
+FOLLOWS_CORRELATION = 0.9
+
+
+def _position_follows(data: LoopData, run: slice, op: np.ndarray) -> bool:
+    """A recorded valve position (any span or offset) that moves with the OP over the run
+    (correlation at least :data:`FOLLOWS_CORRELATION`): that valve is not seized (a stuck
+    transmitter over a moving valve was called seized, found by an engineer)."""
+    if data.position is None:
+        return False
+    pos = np.asarray(data.position[run], dtype=np.float64)
+    if not np.isfinite(pos).all() or np.ptp(pos) == 0.0 or np.ptp(op) == 0.0:
+        return False
+    return bool(np.corrcoef(pos, op)[0, 1] >= FOLLOWS_CORRELATION)
+
+
 def seized_valve(data: LoopData) -> Seized | None:
     """The seized valve in ``data`` by the module's rule, or None."""
     n = len(data)
@@ -80,6 +98,8 @@ def seized_valve(data: LoopData) -> Seized | None:
         return None
     if not (np.all(error > 0.0) or np.all(error < 0.0)):
         return None
+    if _position_follows(data, run, op):
+        return None  # the valve moves: the PV's transmitter or a block valve, not stiction
     seconds = float(data.t[stop - 1] - data.t[start])
     way = "up" if op[-1] > op[0] else "down"
     reason = (f"the valve does not move: for {length} samples ({seconds:.0f} s, "

@@ -103,10 +103,12 @@ METRICS: tuple[MetricInfo, ...] = (
     MetricInfo("output travel", "% of OUT span", "controller output travel Σ|ΔOUT| over "
                "the window's scans (the move into its first scan included, spec 4.1), in % "
                "of the output's span (GE counts: 32000 = 100 %, S5: 1000, DeltaV: "
-               "OUT_SCALE)",
+               "OUT_SCALE); of a velocity output (S5 velocity = true: OUT is the increment "
+               "dY), the travel of the position the increments build, Σ|dY|",
                "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("output reversals", "count", "sign changes of the controller output's moves, "
-               "moves of at most 0.05 % of its span ignored",
+               "moves of at most 0.05 % of its span ignored (of a velocity output, of the "
+               "position its increments build)",
                "fewer than 2 samples in the window, or " + _NONFINITE),
     MetricInfo("valve travel", "% of stem stroke", "stem travel Σ|Δy| of the valve position "
                "(the valve's wear)", "fewer than 2 samples in the window, or " + _NONFINITE),

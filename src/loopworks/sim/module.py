@@ -401,6 +401,14 @@ class Module:
         return [f"{name}.{port.name}" for name in self.order
                 for port in (*self.blocks[name].INPUTS, *self.blocks[name].OUTPUTS)]
 
+    def incremental_outputs(self) -> frozenset[str]:
+        """The controllers whose output is an increment per scan (``Controller.incremental``:
+        S5's velocity algorithm), by name."""
+        from loopworks.blocks.controller import Controller
+
+        return frozenset(n for n, b in self.blocks.items() if isinstance(b, Controller)
+                         and type(b).incremental(b.params) is not None)
+
     def out_spans(self, instances: Sequence[Mapping[str, Any]] = ()
                   ) -> dict[str, float | np.ndarray]:
         """Each controller's output units of 100 % (``Controller.out_span``), by name; with
@@ -695,7 +703,8 @@ class Module:
                 status[names[i]] = RS[r, cols]
         return SimResult(t=T[1:], values=values, status=status,
                          kinds={n: self.blocks[n].kind for n in self.order},
-                         wires=dict(self.wires), out_spans=self.out_spans())
+                         wires=dict(self.wires), out_spans=self.out_spans(),
+                         incremental=self.incremental_outputs())
 
     def _run_python(self, n: int, dt: float, t: np.ndarray, RF: np.ndarray, RS: np.ndarray,
                     rec_f: np.ndarray, rec_s: np.ndarray,

@@ -31,6 +31,9 @@ class SimResult:
     #: each controller's output units of 100 % (``Controller.out_span``; 100 when not given);
     #: in a batch, an array of one per instance where they differ
     out_spans: dict[str, float | np.ndarray] = field(default_factory=dict)
+    #: the controllers whose output is an increment per scan (``Controller.incremental``: S5's
+    #: velocity algorithm); their output figures are of the position the increments build
+    incremental: frozenset[str] = frozenset()
 
     def __getitem__(self, name: str) -> np.ndarray:
         """``result["pid.out"]``; ``result["pid.out.ST"]`` gives the status array."""
@@ -81,8 +84,12 @@ class SimResult:
         command = (self.usable(f"{valve}.op") if valve is not None
                    and f"{valve}.op" in self.values else None)
         roles = self._roles_of(loop)
+        out = self.usable(f"{loop}.{roles.out}")
+        if loop in self.incremental:  # the actuator's position: the sum of the increments
+            good = np.isfinite(out)  # a Bad increment is n/a where it is, not ever after
+            out = np.where(good, np.cumsum(np.where(good, out, 0.0), axis=-1), np.nan)
         return loop_metrics(self.t, self.working_sp(loop), self.usable(f"{loop}.{roles.pv}"),
-                            self.usable(f"{loop}.{roles.out}"), position=position,
+                            out, position=position,
                             window=window, command=command,
                             out_span=self.out_spans.get(loop, 100.0))
 

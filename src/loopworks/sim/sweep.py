@@ -291,7 +291,8 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
         template = batch.module
         record = template.metric_signals()
         info: dict[str, Any] = {"kinds": {b: template.blocks[b].kind for b in template.order},
-                                "wires": dict(template.wires)}
+                                "wires": dict(template.wires),
+                                "incremental": template.incremental_outputs()}
         if not template.compiled:  # interpreted: one module per instance
             for k in members:
                 job = jobs[k]
