@@ -77,6 +77,24 @@ def test_quantised_pv_fails_with_its_quantum() -> None:
     assert any("steps of 0.5" in m for m in q.notes)
 
 
+def test_a_long_record_of_a_finely_quantised_pv_passes_with_a_note() -> None:
+    """A PLC's INT PV (steps of 0.01 against noise of 0.1) over 12,000 samples takes a few
+    hundred values, under the 20 % rule, and failed as "compressed or quantised" (found by an
+    engineer); its step is far below its noise and it seldom repeats itself: a note. Held
+    (compressed) or coarsely quantised, the same record still fails."""
+    n = 12000
+    fine = np.round(loop(n=n).pv / 0.01) * 0.01
+    q = check_quality(loop(n=n, pv=fine))
+    assert q.passed, q.reasons
+    assert q.unique_pv_fraction < 0.2
+    assert any("far below its noise" in m and "fine quantisation" in m for m in q.notes)
+    coarse = np.round(loop(n=n).pv / 0.5) * 0.5
+    assert not check_quality(loop(n=n, pv=coarse)).passed
+    held = fine.copy()
+    held[1::2] = held[::2][: len(held[1::2])]  # every other sample repeats the last
+    assert not check_quality(loop(n=n, pv=held)).passed
+
+
 def test_quantum_of_a_continuous_signal_is_zero() -> None:
     assert pv_quantum(loop().pv) == 0.0
     assert pv_quantum(np.array([0.1, 0.3, 0.2, 0.7])) == pytest.approx(0.1)

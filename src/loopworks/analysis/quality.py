@@ -34,7 +34,9 @@ Rules, their thresholds (module constants) and their sources:
   depends on the record's length (a signal with L levels cannot exceed L / n), so it is meant
   for windows of a few hundred to a few thousand samples. The estimated quantisation step is
   reported as a note (:func:`pv_quantum`). A constant PV is reported as frozen, not also as
-  quantised.
+  quantised. A long record of a finely quantised PV (a PLC's INT counts) passes with a note:
+  a step at most :data:`FINE_QUANTUM` of the PV's noise, and the PV repeating its last value
+  in at most :data:`MAX_REPEAT_FRACTION` of the samples (a compressing historian holds it).
 * **Saturated output** — the OP within :data:`SATURATION_TOLERANCE` (0.5 % of its span) of its
   lower or upper limit for more than :data:`MAX_SATURATED_FRACTION` (10 %) of the samples fails:
   a saturated valve does not move, so the loop is open there. The limits are ``op_limits``
@@ -84,6 +86,12 @@ MAX_HELD_FRACTION = 0.2
 MIN_UNIQUE_FRACTION = 0.2
 #: decimals the PV is rounded to before counting distinct values (as the same source does)
 UNIQUE_DECIMALS = 6
+#: a quantisation step at most this fraction of the PV's noise cannot make the "flat, then
+#: jump" shape, and a PV that repeats its last value in at most MAX_REPEAT_FRACTION of the
+#: samples is not held by a compressing historian: its few distinct values are the length of
+#: the record (a PLC's INT PV over 12,000 samples: 797 values, 6.6 %), not a loss (ours)
+FINE_QUANTUM = 0.25
+MAX_REPEAT_FRACTION = 0.1
 #: an OP this close to a limit, as a fraction of the limits' span, is at the limit
 SATURATION_TOLERANCE = 0.005
 #: more of the samples than this fraction at an OP limit is a saturated output
@@ -287,7 +295,17 @@ def _quantisation_check(pv: FloatArray, reasons: list[str],
     count, fraction = unique_fraction(pv)
     quantum = pv_quantum(pv)
     valid = int(np.isfinite(pv).sum())
-    if count > 1 and fraction < MIN_UNIQUE_FRACTION:
+    finite = pv[np.isfinite(pv)]
+    noise = float(np.std(np.diff(finite, 2)) / np.sqrt(6.0)) if len(finite) > 3 else 0.0
+    repeats = float(np.mean(np.diff(finite) == 0.0)) if len(finite) > 1 else 1.0
+    fine = 0.0 < quantum <= FINE_QUANTUM * noise and repeats <= MAX_REPEAT_FRACTION
+    if count > 1 and fraction < MIN_UNIQUE_FRACTION and fine:
+        notes.append(f"the PV takes {count} distinct values over {valid} samples "
+                     f"({_pct(fraction)}), in steps of {quantum:.6g}, far below its noise "
+                     f"({noise:.3g}), and repeats itself in {_pct(repeats)} of the samples: a "
+                     "fine quantisation over a long record, not a compressed or coarsely "
+                     "quantised PV")
+    elif count > 1 and fraction < MIN_UNIQUE_FRACTION:
         need = int(np.ceil(MIN_UNIQUE_FRACTION * valid))
         reasons.append(f"the PV takes {count} distinct values over {valid} samples "
                        f"({_pct(fraction)}; compressed or quantised): at least {need} "
