@@ -182,6 +182,10 @@ def test_an_op_in_counts_is_refused_or_read_in_percent_of_its_span() -> None:
     offset = dataclasses.replace(data, op=50.0 + data.op * 2.0)  # EU: 0 % at 50, 100 % at 250
     assert diagnose(offset, recommend=False, op_range=(50.0, 250.0)).stiction["s"] == \
         pytest.approx(in_pct.stiction["s"], rel=1e-6)
+    at_limits = data.op.copy()
+    at_limits[::20], at_limits[10::20] = 102.0, -2.0  # 10 % of it at DeltaV-like limits
+    limits = dataclasses.replace(data, op=at_limits)
+    diagnose(limits, recommend=False)  # an OP in % at DeltaV-like limits -2..102 % is read
     with pytest.raises(InputError, match=r"op_range = \(1\.0, 1\.0\)"):
         diagnose(data, recommend=False, op_range=(1.0, 1.0))
 

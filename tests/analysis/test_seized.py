@@ -59,6 +59,9 @@ def test_a_recorded_position_that_moves_with_the_op_is_no_seized_valve() -> None
     moving = LoopData(t=record.t, sp=record.sp, pv=pv, op=op, mode=record.mode,
                       position=0.5 + op / 200.0)  # another span and offset
     assert seized_valve(moving) is None
+    reverse = LoopData(t=record.t, sp=record.sp, pv=pv, op=op, mode=record.mode,
+                       position=100.0 - op)  # air to close: the other sense
+    assert seized_valve(reverse) is None
     assert diagnose(moving, recommend=False).verdict == "undetermined"  # the PV is frozen
     still = LoopData(t=record.t, sp=record.sp, pv=pv, op=op, mode=record.mode,
                      position=np.full(len(op), 30.0))

@@ -289,6 +289,42 @@ def test_a_wire_between_units_that_differ_is_a_warning(controller: str, out: str
             for w in sc.warnings), sc.warnings
 
 
+def test_a_deltav_cascade_on_its_scales_is_no_unit_warning() -> None:
+    """BKCAL_OUT is on the secondary's PV_SCALE, FF_VAL on FF_SCALE (vendor-blocks 4.1): read
+    on OUT_SCALE, a correct cascade (primary OUT 0..500 = secondary PV 0..500) was warned."""
+    text = """
+[simulation]
+dt = 0.5
+duration = 10.0
+
+[blocks.p]
+kind = "deltav.pid"
+out_scale_eu_100 = 500.0
+
+[blocks.s]
+kind = "deltav.pid"
+pv_scale_eu_100 = 500.0
+
+[blocks.valve]
+kind = "valve.choudhury"
+
+[blocks.process]
+kind = "process.fopdt"
+dead_time = 1.0
+
+[wires]
+"s.cas_in" = "p.out"
+"p.bkcal_in" = "s.bkcal_out"
+"valve.op" = "s.out"
+"process.u" = "valve.position"
+"s.pv" = "process.y"
+"p.pv" = "process.y"
+"""
+    assert parse_scenario(text).warnings == []
+    wrong = parse_scenario(text.replace('"valve.op" = "s.out"', '"valve.op" = "s.bkcal_out"'))
+    assert any("'valve.op' = 's.bkcal_out'" in w for w in wrong.warnings), wrong.warnings
+
+
 def test_a_scaling_block_between_the_units_clears_the_warning() -> None:
     text = UNITS.format(controller='kind = "ge.pid_ind"\nkp = 1.0', out="cv").replace(
         '"valve.op" = "c.cv"', '"scale.cnt" = "c.cv"\n"valve.op" = "scale.pct"') + """

@@ -367,6 +367,7 @@ def test_n_a_is_null_in_the_results_files_and_the_json_counts_points_and_runs(
     assert (data["instances"], data["runs"]) == (3, 6)  # two [compare] variants
     table = pq.read_table(out / "results.parquet")
     assert table["overshoot %"].null_count == 6  # no setpoint step: n/a in every run
+    assert str(table["overshoot %"].type) == "double"  # not a null-typed column
     assert table["PV std"].null_count == 0
     header, *rows = (out / "results.csv").read_text().splitlines()
     at = header.split(",").index('"overshoot %"')

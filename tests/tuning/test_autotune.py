@@ -400,12 +400,16 @@ y0 = 50.0
 def test_a_relay_through_a_sticky_valve_says_the_model_is_unreliable() -> None:
     """A stick-slip of S 2 %, J 1 % on K 1, T 10 s, L 2 s read K 3.6 ± 0.07, T 39 s and no
     warning (found by an outside tune audit): the cycle holds the valve's sticking."""
-    from loopworks.sim.tune import tune_loop
+    from loopworks.sim.tune import _through_nonlinear_valve, tune_loop
 
     sticky = tune_loop(parse_scenario(STICKY_LOOP.format(s=2.0, j=1.0)).module, "pid", 0.1)
     said = [w for w in sticky.identification.warnings if "cycled through valve 'valve'" in w]
     assert len(said) == 1 and "stick-slip S = 2 %, J = 1 %" in said[0]
     assert said[0] in sticky.as_dict()["warnings"]
+    quantised = STICKY_LOOP.format(s=0, j=0).replace('kind = "valve.choudhury"\ns = 0\nj = 0',
+                                                      'kind = "valve.quantiser"\nq = 2.0')
+    said = _through_nonlinear_valve(parse_scenario(quantised).module, "pid")
+    assert said is not None and "a quantisation step of 2 %" in said
     linear = tune_loop(parse_scenario(STICKY_LOOP.format(s=0.0, j=0.0)).module, "pid", 0.1)
     assert linear.identification.process_gain == pytest.approx(1.0, rel=0.02)
     assert not [w for w in linear.identification.warnings if "cycled through" in w]

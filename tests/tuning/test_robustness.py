@@ -86,3 +86,19 @@ def test_an_aggressive_rule_on_a_delay_dominant_plant_is_marked() -> None:
     amigo = tune("amigo", data, "PID")
     assert amigo.ms is not None and amigo.ms < MS_WARNING and "Ms =" not in amigo.note
     assert tune("zn", ProcessData(ku=ku, pu=pu), "PI").ms is None  # no model: no Ms
+
+
+def test_a_derivative_gain_through_the_delay_below_one_is_no_instability() -> None:
+    # Pessen PID from the exact ultimate point of K 1, L 4 s, T 2 s: Kc·Td·K/T = 0.90 < 1.
+    # At high frequency 1 + C·G circles 1 at radius 0.90 and its last angle swings by up to
+    # asin(0.90) = 64°: a 45° tolerance on it called this stable loop unstable (found by a
+    # reviewer; it settles in a simulation with 50 % overshoot)
+    ku, pu = _ultimate(1.0, 2.0, 4.0)
+    kc, ti, td = ku / 1.4, pu / 2.5, pu / 6.65  # spec 3.6, Pessen integral rule
+    assert 0.85 < kc * td / 2.0 < 1.0
+    ms = max_sensitivity(kc, ti, td, gain=1.0, dead_time=4.0, time_constant=2.0)
+    assert MS_WARNING < ms < math.inf
+    note = tune("pessen", ProcessData(ku=ku, pu=pu, process_gain=1.0, dead_time=4.0,
+                                      time_constant=2.0), "PID").note
+    assert "Ms = " in note and "unstable" not in note
+

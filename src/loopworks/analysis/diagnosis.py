@@ -464,9 +464,10 @@ def _seized_diagnosis(data: LoopData, loop_type: LoopType, quality: Quality,
 
 
 #: the share of OP samples that may lie outside 0..100 % (by more than OP_MARGIN) before the
-#: OP is taken to be in other units
+#: OP is taken to be in other units; the margin is DeltaV's widest output limits, -10..110 %
+#: (a tight shut-off at -2 % or a limit at 102 % is an OP in %)
 OP_OUTSIDE_SHARE = 0.01
-OP_MARGIN = 1.0
+OP_MARGIN = 10.0
 
 
 def op_in_percent(data: LoopData, op_range: tuple[float, float] = (0.0, 100.0)) -> LoopData:
@@ -475,8 +476,8 @@ def op_in_percent(data: LoopData, op_range: tuple[float, float] = (0.0, 100.0)) 
     the valve model clips it to 0..100 and S, J are % of the span. InputError naming the
     range when more than OP_OUTSIDE_SHARE of the OP lies outside 0..100 % by more than
     OP_MARGIN: an OP in counts or engineering units (a GE CV of 16000 counts read as 16000 %
-    gave no fit at all; a DeltaV OUT of 95-104 EU on 0..200 was clipped at 100 and its sticky
-    valve voted no_stiction)."""
+    gave no fit at all; an OUT of 120-150 EU on 0..200 was clipped at 100). An OP in other
+    units that stays within -10..110 cannot be told from one in %: its range must be given."""
     lo, hi = (float(v) for v in op_range)
     if not (math.isfinite(lo) and math.isfinite(hi) and hi != lo):
         raise InputError(f"op_range = {op_range!r}: two different finite numbers expected "

@@ -63,15 +63,16 @@ FOLLOWS_CORRELATION = 0.9
 
 
 def _position_follows(data: LoopData, run: slice, op: np.ndarray) -> bool:
-    """A recorded valve position (any span or offset) that moves with the OP over the run
-    (correlation at least :data:`FOLLOWS_CORRELATION`): that valve is not seized (a stuck
-    transmitter over a moving valve was called seized, found by an engineer)."""
+    """A recorded valve position (any span, offset or sense: air-to-close reads 100 - OP)
+    that moves with the OP over the run (|correlation| at least
+    :data:`FOLLOWS_CORRELATION`): that valve is not seized (a stuck transmitter over a moving
+    valve was called seized, found by an engineer)."""
     if data.position is None:
         return False
     pos = np.asarray(data.position[run], dtype=np.float64)
     if not np.isfinite(pos).all() or np.ptp(pos) == 0.0 or np.ptp(op) == 0.0:
         return False
-    return bool(np.corrcoef(pos, op)[0, 1] >= FOLLOWS_CORRELATION)
+    return bool(abs(np.corrcoef(pos, op)[0, 1]) >= FOLLOWS_CORRELATION)  # either sense
 
 
 def seized_valve(data: LoopData) -> Seized | None:

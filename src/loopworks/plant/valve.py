@@ -845,6 +845,10 @@ class Quantiser(_Valve):
     kind = "valve.quantiser"
     summary = "valve position quantiser y = q*round(op/q) (plant-and-tuning 1.5)"
     kernel = staticmethod(quantiser_kernel)
+
+    def nonlinearity(self) -> str | None:
+        """The quantisation in words (q = 2 % read K 0.23 and T 4.9 s for 1 and 20 s)."""
+        return f"a quantisation step of {float(self.params['q']):g} %"
     PARAMS: ClassVar[tuple[Param, ...]] = (
         Param("q", 0.1, _PCT, "quantisation step q (DAC, stepper or bus resolution; spec 1.5)",
               lo=0.0),

@@ -125,15 +125,15 @@ def downstream_valve(loop: str, wires: Mapping[str, str], kinds: Mapping[str, st
 
 def _unit(block: Block, port: str, direction: str) -> str:
     """A port's declared unit as one of "%", "counts", "EU" or another (unchanged): DeltaV's
-    engineering units are % when their scale is 0..100 (OUT_SCALE for its outputs and the
-    output-side inputs, PV_SCALE for the PV side), "eu" (no unit to compare) on a block
-    without the scales."""
+    engineering units are % when their scale is 0..100 (OUT_SCALE for OUT, BKCAL_IN and the
+    manual output, FF_SCALE for FF_VAL, TRK_SCALE for TRK_VAL, PV_SCALE for the PV side and
+    BKCAL_OUT), "eu" (no unit to compare) on a block without the scales."""
     ports = block.INPUTS if direction == "input" else block.OUTPUTS
     unit = next((p.unit for p in ports if p.name == port), "")
     unit = {"count": "counts"}.get(unit, unit)  # (a CALC's "eu" are whatever it is fed)
-    if unit == "EU":
-        scale = "out_scale" if port in ("out", "bkcal_out", "bkcal_in", "man_out", "trk_val",
-                                        "ff_val") else "pv_scale"
+    if unit == "EU":  # DeltaV's ports and their scales (vendor-blocks 4.1)
+        scale = {"out": "out_scale", "bkcal_in": "out_scale", "man_out": "out_scale",
+                 "ff_val": "ff_scale", "trk_val": "trk_scale"}.get(port, "pv_scale")
         lo, hi = block.params.get(f"{scale}_eu_0"), block.params.get(f"{scale}_eu_100")
         if lo is None or hi is None:
             return "eu"  # a block without the scales (the stick-slip CALC): what it is fed

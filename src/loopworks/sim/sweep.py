@@ -346,8 +346,11 @@ class SweepResult:
         ``metrics.json`` (an empty field in ``results.csv``)."""
         import pyarrow as pa
 
-        return pa.table({name: pa.array(values, from_pandas=True)
-                         for name, values in self.columns.items()})
+        def column(values: list[Any]) -> Any:  # a metric n/a in every row stays a double
+            floats = bool(values) and all(isinstance(v, float) for v in values)
+            return pa.array(values, from_pandas=True, type=pa.float64() if floats else None)
+
+        return pa.table({name: column(values) for name, values in self.columns.items()})
 
     def to_pandas(self) -> Any:
         """A pandas DataFrame of the rows (pandas is optional: ``pip install pandas``)."""

@@ -64,6 +64,9 @@ def max_sensitivity(kc: float, ti: float, td: float, *, gain: float, dead_time: 
                           time_constant=time_constant)
     integrators = (0 if math.isinf(ti) else 1) + (1 if time_constant is None else 0)
     turn = float(np.unwrap(np.angle(ret))[-1] - np.angle(ret[0]))
-    if abs(2.0 * turn - integrators * math.pi) > 0.5 * math.pi:
+    # encirclements of -1: (2·Δ - n·π)/2π. At high frequency 1 + C·G circles 1 at radius c =
+    # Kc·Td·K/T < 1 (or shrinks to 1), so the last angle is off its limit by asin(c) < π/2 at
+    # most: rounding to whole turns is exact (a tolerance of π/4 called c > 0.71 unstable)
+    if round((2.0 * turn - integrators * math.pi) / (2.0 * math.pi)) != 0:
         return math.inf
     return float(np.max(1.0 / np.abs(ret)))
