@@ -381,11 +381,12 @@ class Module:
             d_unit = _unit(self.blocks[db], dp.lower(), "input")
             s_unit = _unit(self.blocks[sb], sp.lower(), "output")
             if d_unit != s_unit and {d_unit, s_unit} <= {"%", "counts", "EU"}:
+                example = (" (e.g. \"'^/PCT' := '^/CNT' / 320.0;\" for GE counts to %)"
+                           if (s_unit, d_unit) == ("counts", "%") else "")
                 out.append(f"wire '{dest}' = '{src}': {src} is in "
                            f"{_unit_text(self.blocks[sb], s_unit, 1)}, {dest} in "
                            f"{_unit_text(self.blocks[db], d_unit, 0)}: the value passes unscaled; "
-                           "scale it between them (a deltav.calc, e.g. "
-                           "\"'^/PCT' := '^/CNT' / 320.0;\" for GE counts to %)")
+                           f"scale it between them with a deltav.calc{example}")
             source = self.blocks[sb]
             if isinstance(source, Controller) and sp.lower() == source.ROLES.out \
                     and self.blocks[db].kind.startswith("valve.") and dp.lower() == "op":
