@@ -449,6 +449,15 @@ class Block:
             raise
         self.p[:] = coefficients
 
+    def port_unit(self, port: str, direction: str) -> str:
+        """The unit port ``port`` (lower case; ``direction`` "input" or "output") holds its
+        value in, as wires compare them (``Module.unit_warnings``): "%", "counts", or the
+        declared unit; "EU" of a scale this block does not know is "eu" (whatever it is fed).
+        A block that knows its scales (deltav.pid) says "%" where a scale is 0..100."""
+        ports = self.INPUTS if direction == "input" else self.OUTPUTS
+        unit = next((p.unit for p in ports if p.name == port), "")
+        return {"count": "counts", "EU": "eu"}.get(unit, unit)
+
     def outputs(self) -> Outputs:
         """The outputs of the last scan (a copy)."""
         return _new_outputs(Outputs, (self._out_index,

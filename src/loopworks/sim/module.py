@@ -123,25 +123,6 @@ def downstream_valve(loop: str, wires: Mapping[str, str], kinds: Mapping[str, st
     return None
 
 
-def _unit(block: Block, port: str, direction: str) -> str:
-    """A port's declared unit as one of "%", "counts", "EU" or another (unchanged): DeltaV's
-    engineering units are % when their scale is 0..100 (OUT_SCALE for OUT, BKCAL_IN and the
-    manual output, FF_SCALE for FF_VAL, TRK_SCALE for TRK_VAL, PV_SCALE for the PV side and
-    BKCAL_OUT), "eu" (no unit to compare) on a block without the scales."""
-    ports = block.INPUTS if direction == "input" else block.OUTPUTS
-    unit = next((p.unit for p in ports if p.name == port), "")
-    unit = {"count": "counts"}.get(unit, unit)  # (a CALC's "eu" are whatever it is fed)
-    if unit == "EU":  # DeltaV's ports and their scales (vendor-blocks 4.1)
-        scale = {"out": "out_scale", "bkcal_in": "out_scale", "man_out": "out_scale",
-                 "ff_val": "ff_scale", "trk_val": "trk_scale"}.get(port, "pv_scale")
-        lo, hi = block.params.get(f"{scale}_eu_0"), block.params.get(f"{scale}_eu_100")
-        if lo is None or hi is None:
-            return "eu"  # a block without the scales (the stick-slip CALC): what it is fed
-        if (float(lo), float(hi)) == (0.0, 100.0):
-            return "%"
-    return unit
-
-
 def _unit_text(block: Block, unit: str, side: int) -> str:
     """``unit`` in words; counts with the block's count of 100 % (``Controller.SPANS``, side
     0 the PV's, 1 the output's)."""
@@ -378,8 +359,8 @@ class Module:
             (db, dp), (sb, sp) = _split(dest, "wire input"), _split(src, "wire output")
             if db not in self.blocks or sb not in self.blocks:
                 continue
-            d_unit = _unit(self.blocks[db], dp.lower(), "input")
-            s_unit = _unit(self.blocks[sb], sp.lower(), "output")
+            d_unit = self.blocks[db].port_unit(dp.lower(), "input")
+            s_unit = self.blocks[sb].port_unit(sp.lower(), "output")
             if d_unit != s_unit and {d_unit, s_unit} <= {"%", "counts", "EU"}:
                 example = (" (e.g. \"'^/PCT' := '^/CNT' / 320.0;\" for GE counts to %)"
                            if (s_unit, d_unit) == ("counts", "%") else "")

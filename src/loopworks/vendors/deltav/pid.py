@@ -895,6 +895,20 @@ class DeltaVPID(Controller, Block):
             return float(params["out_lo_lim"]), float(params["out_hi_lim"])
         return float(params["out_scale_eu_0"]), float(params["out_scale_eu_100"])
 
+    #: the scale each EU port is in (vendor-blocks 4.1); the others are on PV_SCALE
+    PORT_SCALES: ClassVar[dict[str, str]] = {
+        "out": "out_scale", "bkcal_in": "out_scale", "man_out": "out_scale",
+        "ff_val": "ff_scale", "trk_val": "trk_scale"}
+
+    def port_unit(self, port: str, direction: str) -> str:
+        """An EU port is in % when its scale (``PORT_SCALES``) is 0..100, else in "EU"."""
+        unit = super().port_unit(port, direction)
+        if unit != "eu":
+            return unit
+        scale = self.PORT_SCALES.get(port, "pv_scale")
+        lo, hi = self.params[f"{scale}_eu_0"], self.params[f"{scale}_eu_100"]
+        return "%" if (float(lo), float(hi)) == (0.0, 100.0) else "EU"
+
     @classmethod
     def out_span(cls, params: Mapping[str, Any]) -> float:
         """OUT_SCALE's span |EU at 100 % − EU at 0 %| (OUT is in OUT_SCALE's EU)."""
