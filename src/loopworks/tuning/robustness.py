@@ -42,6 +42,13 @@ def loop_gain(omega: np.ndarray, kc: float, ti: float, td: float, *, gain: float
     return np.asarray(c * g)
 
 
+def derivative_gain(kc: float, td: float, *, gain: float,
+                    time_constant: float | None) -> float:
+    """|C·G| at high frequency of an unfiltered PID: Kc·Td·|K|/T (Kc·Td·|Kv| on an integrating
+    model, ``time_constant`` None); 1 or more through a dead time is unstable."""
+    return kc * td * abs(gain) / (time_constant if time_constant is not None else 1.0)
+
+
 def max_sensitivity(kc: float, ti: float, td: float, *, gain: float, dead_time: float,
                     time_constant: float | None) -> float:
     """Ms of the ideal PID (kc, ti s, td s; ti = inf without integral action) on the FOPDT
@@ -52,7 +59,7 @@ def max_sensitivity(kc: float, ti: float, td: float, *, gain: float, dead_time: 
     k = abs(gain)
     if not (kc > 0.0 and k > 0.0 and dead_time > 0.0):
         raise ValueError("max_sensitivity needs kc > 0, a gain other than 0 and a dead time > 0")
-    if td > 0.0 and kc * td * k / (time_constant if time_constant is not None else 1.0) >= 1.0:
+    if td > 0.0 and derivative_gain(kc, td, gain=k, time_constant=time_constant) >= 1.0:
         return math.inf  # derivative kick through the delay: a neutral, unstable loop
     slow = max(dead_time, time_constant or 0.0, 0.0 if math.isinf(ti) else ti)
     # a log grid up to 1/L (the slow part), then a linear one fine enough to follow the

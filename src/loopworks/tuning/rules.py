@@ -31,7 +31,7 @@ from types import MappingProxyType
 
 from loopworks.blocks.forms import series_to_ideal
 from loopworks.errors import ParameterError
-from loopworks.tuning.robustness import MS_WARNING, max_sensitivity
+from loopworks.tuning.robustness import MS_WARNING, derivative_gain, max_sensitivity
 from loopworks.tuning.settings import Ideal, ProcessData
 
 CONTROLLERS = ("P", "PI", "PID")
@@ -508,12 +508,13 @@ def tune(rule: str, data: ProcessData, controller: str = "PI", **options: float)
 
 
 def _derivative_gain(tuning: Tuning, data: ProcessData) -> float:
-    """|C·G| at high frequency, Kc·Td·|K|/T (Kc·Td·|Kv| integrating; tuning.robustness), 0
-    without derivative action or a model."""
+    """:func:`~loopworks.tuning.robustness.derivative_gain` of the tuning on the data's model,
+    0 without a model."""
     ideal = tuning.ideal()
     k = data.process_gain if data.time_constant is not None else data.integrating_gain
-    scale = data.time_constant if data.time_constant is not None else 1.0
-    return 0.0 if k is None or not scale else ideal.kc * ideal.td * abs(k) / scale
+    if k is None or data.time_constant == 0.0:
+        return 0.0
+    return derivative_gain(ideal.kc, ideal.td, gain=k, time_constant=data.time_constant)
 
 
 def _robustness(tuning: Tuning, data: ProcessData) -> tuple[float | None, str]:
