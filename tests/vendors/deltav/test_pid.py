@@ -157,6 +157,23 @@ def test_DV2_in_float32_default_precision(make: Make) -> None:
     assert all(float(np.float32(r["r_term"][0])) == r["r_term"][0] for r in got)
 
 
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_out_at_its_limit_is_the_limit_in_eu_not_a_rounding_past_it(
+        make: Make, precision: str) -> None:
+    """spec 4.4/4.5: OUT stays within OUT_LO_LIM..OUT_HI_LIM in EU. The limits are held in % of
+    OUT_SCALE; on -15..100 EU the high limit 110 EU is 108.69565...% and back in float32
+    -15 + 108.69565·1.15 rounds to 110.0000076, one float32 step past the limit (found by
+    test_kernel_is_sound_by_itself_and_out_within_limits)."""
+    b = make(gain=3.0, reset=10.0, out_scale_eu_0=-15.0, out_hi_lim=110.0, out_lo_lim=-10.0,
+             precision=precision)
+    steady(b, out=50.0)
+    high = [run(b, mode="AUTO", sp=90.0, pv=10.0)["out"] for _ in range(3)]
+    assert all(out == (110.0, GOOD_HIGH) for out in high)
+    low = [run(b, mode="AUTO", sp=10.0, pv=90.0)["out"] for _ in range(3)]
+    assert all(out[0] == -10.0 for out in low)
+    assert run(b, mode="MAN", man_out=200.0)["out"][0] == 110.0  # Man: limited too
+
+
 def test_DV3_series_to_standard_conversion() -> None:
     """spec 4.8 DV3: Series GAIN 2, RESET 10, RATE 2 = Standard Kc 2.4, Ti 12, Td 1.6667:
     Kc = 2·(1 + 2/10), Ti = 10 + 2, Td = 10·2/12 (spec 4.2 [D])."""

@@ -314,11 +314,13 @@ FLAGS = ("track_enable", "track_in_manual", "sp_pv_track_man", "sp_pv_track_lo_i
          "sp_track_retained_target", "use_pv_for_bkcal_out", "obey_sp_limits_cas",
          "no_out_limits_manual", "dynamic_reset_limit", "ifs_if_bad_in", "ifs_if_bad_cas_in",
          "use_uncertain_as_good", "target_to_man_if_bad_in", "target_to_next_if_bad_cas_in")
-#: the coefficient array p (coefficients()): % of span values, the law switches, the flags
+#: the coefficient array p (coefficients()): % of span values (and the OUT limits in EU, as
+#: given), the law switches, the flags
 COEFFS = ("gain", "reset", "rate", "alpha", "beta", "gamma", "has_p", "has_i", "series",
           "d_factor", "sign", "pv_eu0", "pv_k", "out_eu0", "out_k", "out_eu_per_pct", "ff_eu0",
           "ff_k", "trk_eu0", "trk_k", "sp_lo", "sp_hi", "sp_rate_up", "sp_rate_dn", "sp_ftime",
-          "pv_ftime", "out_lo", "out_hi", "arw_lo", "arw_hi", "bkcal_hys", "ideadband",
+          "pv_ftime", "out_lo", "out_hi", "out_lo_eu", "out_hi_eu", "arw_lo", "arw_hi",
+          "bkcal_hys", "ideadband",
           "ff_gain", "ff_order", "reset_law", "filter_law", "deriv_law", "feedback",
           "ff_in_feedback", "bias_mode", "bias", "bal_time", "single", *FLAGS)
 #: the state array x
@@ -628,20 +630,24 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
     # -- step 9: output ----------------------------------------------------------------------------
     man = u[U.man_out]
     man_write = written(x, X.man_seen, X.man_seen_ok, man)
+    limited = True  # OUT held within OUT_LO_LIM..OUT_HI_LIM this scan (spec 4.4, 4.5)
     if computing:
         out_pct = clamp(rnd(pterm + dterm + r + ff, single), lo, hi)
     elif actual == MAN or actual == OOS:  # -- step 10: overrides
         out_pct = out_prev
         if man_write:
             out_pct = to_pct(rnd(man, single), p[P.out_eu0], p[P.out_k])
-        if actual == MAN and not (p[P.no_out_limits_manual] != 0.0 and target == MAN):
+        limited = actual == MAN and not (p[P.no_out_limits_manual] != 0.0 and target == MAN)
+        if limited:
             out_pct = clamp(out_pct, lo, hi)
     elif actual == LO:
         out_pct = out_prev
+        limited = trk_ok
         if trk_ok:
             trk = rnd(trk, single)
             out_pct = clamp(to_pct(trk, p[P.trk_eu0], p[P.trk_k]), lo, hi)
     else:  # IMan: OUT follows the downstream block
+        limited = False
         out_pct = out_prev
         if bk_ok:
             out_pct = bk_pct
@@ -693,7 +699,10 @@ def deltav_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
             st_bkcal = GOOD_C_IR | bits
         else:
             st_bkcal = GOOD_C_NI | bits
-    y[Y.out] = rnd(p[P.out_eu0] + out_pct * p[P.out_eu_per_pct], single)
+    out = rnd(p[P.out_eu0] + out_pct * p[P.out_eu_per_pct], single)
+    if limited:  # the limits in EU as given: % and back may round one float32 step past them
+        out = clamp(out, p[P.out_lo_eu], p[P.out_hi_eu])
+    y[Y.out] = out
     ys[Y.out] = st_out
     y[Y.bkcal_out] = pv if actual == CAS and p[P.use_pv_for_bkcal_out] != 0.0 else spf
     ys[Y.bkcal_out] = st_bkcal
@@ -1193,7 +1202,8 @@ class DeltaVPID(Controller, Block):
             "sp_lo": sp_lo, "sp_hi": sp_hi,
             "sp_rate_up": num("sp_rate_up"), "sp_rate_dn": num("sp_rate_dn"),
             "sp_ftime": num("sp_ftime"), "pv_ftime": num("pv_ftime"),
-            "out_lo": lo, "out_hi": hi, "arw_lo": arw[1], "arw_hi": arw[0],
+            "out_lo": lo, "out_hi": hi, "out_lo_eu": lo_eu, "out_hi_eu": hi_eu,
+            "arw_lo": arw[1], "arw_hi": arw[0],
             "bkcal_hys": num("bkcal_hys"), "ideadband": num("ideadband"),
             "ff_gain": num("ff_gain"),
             "ff_order": SCALE_THEN_GAIN if prm["ff_conversion"] == "scale_then_gain"
@@ -1235,7 +1245,8 @@ class DeltaVPID(Controller, Block):
         x = self.x
         p = self.p
         y = [0.0] * len(self.OUTPUTS)
-        y[Y.out] = rnd(p[P.out_eu0] + x[X.out_pct] * p[P.out_eu_per_pct], p[P.single] != 0.0)
+        out = rnd(p[P.out_eu0] + x[X.out_pct] * p[P.out_eu_per_pct], p[P.single] != 0.0)
+        y[Y.out] = min(max(out, p[P.out_lo_eu]), p[P.out_hi_eu])  # initial_out is within them
         y[Y.bkcal_out] = y[Y.working_sp] = x[X.sp_filtered]
         y[Y.mode_actual] = y[Y.mode_target] = x[X.target]
         y[Y.r_term] = x[X.r]
