@@ -623,10 +623,10 @@ def diagnose(
     as_json: Annotated[bool, typer.Option("--json", help="print the diagnosis as JSON")] = False,
     output: Annotated[Path | None, typer.Option(
         "--output", "-o", help="directory for a report: report.html and its plots")] = None,
-    op_range: Annotated[str, typer.Option(
+    op_range: Annotated[str | None, typer.Option(
         "--op-range", metavar="LO:HI", help="the OP's units at 0 % and 100 % of the valve's "
-        "span (default 0:100, an OP in %; GE counts 0:32000, a DeltaV OUT_SCALE of 0..200 EU "
-        "0:200)")] = "0:100",
+        "span (default: an OP in %, 0:100; a fraction 0:1, GE counts 0:32000, a DeltaV "
+        "OUT_SCALE of 0..200 EU 0:200)")] = None,
 ) -> None:
     """Say whether a loop's valve sticks, from its data: the evidence, the verdict, how sticky
     and what to do."""
@@ -649,12 +649,14 @@ def diagnose(
         _check_report_directory(output)
     # repeated --columns add up (a role mapped twice is parse_columns' error)
     mapping = parse_columns(",".join(columns)) if columns else None
-    lo_text, _, hi_text = op_range.partition(":")
-    try:
-        span = (float(lo_text), float(hi_text))
-    except ValueError:
-        _fail(f"--op-range {op_range}: expected LO:HI, two numbers (the OP's units at 0 % "
-              "and 100 %), e.g. 0:32000")
+    span: tuple[float, float] | None = None
+    if op_range is not None:
+        lo_text, _, hi_text = op_range.partition(":")
+        try:
+            span = (float(lo_text), float(hi_text))
+        except ValueError:
+            _fail(f"--op-range {op_range}: expected LO:HI, two numbers (the OP's units at 0 % "
+                  "and 100 %), e.g. 0:32000")
     loop = read_csv(data, mapping, duplicates="last")
     result = run_diagnosis(loop, loop_type, op_range=span)
     if output is not None:

@@ -190,6 +190,27 @@ def test_an_op_in_counts_is_refused_or_read_in_percent_of_its_span() -> None:
         diagnose(data, recommend=False, op_range=(1.0, 1.0))
 
 
+def test_an_op_recorded_as_a_fraction_is_refused_unless_its_range_is_given() -> None:
+    """An OP recorded as a fraction of the span (0..1) read as % moves a hundredth as far:
+    the sticky valve's 3 % band would read 0.03 %. With no range given it is refused, naming
+    both readings; with 0:1 it is diagnosed as the same record in %; with 0:100 (a valve that
+    does open under 1 %) it is read as given (and no S of the record in % comes out)."""
+    data = _spec_loop("choudhury", 3.0, 1.0)
+    fraction = dataclasses.replace(data, op=data.op / 100.0)
+    assert fraction.op.min() >= 0.0 and fraction.op.max() <= 1.0
+    with pytest.raises(InputError, match=r"within 0\.\.1: .*--op-range 0:1 .*--op-range 0:100"):
+        diagnose(fraction, recommend=False)
+    in_pct = diagnose(data, recommend=False)
+    read = diagnose(fraction, recommend=False, op_range=(0.0, 1.0))
+    assert read.verdict == in_pct.verdict == "stiction"
+    assert read.stiction is not None and in_pct.stiction is not None
+    assert read.stiction["s"] == pytest.approx(in_pct.stiction["s"], rel=1e-6)
+    as_pct = diagnose(fraction, recommend=False, op_range=(0.0, 100.0)).stiction
+    assert as_pct is None or as_pct["s"] < 0.1 * in_pct.stiction["s"]  # read as given: no S
+    path_run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--json"])
+    assert path_run.exit_code == 0, path_run.output  # an OP in % passes with no range
+
+
 def test_the_op_range_option_is_checked() -> None:
     run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--op-range", "0-100"])
     assert run.exit_code == 2 and "--op-range 0-100: expected LO:HI" in run.output

@@ -233,14 +233,24 @@ def test_sweep_command_writes_results_and_summary(scenario: Path, tmp_path: Path
     assert "metrics_vs_parameter.png" in page and (out / "metrics_vs_parameter.png").exists()
 
 
-def test_monte_carlo_summary_has_histograms_and_pareto(scenario: Path, tmp_path: Path) -> None:
+def test_monte_carlo_summary_has_histograms_and_pareto(
+        scenario: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from loopworks.sim import sweep_report
 
+    titles: dict[str, list[str]] = {}
+    save = sweep_report._save
+
+    def keep_titles(fig: Any, path: Path) -> Path:
+        titles[path.name] = [ax.get_title() for ax in fig.axes]
+        return save(fig, path)
+
+    monkeypatch.setattr(sweep_report, "_save", keep_titles)
     result = sweep(scenario, ["pid.k=uniform(0.5,1.5)"], samples=5, workers=1)
     sweep_report.write_summary(result, tmp_path, "t", "cmd")
     assert (tmp_path / "histograms.png").exists()
-    # no valve in this loop: the Pareto plot uses the controller output travel
+    # no valve in this loop: the Pareto plot uses the controller output travel, and says so
     assert (tmp_path / "pareto.png").exists()
+    assert titles["pareto.png"][0].startswith("PV variability against output travel;")
 
 
 def test_pareto_front() -> None:

@@ -359,7 +359,7 @@ def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
 
 def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
              columns: Mapping[str, str] | str | None = None, *, recommend: bool = True,
-             samples: int = 24, op_range: tuple[float, float] = (0.0, 100.0)) -> Diagnosis:
+             samples: int = 24, op_range: tuple[float, float] | None = None) -> Diagnosis:
     """Diagnose one loop (module docstring) from ``data``: a :class:`LoopData`, or the path
     of a historian CSV (read by :func:`~loopworks.analysis.loopdata.read_csv` with
     ``columns``; a repeated time stamp keeps the later row, as a historian's hold does, and
@@ -470,15 +470,20 @@ OP_OUTSIDE_SHARE = 0.01
 OP_MARGIN = 10.0
 
 
-def op_in_percent(data: LoopData, op_range: tuple[float, float] = (0.0, 100.0)) -> LoopData:
+def op_in_percent(data: LoopData, op_range: tuple[float, float] | None = None) -> LoopData:
     """The record with its OP in % of the valve's span, op% = 100·(op - lo)/(hi - lo) for
-    ``op_range`` = (lo, hi), the OP's units at 0 % and 100 %. Every method reads the OP in %:
-    the valve model clips it to 0..100 and S, J are % of the span. InputError naming the
-    range when more than OP_OUTSIDE_SHARE of the OP lies outside 0..100 % by more than
-    OP_MARGIN: an OP in counts or engineering units (a GE CV of 16000 counts read as 16000 %
-    gave no fit at all; an OUT of 120-150 EU on 0..200 was clipped at 100). An OP in other
-    units that stays within -10..110 cannot be told from one in %: its range must be given."""
-    lo, hi = (float(v) for v in op_range)
+    ``op_range`` = (lo, hi), the OP's units at 0 % and 100 % (None: an OP in %, 0..100).
+    Every method reads the OP in %: the valve model clips it to 0..100 and S, J are % of the
+    span. InputError naming the range when more than OP_OUTSIDE_SHARE of the OP lies outside
+    0..100 % by more than OP_MARGIN: an OP in counts or engineering units (a GE CV of 16000
+    counts read as 16000 % gave no fit at all; an OUT of 120-150 EU on 0..200 was clipped at
+    100). With no range given, also when every OP sample lies within 0..1 and it moves: a
+    fraction of the span read as % moves a hundredth as far, so a 3 % stick band reads
+    0.03 % and the valve fit votes against stiction; the range (0:1 for a fraction, 0:100
+    for a valve that does open under 1 %) must then be given. An OP in other units that
+    stays within -10..110 cannot be told from one in %: its range must be given."""
+    given = op_range is not None
+    lo, hi = (float(v) for v in (op_range if op_range is not None else (0.0, 100.0)))
     if not (math.isfinite(lo) and math.isfinite(hi) and hi != lo):
         raise InputError(f"op_range = {op_range!r}: two different finite numbers expected "
                          "(the OP's units at 0 % and 100 % of the valve's span)")
@@ -486,13 +491,21 @@ def op_in_percent(data: LoopData, op_range: tuple[float, float] = (0.0, 100.0)) 
     seen = op[np.isfinite(op)]
     outside = np.count_nonzero((seen < -OP_MARGIN) | (seen > 100.0 + OP_MARGIN))
     if len(seen) and outside > OP_OUTSIDE_SHARE * len(seen):
-        given = "" if (lo, hi) == (0.0, 100.0) else f" (after --op-range {lo:g}:{hi:g})"
+        after = "" if (lo, hi) == (0.0, 100.0) else f" (after --op-range {lo:g}:{hi:g})"
         raise InputError(
             f"{data.source or 'the record'}: the OP runs {float(np.min(seen)):.6g} to "
-            f"{float(np.max(seen)):.6g}{given}, {100 * outside / len(seen):.0f} % of it outside "
+            f"{float(np.max(seen)):.6g}{after}, {100 * outside / len(seen):.0f} % of it outside "
             "0..100: diagnose reads the OP in % of the valve's span (S and J are % of it); give "
             "the OP's units at 0 % and 100 % with --op-range LO:HI (0:32000 for GE counts, "
             "0:200 for a DeltaV OUT_SCALE of 0..200 EU)")
+    if not given and len(seen) and float(np.min(seen)) >= 0.0 and float(np.max(seen)) <= 1.0 \
+            and float(np.max(seen)) > float(np.min(seen)):
+        raise InputError(
+            f"{data.source or 'the record'}: the OP runs {float(np.min(seen)):.6g} to "
+            f"{float(np.max(seen)):.6g}, all of it within 0..1: a fraction of the valve's span "
+            "read as % would move a hundredth as far (a 3 % stick band would read 0.03 %); "
+            "give its range: --op-range 0:1 for a fraction, --op-range 0:100 for an OP in % "
+            "that stays under 1 %")
     return data if op is data.op else replace(data, op=op)
 
 

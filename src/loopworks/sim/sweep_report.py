@@ -208,7 +208,8 @@ def figures(result: SweepResult, directory: Path, metric: str | None = None) -> 
             ax.set_xlabel(f"{travel} (lower is less wear"
                           + ("; symlog axis)" if ax.get_xscale() == "symlog" else ")"))
             ax.set_ylabel(f"{pv} (lower is tighter control)")
-            ax.set_title("PV variability against valve travel; lines: each variant's "
+            what = "output travel" if travel.endswith("output travel") else "valve travel"
+            ax.set_title(f"PV variability against {what}; lines: each variant's "
                          "non-dominated instances", fontsize=10)
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize=8)
