@@ -84,3 +84,25 @@ def test_a_fitted_loop_that_does_not_reproduce_the_record_predicts_nothing() -> 
     recorded = float(np.std(data.sp - data.pv))
     assert f"{REPRODUCE_FACTOR:g} times" in wrong["summary"] and f"{recorded:.3g}" in \
         wrong["summary"]
+
+
+@pytest.mark.parametrize("process", [
+    FOPDT, {"model": "integrating", "gain": 0.04, "dead_time_s": 3.0}], ids=["fopdt", "ipdt"])
+def test_the_options_do_not_depend_on_the_pv_units(process: dict[str, float]) -> None:
+    """The same loop recorded with its PV in other units (×64, ÷128: exact in binary) gets the
+    same options, its PV figures in its own units; a direct-acting loop (K < 0) the same as
+    its mirror image. Before, the load and the SP step were in the record's units: the spec
+    5.1 loop recorded ×50 moved its valve a tenth as far, and ÷100 was "not reproduced"."""
+    args = (3.0, 1.0)
+    base = recommend(*args, process, 1.0, 10.0, 0.05, 1.0, samples=4)
+    assert base["options"] and base["options"][0]["valve_travel"] > 0.0
+    for scale in (64.0, 1.0 / 128.0, -1.0):
+        other = {**process, "gain": process["gain"] * scale}
+        got = recommend(*args, other, 1.0 / abs(scale), 10.0, 0.05 * abs(scale), 1.0,
+                        samples=4)
+        assert got["recommended"] == base["recommended"]
+        for a, b in zip(base["options"], got["options"], strict=True):
+            assert b["name"] == a["name"]
+            assert b["valve_travel"] == a["valve_travel"]
+            for key in ("pv_std", "pv_std_p5", "pv_std_p95"):
+                assert b[key] == pytest.approx(a[key] * abs(scale), rel=1e-12), (scale, key)

@@ -23,6 +23,16 @@ options and how each is tuned from the estimate (spec plant-and-tuning section 2
 * ``retuned``: the same loop with half the integral action (Ti doubled): spec 2.7, which
   lengthens the cycle without removing it.
 
+Units: the loop is simulated with its PV in units of g = |K| (a FOPDT process's static gain,
+PV per % of valve) or g = |K|·Ti (an integrating process's PV change when the valve is 1 % off
+for one integral time of the identified PI), so the process gain is ±1 (±1/Ti) and the load
+walk, the SP step, the two-move method's release band and the DeltaV compensator's
+%PV/%OUT process gain mean the same whatever the record's PV units: a PV in m³/h or in bar
+gets the options a PV in % of span gets (before 2026-12-07 they were in the record's units:
+the spec 5.1 loop recorded ×50 moved its valve a tenth as far, ÷100 was "not reproduced").
+The figures are then given back in the record's units. A direct-acting loop (K < 0) is
+simulated as its mirror image, K > 0 under a reverse-acting PI: the same figures.
+
 Uncertainty: the sweep draws S and J uniformly within ±:data:`SPREAD` of the estimate and the
 process gain within ±:data:`GAIN_SPREAD` (Latin hypercube, seeded), so each option's figures
 come as the median with the 5-95 % range. The rule: the options whose median valve travel is at
@@ -60,8 +70,9 @@ OPTIONS = ("none", "dither_kicker", "knocker", "reinforcement", "two_move", "ret
 #: gain, dead time and time constant identified 2-5 times off, and a load not the record's)
 SCOPE = ("The 5-95 % ranges cover S and J within ±{spread:g} % and the process gain within "
          "±{gain:g} % only: the fitted dead time and time constant, and the load (a random "
-         "walk of {walk:g} %/√s and a 1 % setpoint step, not the record's disturbances), are "
-         "taken as they are, so try the option on the plant before relying on its figures.")
+         "walk of {walk:g} %/√s and a 1 % setpoint step, % of the PV change a 1 % valve move "
+         "makes, not the record's disturbances), are taken as they are, so try the option on "
+         "the plant before relying on its figures.")
 
 
 def scenario_text(s: float, j: float, process: dict[str, Any], kc: float, ti: float,
@@ -181,11 +192,23 @@ def _spread(name: str, value: float, rel: float) -> str:
     return f"{name}=uniform({lo!r},{hi!r})"
 
 
+def pv_unit(process: dict[str, Any], ti: float) -> float:
+    """g, the record's PV units per simulated PV unit (module docstring, "Units"): |K| for a
+    FOPDT process, |K|·Ti for an integrating one; 1 when that is not a finite positive
+    number."""
+    g = abs(float(process["gain"]))
+    if process["model"] == "integrating":
+        g *= ti
+    return g if math.isfinite(g) and g > 0.0 else 1.0
+
+
 def recommend(s: float, j: float, process: dict[str, Any], kc: float, ti: float,
               noise_std: float, dt: float, samples: int = 24, seed: int = 0) -> dict[str, Any]:
     """Simulate every option on the fitted loop (module docstring) and recommend one:
     ``{"recommended", "summary", "options": [{"name", "pv_std", "pv_std_p5", "pv_std_p95",
-    "valve_travel", ...}], "rule", "scenario"}``."""
+    "valve_travel", ...}], "rule", "scenario"}``. ``process``, ``kc`` (% per PV unit) and
+    ``noise_std`` are in the record's PV units, and so are the PV figures returned; the
+    scenario is in units of :func:`pv_unit`."""
     from loopworks.sim.sweep import sweep
 
     if not (math.isfinite(s) and s > 0.0 and math.isfinite(j) and j >= 0.0):
@@ -193,6 +216,10 @@ def recommend(s: float, j: float, process: dict[str, Any], kc: float, ti: float,
                          "J >= 0")
     if not (math.isfinite(kc) and kc > 0.0 and math.isfinite(ti) and ti > 0.0):
         raise InputError(f"recommend: the controller Kc = {kc!r}, Ti = {ti!r} s must be > 0")
+    g = pv_unit(process, ti)
+    gain = abs(float(process["gain"])) / g  # 1, or 1/Ti; a direct-acting loop's mirror image
+    process = {**process, "gain": gain if math.isfinite(gain) and gain > 0.0 else 1.0}
+    kc, noise_std = kc * g, noise_std / g
     theta = float(process["dead_time_s"])
     lag = float(process.get("time_constant_s") or 0.0)
     step = min(dt, max(0.05, (theta or lag or 10.0 * dt) / 10.0), 1.0)
@@ -215,6 +242,7 @@ def recommend(s: float, j: float, process: dict[str, Any], kc: float, ti: float,
         travel = sorted(x for x in (cols["valve travel"][i] for i in rows) if math.isfinite(x))
         if not std or not travel:
             continue
+        std = [g * x for x in std]  # back in the record's PV units
         options.append({"name": name, "pv_std": statistics.median(std),
                         "pv_std_p5": _quantile(std, 0.05), "pv_std_p95": _quantile(std, 0.95),
                         "valve_travel": statistics.median(travel),
