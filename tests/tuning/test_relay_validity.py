@@ -454,3 +454,44 @@ def test_e2_reads_the_relay_override_only_while_the_test_runs() -> None:
     after = run.controller_out[run.stage == 0]
     assert np.all(np.isfinite(after)) and report.handback_jump < 0.5
 
+
+
+def test_the_time_constant_s_uncertainty_holds_the_gain_s() -> None:
+    """T rests on K (the relay levels about the static line, ε/|K|), so K's ± moves T too:
+    under noise (K 1, T 20 s, L 2 s; transmitter noise 0.3, the default hysteresis, d 10 %)
+    K read 0.43 ± 0.31 and T 6.2 s ± 0.26 (4 %), with no word of T: every per-cycle T
+    was computed at the one K. T's ± now covers T at K ± its ±, and is warned."""
+    text = """[simulation]
+title = "noisy"
+dt = 0.1
+duration = 600.0
+[blocks.pid]
+kind = "pid"
+k = 1.0
+ti = 20.0
+out_lo = 0.0
+out_hi = 100.0
+sp = 50.0
+[blocks.process]
+kind = "process.fopdt"
+gain = 1.0
+time_constant = 20.0
+dead_time = 2.0
+u0 = 25.0
+y0 = 50.0
+[blocks.sensor]
+kind = "sensor.transmitter"
+noise_std = 0.3
+seed = 3
+[wires]
+"process.u" = "pid.out"
+"sensor.y" = "process.y"
+"pid.pv" = "sensor.pv"
+"""
+    ident = tune_loop(parse_scenario(text).module, "pid", 0.1, amplitude=10.0).identification
+    k, t = ident.process_gain, ident.time_constant
+    assert k is not None and t is not None
+    dk, dt_ = ident.uncertainty["process_gain"], ident.uncertainty["time_constant"]
+    assert dk is not None and dk > 0.5 * k  # a gain this uncertain ...
+    assert dt_ is not None and dt_ > 0.5 * t  # ... leaves T as uncertain (inf: unbounded)
+    assert any(w.startswith("time_constant = ") and "K's ±" in w for w in ident.warnings)

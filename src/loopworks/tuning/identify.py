@@ -126,8 +126,10 @@ Uncertainty. Every quantity is also estimated cycle by cycle (the amplitude, per
 each cycle; the dead time of each switch; K from each cycle of the second stage against the
 first stage's window; T from each half period or cycle), and ``uncertainty`` holds half the
 range of those estimates, for times read on the scan grid (period, dead time) at least half a
-scan, for K at least what the stages' drift off the static line allows (``_gain_uncertainty``);
-None where there is only one estimate. A quantity whose uncertainty exceeds
+scan, for K at least what the stages' drift off the static line allows (``_gain_uncertainty``),
+for T from a biased stage at least how far T moves with K ± K's uncertainty (inf where it has
+no solution there: every per-cycle T is computed at the one K); None where there is only one
+estimate. A quantity whose uncertainty exceeds
 ``SPREAD_WARNING`` (5 %, the spread 3.4 calls stable) of its value gets a warning, and so does a
 stage whose interpolated cycle means of the PV or of the output moved by more than 5 % of a or
 of d over the analysed cycles (the cycles are not stationary: a load, or a loop that was not at
@@ -136,6 +138,7 @@ rest, moved them, and the static gain rests on those means).
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
@@ -602,6 +605,19 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
         time_constant, dead_time, unc_t = _time_constant(
             rec, high, bia, test, means_bia, k_static, centre, dead_time, s, eps,
             time_constant_method)
+        # T rests on K (the relay levels about the static line, ε/|K|): K ± its uncertainty
+        # moves T as well, which the per-cycle spread (all at one K) does not show
+        dk = unc["process_gain"]
+        if dk is not None and dk > 0.0:
+            for k_other in (k_static - dk, k_static + dk):
+                t_other = math.inf
+                if k_other * k_static > 0.0:
+                    with contextlib.suppress(IdentificationRefused):  # no T there: ± inf
+                        t_other = _time_constant(rec, high, bia, test, means_bia, k_other,
+                                                 centre, dead_time, s, eps,
+                                                 time_constant_method)[0]
+                shift = abs(t_other - time_constant) if math.isfinite(t_other) else math.inf
+                unc_t = shift if unc_t is None else max(unc_t, shift)
         unc["time_constant"] = unc_t
         if time_constant_method == "half_period_ratio":
             unc["dead_time"] = None
@@ -652,6 +668,7 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
                             f"%): uncertain by more than {100 * SPREAD_WARNING:.0f} % (the "
                             "spread of the per-cycle estimates; for times, at least half a scan"
                             + ("; for K, also the stages' drift" if key == "process_gain"
+                               else "; for T, also K's ±" if key == "time_constant"
                                else "") + ")")
     if n_cyc < 2:
         warnings.append("one cycle analysed per stage: no spread, the uncertainty is unknown")
