@@ -577,8 +577,11 @@ def sweep(
     if metric is not None and metric not in result.metrics:
         _fail(f"--metric '{metric}': no such metric; metrics: {', '.join(result.metrics)}")
     sweep_report.write_results(result, output)
+    written = set()
     for (v, point), run in result.trajectories.items():
+        written.add(output / f"trajectory_{v}_{point}.csv")
         run.to_csv(output / f"trajectory_{v}_{point}.csv")
+    sweep_report.remove_stale_trajectories(output, written)
     command = "loopworks sweep " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else \
         "loopworks sweep"
     title = f"sweep of {scenario if scenario is not None else 'the built-in scenario'}"

@@ -325,6 +325,28 @@ def test_an_unknown_metric_is_refused_before_the_run(scenario: Path, tmp_path: P
     assert not (tmp_path / "o" / "results.parquet").exists()
 
 
+def test_a_reused_output_directory_keeps_no_file_of_an_earlier_sweep(
+        scenario: Path, tmp_path: Path) -> None:
+    """A second sweep into the same -o directory: the first one's figures of another design
+    and its trajectory files are removed (they would read as this sweep's); a file of the
+    user's stays."""
+    out = tmp_path / "o"
+    first = CliRunner().invoke(app, ["sweep", str(scenario), "--vary", "pid.k=0.5:1.5:3",
+                                     "--trajectory", "1", "-o", str(out), "-q"])
+    assert first.exit_code == 0, first.output
+    assert (out / "metrics_vs_parameter.png").exists()
+    assert (out / "trajectory_base_1.csv").exists()
+    (out / "mine.txt").write_text("the user's", encoding="utf-8")
+    second = CliRunner().invoke(app, ["sweep", str(scenario), "--vary",
+                                      "pid.k=uniform(0.5,1.5)", "--samples", "4", "-o",
+                                      str(out), "-q"])
+    assert second.exit_code == 0, second.output
+    assert (out / "histograms.png").exists() and (out / "pareto.png").exists()
+    assert not (out / "metrics_vs_parameter.png").exists()
+    assert not list(out.glob("trajectory_*.csv"))
+    assert (out / "mine.txt").read_text(encoding="utf-8") == "the user's"
+
+
 def test_trajectories_only_for_the_points_asked(scenario: Path) -> None:
     result = sweep(scenario, {"pid.k": "1,2,3"}, trajectories=[2])
     assert set(result.trajectories) == {("base", 2), ("faster", 2)}

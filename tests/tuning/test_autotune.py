@@ -410,6 +410,13 @@ def test_a_relay_through_a_sticky_valve_says_the_model_is_unreliable() -> None:
                                                       'kind = "valve.quantiser"\nq = 2.0')
     said = _through_nonlinear_valve(parse_scenario(quantised).module, "pid")
     assert said is not None and "a quantisation step of 2 %" in said
+    # a split range: the first valve found is linear, the second sticks (it was not seen)
+    split = STICKY_LOOP.format(s=0.0, j=0.0).replace(
+        '[blocks.process]', '[blocks.valve2]\nkind = "valve.choudhury"\ns = 3.0\nj = 1.0\n'
+        'y0 = 50.0\n\n[blocks.process]').replace(
+        '"valve.op" = "pid.out"', '"valve.op" = "pid.out"\n"valve2.op" = "pid.out"')
+    said = _through_nonlinear_valve(parse_scenario(split).module, "pid")
+    assert said is not None and "valve 'valve2'" in said and "valve 'valve'" not in said
     linear = tune_loop(parse_scenario(STICKY_LOOP.format(s=0.0, j=0.0)).module, "pid", 0.1)
     assert linear.identification.process_gain == pytest.approx(1.0, rel=0.02)
     assert not [w for w in linear.identification.warnings if "cycled through" in w]

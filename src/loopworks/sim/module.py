@@ -101,13 +101,14 @@ def _codes(choices: tuple[str, ...]) -> str:
 MAX_SCANS = 2**53
 
 
-def downstream_valve(loop: str, wires: Mapping[str, str], kinds: Mapping[str, str],
-                     controllers: set[str], is_valve: Callable[[str], bool]) -> str | None:
-    """The first block with a position output (``is_valve``) downstream of block ``loop``
-    along ``wires`` (dest -> src), through the blocks that pass a signal on (compensators,
-    calculations, a relay), not through a process, a sensor, a load or a controller."""
+def downstream_valves(loop: str, wires: Mapping[str, str], kinds: Mapping[str, str],
+                      controllers: set[str], is_valve: Callable[[str], bool]) -> list[str]:
+    """Every block with a position output (``is_valve``) downstream of block ``loop`` along
+    ``wires`` (dest -> src), nearest first, through the blocks that pass a signal on
+    (compensators, calculations, a relay), not through a valve, a process, a sensor, a load
+    or a controller: a split range's two valves, for one."""
     stops = ("process.", "sensor.", "disturbance.")
-    frontier, seen = [loop], {loop}
+    frontier, seen, found = [loop], {loop}, []
     while frontier:
         block = frontier.pop(0)
         for dest, src in wires.items():
@@ -115,12 +116,19 @@ def downstream_valve(loop: str, wires: Mapping[str, str], kinds: Mapping[str, st
                 nxt = dest.rsplit(".", 1)[0]
                 if nxt in seen:
                     continue
-                if is_valve(nxt):
-                    return nxt
                 seen.add(nxt)
-                if nxt not in controllers and not kinds.get(nxt, "").startswith(stops):
+                if is_valve(nxt):
+                    found.append(nxt)
+                elif nxt not in controllers and not kinds.get(nxt, "").startswith(stops):
                     frontier.append(nxt)
-    return None
+    return found
+
+
+def downstream_valve(loop: str, wires: Mapping[str, str], kinds: Mapping[str, str],
+                     controllers: set[str], is_valve: Callable[[str], bool]) -> str | None:
+    """The first of :func:`downstream_valves`, or None."""
+    found = downstream_valves(loop, wires, kinds, controllers, is_valve)
+    return found[0] if found else None
 
 
 def _unit_text(block: Block, unit: str, side: int) -> str:

@@ -23,6 +23,8 @@ if TYPE_CHECKING:
 
 #: the metrics plotted when the caller names none (the first the sweep has)
 DEFAULT_METRICS = ("PV std", "IAE", "mean |e|")
+#: every figure a sweep may write (which ones depends on the sweep's design)
+FIGURES = ("metrics_vs_parameter.png", "heatmap.png", "histograms.png", "pareto.png")
 #: the metric of the x axis of the Pareto plot
 TRAVEL = ("valve travel", "output travel")
 
@@ -214,7 +216,19 @@ def figures(result: SweepResult, directory: Path, metric: str | None = None) -> 
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize=8)
             paths.append(_save(fig, directory / "pareto.png"))
+    for name in FIGURES:  # an earlier sweep's figure in this directory is not this sweep's
+        if directory / name not in paths:
+            (directory / name).unlink(missing_ok=True)
     return paths
+
+
+def remove_stale_trajectories(directory: Path, written: set[Path]) -> list[Path]:
+    """Remove the ``trajectory_*.csv`` files in ``directory`` that this sweep did not write
+    (an earlier sweep's runs, which would read as this one's); the removed paths."""
+    stale = [p for p in directory.glob("trajectory_*.csv") if p not in written]
+    for p in stale:
+        p.unlink()
+    return stale
 
 
 def _save(fig: Any, path: Path) -> Path:

@@ -372,19 +372,22 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
 
 def _through_nonlinear_valve(module: Module, loop: str) -> str | None:
     """The warning for a relay that cycled through a valve with stick-slip, backlash or a
-    resolution (its ``nonlinearity()``), None through a linear valve or none."""
-    from loopworks.sim.module import downstream_valve
+    resolution (its ``nonlinearity()``; any of the valves downstream, a split range's second
+    too), None through linear valves or none."""
+    from loopworks.sim.module import downstream_valves
 
-    valve = downstream_valve(
+    valves = downstream_valves(
         loop, module.wires, {n: b.kind for n, b in module.blocks.items()},
         set(controllers(module)), lambda n: "position" in module.blocks[n]._out_index)
-    if valve is None:
+    said = []
+    for valve in valves:
+        describe = getattr(module.blocks[valve], "nonlinearity", None)
+        what = describe() if describe is not None else None
+        if what is not None:
+            said.append(f"valve '{valve}' ({module.blocks[valve].kind}: {what})")
+    if not said:
         return None
-    describe = getattr(module.blocks[valve], "nonlinearity", None)
-    what = describe() if describe is not None else None
-    if what is None:
-        return None
-    return (f"the relay cycled through valve '{valve}' ({module.blocks[valve].kind}: {what}): "
+    return (f"the relay cycled through {' and '.join(said)}: "
             "the relay's cycle holds the valve's sticking and jumps, which the analysis reads "
             "as plant (a stick-slip of S = 2 %, J = 1 % made K = 1, T = 10 s read K 3.6, T "
             "39 s, with no spread), so the model and the settings from it can be far off; "
