@@ -574,11 +574,34 @@ def test_replay_cli_runs_e2_pid(tmp_path: Path) -> None:
                                       "-p", "update_interval=1"])
     assert result.exit_code == 0, result.output
     rows = list(csv.reader(io.StringIO(result.stdout)))
-    assert rows[0] == ["t", "out", "pid_out", "p_adj", "i_adj", "d_adj", "out.ST"]
+    assert rows[0] == ["t", "out", "pid_out", "p_adj", "i_adj", "d_adj", "working_sp",
+                       "out.ST", "working_sp.ST"]
     # 50 + 10·(24 - 29) = 0; +10 each second; the override shows 70 while the PID goes on
     assert [float(r[1]) for r in rows[1:]] == [0.0, 10.0, 70.0, 30.0]
     assert [float(r[2]) for r in rows[1:]] == [0.0, 10.0, 20.0, 30.0]
-    assert [int(r[6]) for r in rows[1:]] == [GOOD_LOW, GOOD, GOOD_CONST, GOOD]
+    assert [float(r[6]) for r in rows[1:]] == [29.0] * 4  # no Setpoint Float
+    assert [int(r[7]) for r in rows[1:]] == [GOOD_LOW, GOOD, GOOD_CONST, GOOD]
+
+
+def test_setpoint_float_shifts_the_setpoint_linearly_across_the_float_range(make: Make) -> None:
+    """spec 3.7 step 2: Setpoint Float shifts the setpoint by a value between Low Float and
+    High Float as the float input moves across its range; linear interpolation [A], clamped
+    at the ends; 0 (both floats) disables it; before the PID cell, so the error is taken
+    from the floated setpoint. P only (TR 10, kp 1, 1 s updates), input = SP = 30."""
+    b = make(low_float=-2.0, high_float=2.0, float_range_lo=0.0, float_range_hi=100.0,
+             ki=0.0, update_interval=1.0)
+    got = [b.step(1.0, sp=30.0, pv=30.0, float_in=f) for f in (0.0, 25.0, 100.0, 140.0)]
+    assert [r["working_sp"].value for r in got] == [28.0, 29.0, 32.0, 32.0]
+    # e = input - setpoint: +2 at the first update: 50 + 10·2 = 70; then -10·Δsp each update
+    assert [r["out"].value for r in got] == pytest.approx([70.0, 60.0, 30.0, 30.0])
+    assert b.step(1.0, sp=30.0, pv=30.0, float_in=math.nan)["working_sp"].value == 32.0
+    bad_sp = b.step(1.0, sp=math.inf, pv=30.0, float_in=50.0)["working_sp"]
+    assert (bad_sp.value, bad_sp.status) == (32.0, 0)  # a bad sp: the last one, Bad
+    off = make(ki=0.0, update_interval=1.0)  # both floats 0: disabled, float_in ignored
+    r = off.step(1.0, sp=30.0, pv=30.0, float_in=75.0)
+    assert (r["working_sp"].value, r["out"].value) == (30.0, 50.0)
+    with pytest.raises(ParameterError, match="float_range_hi"):
+        make(float_range_lo=10.0, float_range_hi=10.0)
 
 
 def test_blocks_cli_documents_parameters_with_spec_sections() -> None:

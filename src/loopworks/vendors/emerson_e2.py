@@ -2,12 +2,25 @@ r"""The Emerson (formerly CPC) E2 RX/BX/CX controller PID: kind ``e2.pid``.
 
 The E2 runs one shared PID algorithm in many applications (Loop/Sequence Control, suction and
 pressure control, EEPR/EEV circuits, the CC-100 case controllers, condenser fans). This block is
-its PID cell followed by its Filter and Override cells (spec vendor-blocks section 3; seed 001 =
+its Setpoint Float and PID cells followed by its Filter and Override cells (spec vendor-blocks
+section 3; seed 001 =
 E2 I&O manual 026-1610 Rev 13, Appendix D). Output stages (Sequencer, PWM) are separate cells and
 are not part of this block; :func:`pwm_times` gives the PWM on/off split of spec 3.7.
 
 Equations
 ---------
+
+Setpoint Float cell (spec 3.7 step 2, before the PID): the setpoint is shifted by a value
+between ``low_float`` and ``high_float`` as the ``float_in`` input moves across its range
+``float_range_lo``..``float_range_hi``, by linear interpolation [A], clamped at the ends::
+
+    shift = low_float + (high_float - low_float)·clamp((float_in - float_range_lo) /
+                                                       (float_range_hi - float_range_lo), 0, 1)
+    setpoint = sp + shift                                (output ``working_sp``)
+
+Low and High Float both 0 (the defaults) disable it ("0 disables it"): the setpoint is ``sp``.
+A ``float_in`` that is NaN (not wired), ±inf or Bad keeps the last shift (0 until one is
+usable) [A].
 
 Every PID update k (spec 3.3, incremental or "velocity" form; gains are per update)::
 
@@ -125,6 +138,10 @@ Each is a parameter; the default is the spec's choice.
   is bumpless). Spec 3.7.
 * ``override_limits``: ``percent`` (default [A]: the override is limited to 0..100 %) or
   ``output_limits`` (output_min..output_max). Spec 3.7.
+* Setpoint Float (``low_float``, ``high_float``, ``float_range_lo``, ``float_range_hi``, the
+  ``float_in`` input): linear interpolation across the float input's range, clamped at its
+  ends (spec 3.7 step 2 [A]; the vendor names the settings, not the curve); a ``float_in`` that
+  is NaN, ±inf or Bad holds the last shift [A].
 * ``bad_input``: ``hold`` (default [A]) or ``failsafe`` (``out`` = ``failsafe_output``). The
   E2 has no status (spec 7).
 
@@ -218,6 +235,8 @@ INPUTS = (
     Port("sp", 0.0, "EU", "setpoint", status=True),
     Port("override", math.nan, _PCT, "forced output; NaN = no override (spec 3.7)",
          status=True),
+    Port("float_in", math.nan, "float units", "Setpoint Float input, across float_range_lo.."
+         "float_range_hi; NaN = not wired (spec 3.7 step 2)", status=True),
 )
 OUTPUTS = (
     Port("out", 0.0, _PCT, "output after the Filter and Override cells", status=True),
@@ -225,14 +244,19 @@ OUTPUTS = (
     Port("p_adj", 0.0, _PCT, "P adjustment of the latest update"),
     Port("i_adj", 0.0, _PCT, "I adjustment of the latest update"),
     Port("d_adj", 0.0, _PCT, "D adjustment of the latest update"),
+    Port("working_sp", 0.0, "EU", "the setpoint the PID works to: sp + the Setpoint Float "
+         "shift (spec 3.7 step 2); while sp is bad the last usable one, status Bad",
+         status=True),
 )
 #: the coefficient array p (coefficients())
 COEFFS = ("tr", "kp", "ki", "kd", "lo", "hi", "mae", "update", "fperiod", "ffrac", "sign",
           "i_norm", "d_form", "d_norm", "startup", "old_out", "ovr_updates", "ovr_lo", "ovr_hi",
-          "bad_input", "failsafe")
+          "bad_input", "failsafe", "float_on", "low_float", "high_float", "frange_lo",
+          "frange_hi")
 #: the state array x
 STATES = ("pid_output", "filter_output", "e1", "e2", "p_adj", "i_adj", "d_adj", "pid_timer",
-          "filter_timer", "since_update", "t1", "updated", "started")
+          "filter_timer", "since_update", "t1", "updated", "started", "float_shift",
+          "working_sp")
 P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 DUE_TOLERANCE = 1e-9  # relative: a timer within 1e-9·interval of the interval is due
@@ -286,6 +310,13 @@ def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     q_pv = us[U.pv] & 0xC0
     q_sp = us[U.sp] & 0xC0
     bad = not measured(pv, us[U.pv]) or not measured(sp, us[U.sp])  # beyond ±1e12 EU too
+    # -- Setpoint Float cell (spec 3.7 step 2): linear across the float input's range [A] ----
+    if p[P.float_on] != 0.0:
+        fin = u[U.float_in]
+        if finite(fin) and (us[U.float_in] & 0xC0) != BAD:  # else the last shift holds
+            r = clamp((fin - p[P.frange_lo]) / (p[P.frange_hi] - p[P.frange_lo]), 0.0, 1.0)
+            x[X.float_shift] = p[P.low_float] + (p[P.high_float] - p[P.low_float]) * r
+        sp = sp + x[X.float_shift]
     e = 0.0
     if not bad:  # spec 3.3: e = input - setpoint [A]
         e = p[P.sign] * (pv - sp)
@@ -368,6 +399,12 @@ def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     y[Y.p_adj] = x[X.p_adj]
     y[Y.i_adj] = x[X.i_adj]
     y[Y.d_adj] = x[X.d_adj]
+    if measured(u[U.sp], us[U.sp]) and finite(sp):
+        x[X.working_sp] = sp
+        ys[Y.working_sp] = GOOD_NC
+    else:  # a bad sp: the last usable working setpoint, Bad
+        ys[Y.working_sp] = BAD
+    y[Y.working_sp] = x[X.working_sp]
 
 
 def pwm_times(percent: float, period: float) -> tuple[float, float]:
@@ -453,6 +490,14 @@ class E2PID(Controller, Block):
         Param("bad_input", "hold", "",
               "NaN/inf or Bad pv/sp: the PID holds [A], or out goes to failsafe_output "
               "(the E2 has no status, spec 7)", "choice", choices=("hold", "failsafe")),
+        Param("low_float", 0.0, "EU", "Setpoint Float: the shift at the low end of the float "
+              "input's range; low and high both 0 disable it (spec 3.7 step 2)"),
+        Param("high_float", 0.0, "EU", "Setpoint Float: the shift at the high end of the float "
+              "input's range (spec 3.7 step 2)"),
+        Param("float_range_lo", 0.0, "float units", "Setpoint Float: the float input's value "
+              "giving low_float (its Output Range, spec 3.7 step 2)"),
+        Param("float_range_hi", 100.0, "float units", "Setpoint Float: the float input's value "
+              "giving high_float, > float_range_lo; linear between [A] (spec 3.7 step 2)"),
         Param("failsafe_output", 0.0, _PCT,
               "out while pv/sp is bad and bad_input = failsafe [A] (the E2 has no status, spec 7)",
               lo=0.0, hi=100.0, lo_open=False, hi_open=False),
@@ -463,7 +508,8 @@ class E2PID(Controller, Block):
     STATES: ClassVar[tuple[str, ...]] = STATES
     # the controller interface (loopworks.blocks.controller): the E2 has no mode input; the
     # Override cell is its manual (spec 3.7): a finite override is the output, NaN releases it
-    ROLES: ClassVar[Roles] = Roles(sp="sp", pv="pv", out="out", man_out="override")
+    ROLES: ClassVar[Roles] = Roles(sp="sp", pv="pv", out="out", man_out="override",
+                                   working_sp="working_sp")
     AUTOMATIC: ClassVar[dict[str, Any]] = {"override": math.nan}
     MANUAL: ClassVar[dict[str, Any]] = {}
     ACTION: ClassVar[Action] = Action("error_sign", "=", "input_minus_setpoint")  # spec 3.3
@@ -590,6 +636,12 @@ class E2PID(Controller, Block):
                 f"allowed [{lo:g}, {hi:g}] % (output_min..output_max)")
         ovr_lo, ovr_hi = (lo, hi) if prm["override_limits"] == "output_limits" \
             else (0.0, 100.0)
+        f_lo, f_hi = float(prm["float_range_lo"]), float(prm["float_range_hi"])
+        if not (f_hi > f_lo and math.isfinite(1.0 / (f_hi - f_lo))):
+            raise ParameterError(
+                f"e2.pid: parameter 'float_range_hi' = {f_hi:g} must be greater than "
+                f"float_range_lo = {f_lo:g} (the Setpoint Float input's range)")
+        low_float, high_float = float(prm["low_float"]), float(prm["high_float"])
         return {"tr": float(prm["throttling_range"]),
                 "kp": float(prm["kp"]), "ki": float(prm["ki"]), "kd": float(prm["kd"]),
                 "lo": lo, "hi": hi,
@@ -608,7 +660,10 @@ class E2PID(Controller, Block):
                 "ovr_updates": 1.0 if prm["override_updates_pid"] else 0.0,
                 "ovr_lo": ovr_lo, "ovr_hi": ovr_hi,
                 "bad_input": BAD_FAILSAFE if prm["bad_input"] == "failsafe" else BAD_HOLD,
-                "failsafe": float(prm["failsafe_output"])}
+                "failsafe": float(prm["failsafe_output"]),
+                "float_on": 0.0 if low_float == high_float == 0.0 else 1.0,
+                "low_float": low_float, "high_float": high_float,
+                "frange_lo": f_lo, "frange_hi": f_hi}
 
     def initial_state(self) -> list[float]:
         """OUT = F = initial_output (default Output at Setpoint, clamped); e₋₁ = e₋₂ = 0."""
@@ -619,8 +674,11 @@ class E2PID(Controller, Block):
         x[X.pid_output] = start
         x[X.filter_output] = start
         x[X.t1] = self.p[P.update]
+        x[X.working_sp] = float(self.u[U.sp]) if math.isfinite(self.u[U.sp]) else 0.0
         return x
 
     def initial_outputs(self) -> list[float]:
-        """Before the first scan: out = pid_out = the start-up output, no adjustments."""
-        return [float(self.x[X.filter_output]), float(self.x[X.pid_output]), 0.0, 0.0, 0.0]
+        """Before the first scan: out = pid_out = the start-up output, no adjustments; the
+        working setpoint is sp (no float shift yet)."""
+        return [float(self.x[X.filter_output]), float(self.x[X.pid_output]), 0.0, 0.0, 0.0,
+                float(self.x[X.working_sp])]

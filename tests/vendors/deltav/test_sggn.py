@@ -53,11 +53,23 @@ def wave(block: Block, n: int, dt: float = 1.0, **inputs: Any) -> list[float]:
 # ----------------------------------------------------------------------------------------------
 # Waveforms (spec 6.5: square default; sine and triangle alternatives)
 # ----------------------------------------------------------------------------------------------
-def test_square_default_alternates_every_scan_starting_plus(make: Make) -> None:
-    """spec 6.5 [A]: square wave, half-period 1 scan (period 2 s at dt 1 s), starting with +."""
+@pytest.mark.parametrize("dt", [1.0, 0.1, 0.5, 0.2])
+def test_square_default_alternates_every_scan_starting_plus(make: Make, dt: float) -> None:
+    """spec 6.5 [A]: square wave, "half-period = N scans (configurable, default 1 scan, i.e.
+    alternating every scan)", starting with +, at any scan time (the default was a period of
+    2 s: at dt 0.1 s it held +A for ten scans)."""
     b = make(amplitude=0.3)
-    assert wave(b, 6) == [0.3, -0.3, 0.3, -0.3, 0.3, -0.3]
-    assert b.step(1.0)["out"].status == 0x80
+    assert wave(b, 6, dt) == [0.3, -0.3, 0.3, -0.3, 0.3, -0.3]
+    assert b.step(dt)["out"].status == 0x80
+    b = make(amplitude=0.3, half_period_scans=3)
+    assert wave(b, 600, dt) == [0.3 if (k // 3) % 2 == 0 else -0.3 for k in range(600)]
+
+
+def test_a_period_in_seconds_or_in_scans_not_both() -> None:
+    with pytest.raises(ParameterError, match=r"give 'period' .* or 'half_period_scans', not"):
+        loopworks.create_block("deltav.sggn", period=2.0, half_period_scans=1)
+    with pytest.raises(ParameterError, match="half_period_scans"):
+        loopworks.create_block("deltav.sggn", half_period_scans=0)
 
 
 @pytest.mark.parametrize("dt", [1.0, 0.1, 0.3, 0.7, 1.0 / 3.0, 0.01, 0.25])
@@ -267,5 +279,6 @@ def test_replay_cli_runs_the_docstring_example(tmp_path: Path) -> None:
 def test_blocks_cli_documents_the_generator() -> None:
     result = CliRunner().invoke(app, ["blocks", "deltav.sggn", "--markdown"])
     assert result.exit_code == 0, result.output
-    for needle in ("| period | s | 2 |", "spec 6.5", "Options for the spec's [A]/[?] points"):
+    for needle in ("| half_period_scans | scans | 1 |", "spec 6.5",
+                   "Options for the spec's [A]/[?] points"):
         assert needle in result.stdout

@@ -217,6 +217,22 @@ def test_kicker_delt_held_in_band_and_in_pass_through_then_reused(make: Make) ->
     assert r["signal_out"] == pytest.approx(40.6, abs=1e-12)
 
 
+def test_kick_in_band_reset_option_dithers_only_in_band(make: Make) -> None:
+    """plant-and-tuning 2.3 item 2 [I] (architecture: "the held kick", a quirk with an option
+    for the corrected behaviour): kick_in_band = reset zeroes KICKER_DELT inside the band,
+    "dither only in band"; the default keeps the seed's held kick."""
+    b = make(precision="float64", kick_in_band="reset", **SEED_68)
+    assert values(b, comp_start=1.0, pv=49.0, dither_out=0.3, **IN_68)["kicker_delt"] == \
+        pytest.approx(0.3)  # low: kick +0.3, as held
+    r = values(b, comp_start=1.0, pv=50.0, dither_out=-0.3, **IN_68)  # band: no kick
+    assert r["kicker_delt"] == 0.0
+    assert r["signal_out"] == pytest.approx(40.3, abs=1e-12)  # 40 + 0 + (-0.3·-1·1)
+    held = make(precision="float64", **SEED_68)
+    values(held, comp_start=1.0, pv=49.0, dither_out=0.3, **IN_68)
+    assert values(held, comp_start=1.0, pv=50.0, dither_out=-0.3, **IN_68)["kicker_delt"] == \
+        pytest.approx(0.3)  # the default: the kick persists while dithering
+
+
 def test_asymmetric_band_edges(make: Make) -> None:
     """spec 6.4: high above SP + NB/2 = 50.3, low below SP - NB = 49.4 (band 1.5·NB wide);
     the tests are strict. PVs kept 1e-3 away from the triggers (spec 6.8 note)."""

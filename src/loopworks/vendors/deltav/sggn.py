@@ -13,10 +13,13 @@ Equations
 The block keeps its position in the cycle, c (cycles, 0 <= c < 1). At the first scan c = 0;
 each later scan advances it by the scan time and wraps it::
 
-    c_k = frac(c_{k-1} + dt_k / period)          (c_0 = 0)
+    c_k = frac(c_{k-1} + 1/(2·N))                (c_0 = 0; N = half_period_scans)
+    c_k = frac(c_{k-1} + dt_k / period)          (when a period in seconds is given)
     s_k = frac(c_k + phase / 360)                (phase in degrees)
 
-so c_k is the elapsed time (t_k - t_0)/period modulo 1, and the output of scan k is
+so c_k is the scans counted (k/(2N), the spec's half-period of N scans, default 1: the square
+wave alternates every scan, whatever the scan time) or the elapsed time (t_k - t_0)/period,
+modulo 1, and the output of scan k is
 
     square    out = bias + A·(+1 if s < 1/2 else -1)
     sine      out = bias + A·sin(2π·s)
@@ -29,9 +32,9 @@ the triangle at 0 rising. The square wave is the sign of the sine.
 Wrapping uses a tolerance of 1e-9 cycles, so that binary rounding of dt/period does not move a
 scan across an edge it sits on: a position within 1e-9 of a whole cycle is taken as 0 (the
 cycle start, kept exactly), and the square wave takes a position within 1e-9 of 1/2 as the
-start of the negative half. Hence a square wave with ``period`` = 2·dt alternates every scan,
-+A, -A, +A, ... (dt = 1 s, 0.1 s or any other), and ``period`` = 2·N·dt alternates every N
-scans: the internal dither of ``deltav.stick_slip`` with ``dither_half_period`` = N.
+start of the negative half. Hence the default square wave alternates every scan, +A, -A, +A,
+... (dt = 1 s, 0.1 s or any other), and ``half_period_scans`` = N (or ``period`` = 2·N·dt)
+every N scans: the internal dither of ``deltav.stick_slip`` with ``dither_half_period`` = N.
 
 The ``amplitude`` input lets a module drive the amplitude from another block, as the seed's
 compensator does (spec 6.5 [A])::
@@ -51,9 +54,9 @@ so ``1e308``) is Bad input: the wave goes on with the last usable amplitude (the
 none was given) and ``out`` is Bad (0) for that scan; the next usable amplitude restores it.
 The ``amplitude`` and ``bias`` parameters are float32 values (within ±3.4028235e38), so ``out``
 is always finite; should it leave the float32 range (bias and amplitude both near it), it is
-Bad too. The scan time dt enters only through c; ``period`` is in seconds. A scan longer than
-1e15 periods (where the position within the cycle is lost in rounding) restarts the cycle at
-0.
+Bad too. The scan time dt enters only through c, and only when ``period`` (seconds) is given.
+A scan longer than 1e15 periods (where the position within the cycle is lost in rounding)
+restarts the cycle at 0.
 
 Before the first scan (issue 11 point 8) ``out`` shows the first scan's value for the
 amplitude as given (else the parameter): bias + A·wave(phase), e.g. +A for the default square
@@ -67,9 +70,11 @@ unknown, spec 8 item 5).
 
 * ``waveform`` = ``square`` (spec 6.5 [A]); ``sine`` and ``triangle`` are the spec's
   alternatives.
-* ``period`` = 2 s: with the usual 1 s module scan the square wave alternates every scan
-  (spec 6.5 [A]: half-period 1 scan). The true period is unknown ([?]; RESET_TIME may set it,
-  spec 6.5).
+* ``half_period_scans`` = 1: the square wave alternates every scan (spec 6.5 [A]: "half-period
+  = N scans (configurable, default 1 scan)"), at any scan time. ``period`` (s, not given by
+  default) sets a period in seconds instead: the true period is unknown ([?]; RESET_TIME may
+  set it, spec 6.5). Before 2026-12-07 the default was ``period`` = 2 s, one scan only at a
+  1 s scan (at 0.1 s the wave held +A for ten scans).
 * ``bias`` = 0 (spec 6.5 [A]: zero bias).
 * ``phase`` = 0°: the wave starts with + (spec 6.5 [A]); 180° starts with -.
 * ``amplitude`` input: NaN = the ``amplitude`` parameter; wire DITHER_AMP to it for the
@@ -118,6 +123,7 @@ from loopworks.blocks.layout import index
 from loopworks.blocks.params import Param, Port
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD, GOOD_NC
+from loopworks.errors import ParameterError
 from loopworks.vendors.deltav.calc import FLOAT32_MAX, FLOAT32_OVERFLOW
 
 SQUARE, SINE, TRIANGLE = 0.0, 1.0, 2.0  # values of the waveform coefficient
@@ -131,7 +137,8 @@ OUTPUTS = (
     Port("out", 0.0, "out", "bias + amplitude·wave (spec 6.5: DITHER_OUT)", status=True),
 )
 #: the coefficient array p (coefficients()); phase in cycles
-COEFFS = ("waveform", "amplitude", "period", "bias", "phase")
+#: period (s, 0: counted in scans) and per_scan (cycles a scan, 1/(2·half_period_scans))
+COEFFS = ("waveform", "amplitude", "period", "per_scan", "bias", "phase")
 #: the state array x: the position in the cycle, 1 once started, the last usable amplitude
 STATES = ("cycle", "started", "amplitude")
 P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
@@ -173,7 +180,8 @@ def sggn_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntA
         x[X.started] = 1.0
         cycle = 0.0
     else:
-        cycle = float(x[X.cycle]) + dt / float(p[P.period])
+        cycle = float(x[X.cycle]) + (dt / float(p[P.period]) if p[P.period] > 0.0
+                                     else float(p[P.per_scan]))
         if not cycle < MAX_CYCLES:  # dt/period beyond float resolution (or NaN): restart
             cycle = 0.0
         cycle = cycle - math.floor(cycle + EDGE_TOLERANCE)
@@ -208,8 +216,12 @@ class SGGN(Block):
         Param("amplitude", 1.0, "out",
               "peak amplitude A (the amplitude input overrides it when not NaN); a float32 "
               "(spec 6.5)", lo=-FLOAT32_MAX, hi=FLOAT32_MAX, lo_open=False, hi_open=False),
-        Param("period", 2.0, "s",
-              "period; 2·dt alternates the square wave every scan [A] (spec 6.5)", lo=0.0),
+        Param("half_period_scans", 1, "scans",
+              "half-period in scans: 1 alternates the square wave every scan [A] (spec 6.5)",
+              "int", lo=1.0, hi=1e9, lo_open=False, hi_open=False),
+        Param("period", None, "s", "period in seconds instead of half_period_scans (the true "
+              "period is unknown [?], spec 6.5)", lo=0.0,
+              default_text="2·half_period_scans scans"),
         Param("bias", 0.0, "out", "offset added to the wave; 0 [A]; a float32 (spec 6.5)",
               lo=-FLOAT32_MAX, hi=FLOAT32_MAX, lo_open=False, hi_open=False),
         Param("phase", 0.0, "deg", "phase advance; 0 starts with + [A] (spec 6.5)",
@@ -223,8 +235,13 @@ class SGGN(Block):
     def coefficients(self) -> dict[str, Any]:
         prm: dict[str, Any] = self.params
         shape = {"square": SQUARE, "sine": SINE, "triangle": TRIANGLE}[prm["waveform"]]
+        if prm["period"] is not None and "half_period_scans" in self.given:
+            raise ParameterError(f"{self.kind}: give 'period' (s) or 'half_period_scans', not "
+                                 f"both (period = {prm['period']:g} s, half_period_scans = "
+                                 f"{prm['half_period_scans']})")
         return {"waveform": shape, "amplitude": float(prm["amplitude"]),
-                "period": float(prm["period"]), "bias": float(prm["bias"]),
+                "period": 0.0 if prm["period"] is None else float(prm["period"]),
+                "per_scan": 0.5 / float(prm["half_period_scans"]), "bias": float(prm["bias"]),
                 "phase": float(prm["phase"]) / 360.0}
 
     def initial_state(self) -> list[float]:

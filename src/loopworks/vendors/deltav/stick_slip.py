@@ -126,6 +126,9 @@ Each is a parameter; the default is the spec's choice.
   (spec 6.1 [A]).
 * ``precision`` = ``float32``: module parameters are 32-bit floats, rounded on every store;
   ``float64`` keeps doubles (spec 6.1 [A]).
+* ``kick_in_band`` = ``held``: KICKER_DELT keeps the last kick while the PV is inside the band
+  (the seed's text, a quirk reproduced); ``reset`` zeroes it there, "dither only in band",
+  the corrected behaviour plant-and-tuning 2.3 item 2 names (architecture: "the held kick").
 * ``dither_half_period`` = 1 scan: the internal DITHER_OUT square wave (±last scan's DITHER_AMP,
   starting with +) alternates every this many scans (spec 6.5 [A]; the SGGN1 configuration is
   unknown, spec 8 item 5).
@@ -234,7 +237,7 @@ OUTPUTS = (
 )
 #: the coefficient array p: the module parameters (as stored), then the options
 COEFFS = (*_SEED_PARAMS, "upper_band_factor", "lower_band_factor", "deferred", "single",
-          "half_period")
+          "half_period", "reset_kick")
 #: the state array x: the module parameters the expression writes, the internal dither's
 #: scan counter
 STATES = (
@@ -345,10 +348,13 @@ def stick_slip_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us
             held_kd = held(v)
             dither_delt = 0.0
             held_dd = 0.0
-        else:  # line 23: inside the band, KICKER_DELT held
+        else:  # line 23: inside the band, KICKER_DELT held (kick_in_band = reset: 0)
             v = stored(dither * action * valve, single)
             dither_delt = keep(v, dither_delt)
             held_dd = held(v)
+            if p[P.reset_kick] != 0.0:
+                kicker_delt = 0.0
+                held_kd = 0.0
         if not deferred:
             kd_read = kicker_delt
             dd_read = dither_delt
@@ -418,6 +424,10 @@ class StickSlip(Block):
         Param("precision", "float32", "",
               "module parameters are float32, rounded on every store [A], or float64 "
               "(spec 6.1)", "choice", choices=("float32", "float64")),
+        Param("kick_in_band", "held", "",
+              "KICKER_DELT inside the band: held, the last kick persists while dithering "
+              "(the seed's text), or reset to 0, dither only in band (spec plant-and-tuning "
+              "2.3 item 2)", "choice", choices=("held", "reset")),
         Param("dither_half_period", 1, "scans",
               "internal dither (dither_out NaN): ±last scan's DITHER_AMP, starting +, "
               "alternating every N scans [A] (spec 6.5)", "int", lo=1.0, hi=1e9,
@@ -445,6 +455,7 @@ class StickSlip(Block):
         coeffs["deferred"] = 1.0 if prm["deferred_param_reads"] else 0.0
         coeffs["single"] = 1.0 if single else 0.0
         coeffs["half_period"] = float(prm["dither_half_period"])
+        coeffs["reset_kick"] = 1.0 if prm["kick_in_band"] == "reset" else 0.0
         return coeffs
 
     def initial_state(self) -> list[float]:
