@@ -456,13 +456,11 @@ def test_e2_reads_the_relay_override_only_while_the_test_runs() -> None:
 
 
 
-def test_the_time_constant_s_uncertainty_holds_the_gain_s() -> None:
-    """T rests on K (the relay levels about the static line, ε/|K|), so K's ± moves T too:
-    under noise (K 1, T 20 s, L 2 s; transmitter noise 0.3, the default hysteresis, d 10 %)
-    K read 0.43 ± 0.31 and T 6.2 s ± 0.26 (4 %), with no word of T: every per-cycle T
-    was computed at the one K. T's ± now covers T at K ± its ±, and is warned."""
-    text = """[simulation]
-title = "noisy"
+def _sensor_loop(sensor: str) -> str:
+    """K 1, T 20 s, L 2 s under a pid (k 1, ti 20 s), scan 0.1 s, through a transmitter with
+    the ``sensor`` parameter lines."""
+    return f"""[simulation]
+title = "sensor"
 dt = 0.1
 duration = 600.0
 [blocks.pid]
@@ -481,13 +479,33 @@ u0 = 25.0
 y0 = 50.0
 [blocks.sensor]
 kind = "sensor.transmitter"
-noise_std = 0.3
+{sensor}
 seed = 3
 [wires]
 "process.u" = "pid.out"
 "sensor.y" = "process.y"
 "pid.pv" = "sensor.pv"
 """
+
+
+def test_a_quantised_pv_is_warned() -> None:
+    """A PV in steps of 6-10 % of the cycle amplitude read K 1.14-1.15 ± 0.02-0.03 for a true 1
+    (and T 24 s for 20) with no word of it: the relay switches and the analysis reads crossings
+    and means on a staircase. Steps above 2 % of a are now warned; fine steps are not."""
+    coarse = tune_loop(parse_scenario(_sensor_loop("quantum = 0.05")).module, "pid", 0.1)
+    said = [w for w in coarse.identification.warnings if w.startswith("the PV moves in steps")]
+    assert len(said) == 1 and "steps of 0.05, 10 % of the cycle amplitude" in said[0]
+    fine = tune_loop(parse_scenario(_sensor_loop("quantum = 0.002")).module, "pid", 0.1)
+    assert fine.identification.process_gain == pytest.approx(1.0, rel=0.02)
+    assert not [w for w in fine.identification.warnings if "moves in steps" in w]
+
+
+def test_the_time_constant_s_uncertainty_holds_the_gain_s() -> None:
+    """T rests on K (the relay levels about the static line, ε/|K|), so K's ± moves T too:
+    under noise (K 1, T 20 s, L 2 s; transmitter noise 0.3, the default hysteresis, d 10 %)
+    K read 0.43 ± 0.31 and T 6.2 s ± 0.26 (4 %), with no word of T: every per-cycle T
+    was computed at the one K. T's ± now covers T at K ± its ±, and is warned."""
+    text = _sensor_loop("noise_std = 0.3")
     ident = tune_loop(parse_scenario(text).module, "pid", 0.1, amplitude=10.0).identification
     k, t = ident.process_gain, ident.time_constant
     assert k is not None and t is not None

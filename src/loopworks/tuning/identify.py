@@ -129,7 +129,9 @@ range of those estimates, for times read on the scan grid (period, dead time) at
 scan, for K at least what the stages' drift off the static line allows (``_gain_uncertainty``),
 for T from a biased stage at least how far T moves with K ± K's uncertainty (inf where it has
 no solution there: every per-cycle T is computed at the one K); None where there is only one
-estimate. A quantity whose uncertainty exceeds
+estimate. A PV quantised in steps above ``QUANTUM_WARNING`` (2 %) of the cycle amplitude
+(``loopworks.analysis.quality.pv_quantum``) gets a warning: the staircase biases K, T and L
+beyond their spread. A quantity whose uncertainty exceeds
 ``SPREAD_WARNING`` (5 %, the spread 3.4 calls stable) of its value gets a warning, and so does a
 stage whose interpolated cycle means of the PV or of the output moved by more than 5 % of a or
 of d over the analysed cycles (the cycles are not stationary: a load, or a loop that was not at
@@ -147,6 +149,7 @@ from typing import Any
 
 import numpy as np
 
+from loopworks.analysis.quality import pv_quantum
 from loopworks.blocks.relay import MIN_CYCLE_SCANS
 from loopworks.errors import InputError, ParameterError
 from loopworks.tuning.settings import ProcessData
@@ -162,6 +165,10 @@ MIN_DEAD_TIME_SCANS = 2
 #: Relative half-range of the per-cycle estimates above which a quantity gets a warning (the
 #: "≤ 5 % spread" of stable cycles, plant-and-tuning 3.4 item 4).
 SPREAD_WARNING = 0.05
+#: a PV quantised in steps above this fraction of the cycle amplitude a gets a warning [ours:
+#: K 1, T 20 s, L 2 s under the pid, d 5 %: steps of 1 % of a read K 0.997 ± 0.04; of 2 %,
+#: 0.91 ± 0.13; of 6 and 10 %, 1.15 ± 0.03 and 1.14 ± 0.02, off by more than their ±]
+QUANTUM_WARNING = 0.02
 #: above this relative difference of a symmetric relay's high and low half periods, a load
 #: (or a loop not at rest) biases the cycle (spec 3.4 item 6; osPID's 20 %)
 ASYMMETRY_LIMIT = 0.2
@@ -670,6 +677,14 @@ def identify(t: np.ndarray, pv: np.ndarray, u: np.ndarray, test: RelayTest, *,
                             + ("; for K, also the stages' drift" if key == "process_gain"
                                else "; for T, also K's ±" if key == "time_constant"
                                else "") + ")")
+    q = pv_quantum(np.asarray(pv, dtype=np.float64))
+    if q > QUANTUM_WARNING * a_peaks:
+        warnings.append(
+            f"the PV moves in steps of {q:.3g}, {100 * q / a_peaks:.0f} % of the cycle amplitude "
+            f"a = {a_peaks:.3g}: the relay switches and the analysis reads crossings, extremes "
+            "and means on a staircase, so K, T and L can be further off than their ± (steps "
+            "of 6-10 % of a read K 1.14-1.15 ± 0.03 for a true 1); a finer measurement or a "
+            "larger relay amplitude helps")
     if n_cyc < 2:
         warnings.append("one cycle analysed per stage: no spread, the uncertainty is unknown")
     return Identification(
