@@ -197,9 +197,14 @@ def test_replay_params_file_unknown_parameter(tmp_path: Path, simple_csv: Path) 
     params = tmp_path / "pid.toml"
     params.write_text("k = 2.0\ngain = 3.0\n", encoding="utf-8")
     result = invoke("replay", "pid", str(simple_csv), "--params", str(params))
-    line = assert_user_error(result, "gain")
+    line = assert_user_error(result, str(params), "gain")  # the file is named (outside audit)
     for p in PID.PARAMS:
         assert p.name in line
+    params.write_text("k = 2.0\nti = -10.0\n", encoding="utf-8")
+    result = invoke("replay", "pid", str(simple_csv), "--params", str(params))
+    assert_user_error(result, str(params), "'ti' = -10", "(0, inf]")
+    result = invoke("replay", "pid", str(simple_csv), "--params", str(params), "-p", "k=3")
+    assert_user_error(result, f"{params} (with the -p options)", "'ti' = -10")
 
 
 def test_replay_params_file_wrong_kind(tmp_path: Path, simple_csv: Path) -> None:

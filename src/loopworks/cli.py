@@ -274,7 +274,15 @@ def replay(
     if params is not None:
         values.update(read_params_file(params, cls.kind))
     values.update(_pairs(param, "-p"))
-    block = cls(**values)
+    from loopworks.errors import ParameterError
+
+    try:
+        block = cls(**values)
+    except ParameterError as exc:
+        if params is None:
+            raise
+        where = f"{params}" + (" (with the -p options)" if param else "")
+        raise ParameterError(f"{where}: {exc}") from None
     from rich.console import Console
 
     console = Console(stderr=True)

@@ -112,8 +112,24 @@ def test_saturated_op_fails() -> None:
     op = np.minimum(loop().op, 42.0)  # clipped: the upper half of the sine sits at 42
     q = check_quality(loop(op=op))
     assert not q.passed and q.saturated_fraction > 0.3
-    assert any("the OP is at a limit" in r and "at 42" in r and "at most 10 %" in r
-               for r in q.reasons)
+    assert any("the OP is at a limit" in r and "and 42, its extremes over the record, held "
+               "there" in r and "at most 10 %" in r for r in q.reasons)
+
+
+def test_an_op_that_settles_near_its_own_maximum_is_not_saturated() -> None:
+    """Without given limits, an OP is at a limit when within 0.5 % of 0 % or 100 %, or held
+    exactly at its own extreme (an unnamed clamp). An OP ramping from 0 to 50 % at start-up
+    and then moving ± 0.05 about 50 had 93 % of its samples within 0.5 % of the span of its
+    own maximum, and was called saturated (found by an outside audit)."""
+    rng = np.random.default_rng(3)
+    op = np.concatenate([np.linspace(0.0, 50.0, 50), 50.0 + rng.uniform(-0.05, 0.05, 950)])
+    q = check_quality(loop(op=op))
+    assert q.saturated_fraction < 0.01
+    assert not any("at a limit" in r for r in q.reasons)
+    near_full = loop().op.copy()  # 35..45 %, then 20 % of it wide open, wandering near 100
+    near_full[:200] = 99.6 + rng.uniform(0.0, 0.4, 200)
+    q = check_quality(loop(op=near_full))
+    assert 0.2 <= q.saturated_fraction < 0.21 and not q.passed  # within 0.5 % of 100 %
 
 
 def test_saturation_against_given_limits() -> None:

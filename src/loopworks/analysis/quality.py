@@ -37,11 +37,16 @@ Rules, their thresholds (module constants) and their sources:
   quantised. A long record of a finely quantised PV (a PLC's INT counts) passes with a note:
   a step at most :data:`FINE_QUANTUM` of the PV's noise, and the PV repeating its last value
   in at most :data:`MAX_REPEAT_FRACTION` of the samples (a compressing historian holds it).
-* **Saturated output** — the OP within :data:`SATURATION_TOLERANCE` (0.5 % of its span) of its
-  lower or upper limit for more than :data:`MAX_SATURATED_FRACTION` (10 %) of the samples fails:
-  a saturated valve does not move, so the loop is open there. The limits are ``op_limits``
-  when given (e.g. the controller's 0-100 %), else the OP's own minimum and maximum over the
-  record. Engineering judgement.
+* **Saturated output** — the OP at a limit for more than :data:`MAX_SATURATED_FRACTION` (10 %)
+  of the samples fails: a saturated valve does not move, so the loop is open there. With
+  ``op_limits`` given, at a limit is within :data:`SATURATION_TOLERANCE` (0.5 % of their span)
+  of one. Without them (``diagnose``, its OP in % of the valve's span), it is within 0.5 % of
+  0 % or 100 %, or exactly at the OP's own minimum or maximum over the record (a clamp the
+  record does not name, OUT_HI_LIM 90 % say, holds the OP flat there; to within
+  :data:`SAME_VALUE` of its size). Not within 0.5 % of those extremes: an OP that settles
+  and moves a little about its value (50 ± 0.05 after a start-up ramp from 0) has most of
+  its samples near its own maximum without being held by anything (it was called saturated,
+  2026-12-07). Engineering judgement.
 * **Manual mode** — a mode other than 1 (automatic) for more than :data:`MAX_MANUAL_FRACTION`
   (10 %) of the samples fails: in manual the loop is open and the OP is the operator's.
   Less than that is a note. A record without a mode column gets a note that automatic mode is
@@ -94,6 +99,9 @@ FINE_QUANTUM = 0.25
 MAX_REPEAT_FRACTION = 0.1
 #: an OP this close to a limit, as a fraction of the limits' span, is at the limit
 SATURATION_TOLERANCE = 0.005
+#: an OP sample this close to the record's own extreme (relative to its size, at least 1) is
+#: at it: a clamp holds the OP at one value (the text of a CSV may round it in its last digits)
+SAME_VALUE = 1e-9
 #: more of the samples than this fraction at an OP limit is a saturated output
 #: (engineering judgement)
 MAX_SATURATED_FRACTION = 0.1
@@ -319,25 +327,33 @@ def _quantisation_check(pv: FloatArray, reasons: list[str],
 
 def _saturation_check(op: FloatArray, limits: tuple[float, float] | None,
                       reasons: list[str]) -> float:
-    """The fraction of samples with the OP at a limit; a failure above the allowed one."""
+    """The fraction of samples with the OP at a limit (module docstring); a failure above the
+    allowed one."""
     finite = op[np.isfinite(op)]
     if len(finite) == 0:
         return 0.0
-    low, high = limits if limits is not None else (float(finite.min()), float(finite.max()))
-    span = high - low
-    if span <= 0:
+    low, high = (float(finite.min()), float(finite.max())) if limits is None else limits
+    if not high > low:
         return 0.0  # a constant OP is reported as frozen
-    tol = SATURATION_TOLERANCE * span
-    at_low = int((finite <= low + tol).sum())
-    at_high = int((finite >= high - tol).sum())
+    if limits is not None:
+        tol = SATURATION_TOLERANCE * (high - low)
+        low_side, high_side = finite <= low + tol, finite >= high - tol
+        where = f"{low:.6g} and {high:.6g}, the given limits, within {_pct(SATURATION_TOLERANCE)}"
+    else:  # OP in %: the valve's span, or held flat at its own extremes (an unnamed clamp)
+        tol = SATURATION_TOLERANCE * 100.0
+        same = SAME_VALUE * max(1.0, abs(low), abs(high))
+        low_side = (finite <= low + same) | (finite <= tol)
+        high_side = (finite >= high - same) | (finite >= 100.0 - tol)
+        where = (f"{low:.6g} and {high:.6g}, its extremes over the record, held there, or "
+                 f"within {_pct(SATURATION_TOLERANCE)} of 0 % or 100 %")
+    at_low, at_high = int(low_side.sum()), int(high_side.sum())
     fraction = (at_low + at_high) / len(op)
     if fraction > MAX_SATURATED_FRACTION:
-        which = "given limits" if limits is not None else "extremes over the record"
         reasons.append(f"the OP is at a limit for {at_low + at_high} of {len(op)} samples "
-                       f"({_pct(fraction)}; {at_low} at {low:.6g}, {at_high} at {high:.6g}, "
-                       f"its {which}, within {_pct(SATURATION_TOLERANCE)} of the span): "
-                       f"at most {_pct(MAX_SATURATED_FRACTION)} is allowed (saturated, or "
-                       f"held there by a compressed tag: the valve does not move)")
+                       f"({_pct(fraction)}; {at_low} at the low one, {at_high} at the high one: "
+                       f"{where}): at most {_pct(MAX_SATURATED_FRACTION)} is allowed "
+                       "(saturated, or held there by a compressed tag: the valve does not "
+                       "move)")
     return fraction
 
 
