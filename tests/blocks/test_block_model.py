@@ -391,8 +391,10 @@ def test_unknown_kind_lists_the_known_kinds() -> None:
 def test_parameter_errors_name_parameter_value_and_range() -> None:
     with pytest.raises(ParameterError, match=r"'ti' = -1 is out of range: allowed \(0, inf\] s"):
         loopworks.create_block("pid", ti=-1)
-    with pytest.raises(ParameterError, match=r"'k' = 'abc' must be a number"):
+    with pytest.raises(ParameterError, match=r"'k' = 'abc' must be a number: allowed \(0, inf\)"):
         loopworks.create_block("pid", k="abc")
+    with pytest.raises(ParameterError, match=r"'ti' = True must be a number: allowed \(0, inf\] s"):
+        loopworks.create_block("pid", ti=True)
     with pytest.raises(ParameterError, match=r"'form' = 'pi' is not allowed: expected one of"):
         loopworks.create_block("pid", form="pi")
     with pytest.raises(ParameterError, match=r"'time_constant' = nan is out of range"):

@@ -107,6 +107,14 @@ def test_errors_name_the_file_and_place(text: str, message: str) -> None:
         parse_scenario(text, "bad.toml")
 
 
+def test_an_unknown_name_in_a_block_table_lists_its_inputs_too() -> None:
+    """A block table holds parameters and constants for its inputs: a misspelt input ('spp')
+    was answered with the parameter names only (found by an outside audit)."""
+    with pytest.raises(FileFormatError, match=r"unknown parameter 'spp'; valid names: .*; "
+                                              r"constant inputs: sp, pv"):
+        parse_scenario(GOOD.replace("[blocks.pid]", "[blocks.pid]\nspp = 1.0"), "bad.toml")
+
+
 def test_missing_file_is_a_clear_error(tmp_path: Path) -> None:
     with pytest.raises(FileFormatError, match="cannot read the scenario"):
         load_scenario(tmp_path / "nope.toml")

@@ -79,7 +79,8 @@ class Param:
             if not isinstance(value, str):
                 raise ParameterError(f"{where}parameter '{self.name}' = {value!r} must be text")
             return value
-        x = _to_float(value, self.name, where)
+        x = _to_float(value, self.name, where,
+                      f": allowed {self.range_text()}" + (f" {self.unit}" if self.unit else ""))
         if self.type == "int" and math.isfinite(x) and x != int(x):
             raise ParameterError(
                 f"{where}parameter '{self.name}' = {value!r} must be an integer "
@@ -99,14 +100,16 @@ def _fmt_value(value: Any) -> str:
     return repr(value) if isinstance(value, str) else str(value)
 
 
-def _to_float(value: Any, name: str, where: str) -> float:
+def _to_float(value: Any, name: str, where: str, allowed: str = "") -> float:
+    """``value`` as a float; ParameterError naming the parameter, the value and ``allowed``
+    (its range) when it is not a number (a bool is not one)."""
     if isinstance(value, bool):
-        raise ParameterError(f"{where}parameter '{name}' = {value!r} must be a number")
+        raise ParameterError(f"{where}parameter '{name}' = {value!r} must be a number{allowed}")
     try:
         return float(value)
     except (TypeError, ValueError):
         raise ParameterError(
-            f"{where}parameter '{name}' = {value!r} must be a number") from None
+            f"{where}parameter '{name}' = {value!r} must be a number{allowed}") from None
 
 
 _TRUE = {"true", "1", "yes", "on"}

@@ -441,7 +441,10 @@ def _build(sc: _Scenario, tables: dict[str, dict[str, Any]], source: str,
                 params["seed"] = mix_seed(int(blocks[name].params["seed"]), seed)
                 blocks[name] = cls(**params)
         except LoopworksError as exc:
-            raise FileFormatError(f"{where}: {exc}") from None
+            text = str(exc)
+            if "unknown parameter" in text and cls.INPUTS:  # a table holds constant inputs too
+                text += "; constant inputs: " + ", ".join(p.name for p in cls.INPUTS)
+            raise FileFormatError(f"{where}: {text}") from None
     for name, values in constants.items():
         for port, value in values.items():
             spec = blocks[name].INPUTS[blocks[name]._in_index[port]]
