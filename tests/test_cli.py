@@ -514,6 +514,17 @@ def test_simulate_builtin_scenario(tmp_path: Path) -> None:
     assert "Relay auto-tune" in (tmp_path / "report" / "report.html").read_text()
 
 
+def test_the_table_title_gives_the_duration_that_ran(tmp_path: Path) -> None:
+    """A duration off the scan grid runs the nearest count of scans (warned); the table's
+    title gave the duration as written (20.04 s for a 20 s run)."""
+    scenario = tmp_path / "loop.toml"
+    scenario.write_text(SCENARIO.replace("duration = 20.0", "duration = 20.04"), "utf-8")
+    result = invoke("simulate", str(scenario), "-o", str(tmp_path / "r"), "-q", columns=200)
+    assert result.exit_code == 0, result.output
+    assert "200 scans (20 s)" in result.stderr
+    assert " 20 s in scans of 0.1 s" in result.stdout and "20.04" not in result.stdout
+
+
 def test_simulate_file_writes_the_report_directory(tmp_path: Path) -> None:
     scenario = tmp_path / "loop.toml"
     scenario.write_text(SCENARIO, encoding="utf-8")

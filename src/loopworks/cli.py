@@ -128,7 +128,10 @@ def simulate(
             metrics[key] = result.metrics(loop, window=sc.metrics_window)
     scored = ("" if sc.metrics_window is None
               else f", scored over {sc.metrics_window[0]:g}..{sc.metrics_window[1]:g} s")
-    table = Table(title=escape(f"{title}: {sc.duration:g} s in scans of {sc.dt:g} s{scored}"))
+    from loopworks.sim.module import scan_count
+
+    run_s = scan_count(sc.duration, sc.dt) * sc.dt  # what ran: a duration off the grid rounds
+    table = Table(title=escape(f"{title}: {run_s:g} s in scans of {sc.dt:g} s{scored}"))
     table.add_column("metric")
     for key in metrics:
         table.add_column(escape(key), justify="right")

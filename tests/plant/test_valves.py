@@ -404,6 +404,22 @@ def test_1_7_incomplete_or_invalid_sets_are_errors(kind: str) -> None:
         loopworks.create_block(kind, resolution=0.5, deadband=-0.2)
 
 
+@pytest.mark.parametrize(("params", "derived"), [
+    ({"fs": 1e308, "fd": -1e308}, "J = inf"),
+    ({"fs": 1.7e308, "fd": 1e308}, "S = inf"),
+    ({"resolution": 1e308, "deadband": 1e308}, "S = inf"),
+])
+@pytest.mark.parametrize("kind", STICTION)
+def test_1_7_a_set_whose_s_or_j_overflows_is_an_error(kind: str, params: dict[str, float],
+                                                      derived: str) -> None:
+    """spec 1.7: S = fs + fd, J = fs - fd, S = DB + RES. Each parameter finite, the derived S
+    or J can overflow: the valve then output NaN with a Good status (found by an outside
+    audit); now an error naming the set and the derived value."""
+    with pytest.raises(ParameterError, match=f"give {derived}: out of range") as info:
+        loopworks.create_block(kind, **params)
+    assert kind in str(info.value) and next(iter(params)) in str(info.value)
+
+
 # -- spec 1.9: describing function of the S/J model -----------------------------------------------
 
 

@@ -385,6 +385,15 @@ def test_autotune_process_gain_names_a_parameter_before_the_test_runs() -> None:
         parse_scenario(text, "bad.toml")
 
 
+def test_an_autotune_loop_error_names_the_table_s_key_not_the_cli_option() -> None:
+    """The [autotune] table's key is `loop`; its errors said `--loop`, the tune command's
+    option, which is not in the file."""
+    text = GOOD + '[autotune]\nloop = "pidd"\nprocess_gain = ["pid.k"]\n'
+    with pytest.raises(FileFormatError, match=r"\[autotune\]: loop 'pidd': no such block") as err:
+        parse_scenario(text, "bad.toml")
+    assert "--loop" not in str(err.value)
+
+
 def test_a_parameter_given_twice_in_two_letter_cases_is_an_error(tmp_path: Path) -> None:
     """Names are read in any letter case, so `k = 1.0` and `K = 5.0` in one block were one
     parameter, the last silently winning (found by a user's run); now a located error. The

@@ -244,6 +244,21 @@ def test_old_output_filtered_option_integrates_the_filter_output(make: Make) -> 
     assert b.outputs()["out"].value == 58.0
 
 
+def test_old_output_filtered_clamps_the_sum_not_the_old_output(make: Make) -> None:
+    """Spec 3.3 OUT_k = clamp(OUT_{k-1} + Padj + Iadj + Dadj, OutMin, OutMax) and spec 3.4
+    ("the clamp is applied to the stored output"): with old_output = filtered, OUT_{k-1} = F.
+    F was clamped before the adjustments were added, so with the filter off (F = OUT) the two
+    options differed once the output was outside raised limits (found by an outside audit)."""
+    got = {}
+    for old in ("unfiltered", "filtered"):
+        b = make(kp=1.0, ki=0.0, throttling_range=100.0, update_interval=1.0,
+                 output_at_setpoint=10.0, filter_period=0.0, old_output=old)
+        b.step(1.0, sp=0.0, pv=0.0)  # OUT = F = 10
+        b.set_params(output_min=40.0)
+        got[old] = b.step(1.0, sp=0.0, pv=35.0)["pid_out"].value  # Padj = +35
+    assert got == {"unfiltered": 45.0, "filtered": 45.0}  # clamp(10 + 35, 40, 100)
+
+
 # ----------------------------------------------------------------------------------------------
 # Retuning (issue 12 point 4): the law is incremental (spec 3.3), so no retune option
 # ----------------------------------------------------------------------------------------------
@@ -602,6 +617,38 @@ def test_setpoint_float_shifts_the_setpoint_linearly_across_the_float_range(make
     assert (r["working_sp"].value, r["out"].value) == (30.0, 50.0)
     with pytest.raises(ParameterError, match="float_range_hi"):
         make(float_range_lo=10.0, float_range_hi=10.0)
+
+
+def test_a_disabled_setpoint_float_holds_no_shift_for_a_later_enabling(make: Make) -> None:
+    """spec 3.7 step 2: 0 disables the float. A shift computed under earlier settings was kept
+    while disabled and came back, outside the new [Low Float, High Float], when the float was
+    enabled again with no usable float input (found by an outside audit)."""
+    b = make(low_float=0.0, high_float=-3.0, ki=0.0)
+    assert b.step(1.0, sp=10.0, pv=10.0, float_in=100.0)["working_sp"].value == 7.0
+    b.set_params(high_float=0.0)  # both 0: disabled
+    assert b.step(1.0, sp=10.0, pv=10.0, float_in=math.nan)["working_sp"].value == 10.0
+    b.set_params(low_float=1.0, high_float=2.0)  # enabled, float input not usable: 0 shift
+    assert b.step(1.0, sp=10.0, pv=10.0, float_in=math.nan)["working_sp"].value == 10.0
+    assert b.step(1.0, sp=10.0, pv=10.0, float_in=100.0)["working_sp"].value == 12.0
+
+
+@pytest.mark.parametrize(("floats", "fin", "shift"), [
+    ({"low_float": -1e308, "high_float": 1e308}, 100.0, 1e308),
+    ({"low_float": -1e308, "high_float": 1e308}, 0.0, -1e308),
+    ({"low_float": -1e308, "high_float": 1e308}, 50.0, 0.0),
+    ({"low_float": 1.0, "high_float": 3.0, "float_range_lo": -1e308,
+      "float_range_hi": 1e308}, 0.0, 2.0),
+    ({"low_float": 1.0, "high_float": 3.0, "float_range_lo": -1e308,
+      "float_range_hi": 1e308}, 5e307, 2.5),
+])
+def test_the_setpoint_float_is_finite_for_any_finite_settings(
+        make: Make, floats: dict[str, float], fin: float, shift: float) -> None:
+    """Floats and ranges accept any finite number; the interpolation Low + (High - Low)·r
+    overflowed for floats of ±1e308 (shift inf kept in the state) and r for a ±1e308 range
+    (found by an outside audit). Midpoints by hand: r = (fin - lo)/(hi - lo)."""
+    b = make(**floats, ki=0.0)
+    b.step(1.0, sp=0.0, pv=0.0, float_in=fin)
+    assert b.state()["float_shift"] == pytest.approx(shift, rel=1e-12, abs=1e-12)
 
 
 def test_blocks_cli_documents_parameters_with_spec_sections() -> None:

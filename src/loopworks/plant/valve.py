@@ -658,12 +658,19 @@ def stiction_sj(kind: str, params: dict[str, Any], given: set[str]) -> tuple[flo
     if a == "s":
         return va, vb
     if a == "resolution":
-        return sj_from_resolution_deadband(va, vb)
-    if not abs(vb) <= va:
-        raise ParameterError(
-            f"{kind}: parameter 'fd' = {vb:g} is out of range: allowed [-fs, fs] = "
-            f"[{-va:g}, {va:g}] (fs >= |fd|, i.e. S >= 0 and J >= 0; spec 1.4)")
-    return sj_from_bands(va, vb)
+        s, j = sj_from_resolution_deadband(va, vb)
+    else:
+        if not abs(vb) <= va:
+            raise ParameterError(
+                f"{kind}: parameter 'fd' = {vb:g} is out of range: allowed [-fs, fs] = "
+                f"[{-va:g}, {va:g}] (fs >= |fd|, i.e. S >= 0 and J >= 0; spec 1.4)")
+        s, j = sj_from_bands(va, vb)
+    for name, value in (("S", s), ("J", j)):
+        if not math.isfinite(value):  # each parameter finite, their sum or difference not
+            raise ParameterError(
+                f"{kind}: {a} = {va:g}, {b} = {vb:g} give {name} = {value:g}: out of range: "
+                f"allowed a finite S and J (spec 1.7)")
+    return s, j
 
 
 class _Valve(Block):

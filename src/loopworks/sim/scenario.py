@@ -363,8 +363,14 @@ def _autotune_test(sc: _Scenario, variants: dict[str, dict[str, dict[str, Any]]]
     try:  # what the test would refuse before its first scan, refused now
         check_relay_test(test.build(), test.loop, sc.simulation.dt, **relay)
     except LoopworksError as exc:
-        raise FileFormatError(f"{where}: {exc}") from None
+        raise FileFormatError(f"{where}: {_as_key(exc)}") from None
     return test
+
+
+def _as_key(exc: LoopworksError) -> str:
+    """The relay test's message about its loop as the [autotune] table's key names it
+    (``loop``), not as the tune command's option (``--loop``)."""
+    return str(exc).replace("--loop '", "loop '")
 
 
 def autotune_gain(sc: Scenario, changes: Mapping[str, Any] | None = None,
@@ -382,7 +388,7 @@ def autotune_gain(sc: Scenario, changes: Mapping[str, Any] | None = None,
     try:
         run = relay_test(module, test.loop, sc.dt, progress=progress, **test.relay)
     except LoopworksError as exc:
-        raise FileFormatError(f"{where}: {exc}") from None
+        raise FileFormatError(f"{where}: {_as_key(exc)}") from None
     idn = run.identification
     if idn is None or idn.process_gain is None:
         why = "" if idn is None else " (" + "; ".join(idn.notes) + ")"

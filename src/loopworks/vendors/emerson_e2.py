@@ -314,9 +314,15 @@ def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
     if p[P.float_on] != 0.0:
         fin = u[U.float_in]
         if finite(fin) and (us[U.float_in] & 0xC0) != BAD:  # else the last shift holds
-            r = clamp((fin - p[P.frange_lo]) / (p[P.frange_hi] - p[P.frange_lo]), 0.0, 1.0)
-            x[X.float_shift] = p[P.low_float] + (p[P.high_float] - p[P.low_float]) * r
+            # r = (fin - lo)/(hi - lo) clamped to 0..1, in halves (no overflow for any finite
+            # range); shift = (1 - r)·Low + r·High (within [Low, High] for any finite floats)
+            num = 0.5 * fin - 0.5 * p[P.frange_lo]
+            den = 0.5 * p[P.frange_hi] - 0.5 * p[P.frange_lo]
+            r = 0.0 if num <= 0.0 else (1.0 if num >= den else num / den)
+            x[X.float_shift] = (1.0 - r) * p[P.low_float] + r * p[P.high_float]
         sp = sp + x[X.float_shift]
+    else:  # disabled: no shift, and none held for a later enabling (it was another setting's)
+        x[X.float_shift] = 0.0
     e = 0.0
     if not bad:  # spec 3.3: e = input - setpoint [A]
         e = p[P.sign] * (pv - sp)
@@ -347,8 +353,8 @@ def e2_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
         if p[P.d_norm] != 0.0:
             dadj = dadj * 100.0 / p[P.tr]
         old = x[X.pid_output]
-        if p[P.old_out] == OLD_FILTERED:
-            old = clamp(x[X.filter_output], lo, hi)
+        if p[P.old_out] == OLD_FILTERED:  # OUT_{k-1} = F, as it is: the clamp is on the sum
+            old = x[X.filter_output]
         v = old + padj + iadj + dadj
         if not finite(padj + iadj + dadj + v):  # overflow (extreme gains): skip, as bad input
             bad = True

@@ -174,6 +174,39 @@ def test_out_at_its_limit_is_the_limit_in_eu_not_a_rounding_past_it(
     assert run(b, mode="MAN", man_out=200.0)["out"][0] == 110.0  # Man: limited too
 
 
+@pytest.mark.parametrize(("hi", "lo", "pv", "bit"), [(12.8, 0.0, 10.0, 0x02),
+                                                      (16.0, 3.2, 90.0, 0x01)])
+def test_out_at_a_limit_not_exact_in_float32_carries_the_limit_bit(
+        make: Make, hi: float, lo: float, pv: float, bit: int) -> None:
+    """spec 4.4: OUT at OUT_HI_LIM/OUT_LO_LIM sets the limited bits of OUT.ST and BKCAL_OUT.ST.
+    On 0..16 EU the limit 12.8 EU is 80 %, OUT's float32 value 80.0000019 %: compared with
+    the double limit it was not at it, and the bits were missing (found by an outside audit;
+    about half of the limits of a 4..20 mA scale)."""
+    b = make(gain=1.0, reset=10.0, out_scale_eu_0=0.0, out_scale_eu_100=16.0, out_hi_lim=hi,
+             out_lo_lim=lo, precision="float32")
+    run(b, mode="MAN", man_out=8.0, sp=50.0, pv=50.0)
+    got = run(b, mode="AUTO", sp=50.0, pv=pv)
+    assert got["out"][0] == pytest.approx(hi if bit == 0x02 else lo, rel=1e-6)
+    assert got["out"][1] & 0x03 == bit and got["bkcal_out"][1] & 0x03 == bit
+
+
+@pytest.mark.parametrize("precision", ["float32", "float64"])
+def test_leaving_the_low_limit_with_default_arw_limits_is_not_the_fast_reset(
+        make: Make, precision: str) -> None:
+    """spec 4.4: RESET/16 acts while OUT is beyond the ARW limits, which default to the OUT
+    limits ("the 16x rule then never acts"). In float32, OUT held at 7.2 EU of 4..20 (20 %)
+    was just below the double ARW limit, so leaving it ran the reset 16 times faster (found
+    by an outside audit). GAIN 1, RESET 10 s, dt 1, e = +10 % in Man at the limit: R = 20 - 10
+    = 10 %; the first Auto scan moves R by dt/RESET·(F - R) = 0.1·(20 - 10) = 1 (F = OUT_prev
+    for the P on error; 16 times faster is capped at the whole step, 10)."""
+    b = make(gain=1.0, reset=10.0, out_scale_eu_0=4.0, out_scale_eu_100=20.0, out_lo_lim=7.2,
+             precision=precision)
+    man = run(b, mode="MAN", man_out=7.2, sp=50.0, pv=40.0)
+    auto = run(b, mode="AUTO", sp=50.0, pv=40.0)
+    assert man["r_term"][0] == pytest.approx(10.0, rel=1e-6)
+    assert auto["r_term"][0] - man["r_term"][0] == pytest.approx(1.0, rel=1e-5)
+
+
 def test_DV3_series_to_standard_conversion() -> None:
     """spec 4.8 DV3: Series GAIN 2, RESET 10, RATE 2 = Standard Kc 2.4, Ti 12, Td 1.6667:
     Kc = 2·(1 + 2/10), Ti = 10 + 2, Td = 10·2/12 (spec 4.2 [D])."""

@@ -1147,12 +1147,18 @@ class DeltaVPID(Controller, Block):
         hi_eu = num("out_hi_lim", out0 + out_span if prm["out_hi_lim"] is None else None)
         lo_eu = num("out_lo_lim", out0 if prm["out_lo_lim"] is None else None)
         hi, lo = (hi_eu - out0) * 100.0 / out_span, (lo_eu - out0) * 100.0 / out_span
+        # -10..110 % (spec 4.1), less the rounding of the EU values (21.6 of 4..20 is
+        # 110.00000000000001 %; -1.6 of 0..16 as a float32 -10.00000015 %)
+        tol = 1e-5 if single else 1e-9
         for name, pct in (("out_hi_lim", hi), ("out_lo_lim", lo)):
-            if not -10.0 <= pct <= 110.0:
+            if not -10.0 - tol <= pct <= 110.0 + tol:
                 raise ParameterError(
                     f"{kind}: parameter '{name}' = {hi_eu if name == 'out_hi_lim' else lo_eu:g}"
                     f" is out of range: allowed -10..110 % of OUT_SCALE "
                     f"[{out0 - 0.1 * out_span:g}, {out0 + 1.1 * out_span:g}] EU")
+        hi, lo = min(max(hi, -10.0), 110.0), min(max(lo, -10.0), 110.0)
+        if single:  # the limits as the float32 values OUT is compared with (spec 4.1 [A])
+            hi, lo = float(np.float32(hi)), float(np.float32(lo))
         if not hi > lo:
             raise ParameterError(f"{kind}: parameter 'out_hi_lim' = {hi_eu:g} must be greater "
                                  f"than out_lo_lim = {lo_eu:g}")
@@ -1163,13 +1169,19 @@ class DeltaVPID(Controller, Block):
                 continue
             v = num(name)
             pct = v if prm["arw_units"] == "percent" else (v - out0) * 100.0 / out_span
+            if single:
+                pct = float(np.float32(pct))
+            if lo - tol <= pct <= hi + tol:  # an OUT limit in EU, rounded
+                pct = min(max(pct, lo), hi)
             if not lo <= pct <= hi:
                 raise ParameterError(
                     f"{kind}: parameter '{name}' = {v:g} is out of range: allowed between the "
                     f"OUT limits ({lo:g}..{hi:g} % of OUT span; arw_units = {prm['arw_units']})")
             arw.append(pct)
         if arw[1] > arw[0]:
-            raise ParameterError(f"{kind}: parameter 'arw_lo_lim' must not exceed arw_hi_lim")
+            raise ParameterError(
+                f"{kind}: parameter 'arw_lo_lim' = {prm['arw_lo_lim']} must not exceed "
+                f"arw_hi_lim = {prm['arw_hi_lim']} (arw_units = {prm['arw_units']})")
         sp_hi = num("sp_hi_lim", pv0 + pv_span if prm["sp_hi_lim"] is None else None)
         sp_lo = num("sp_lo_lim", pv0 if prm["sp_lo_lim"] is None else None)
         if sp_lo > sp_hi:
