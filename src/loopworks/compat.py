@@ -31,9 +31,13 @@ any time; the next update uses them).
 
 Where loopworks differs from simple-pid, on purpose (the generic pid's contract):
 
-* an input that is NaN, infinite or beyond ±1e12 is Bad: the output holds its last value (and
-  the controller re-initialises bumplessly when the input is good again), where simple-pid
-  returns NaN from then on;
+* an input or setpoint that is NaN, infinite or beyond ±1e12 is Bad: the output holds its
+  last value (None before the first usable update), ``components`` stay those of the last
+  usable update, and the controller re-initialises bumplessly when the input is good again,
+  where simple-pid returns NaN from then on. The feedforward that carries proportional on
+  measurement or a mapped error's derivative (above) is held to the same ±1e12, so an error
+  map with derivative on error and a clock that stood still (dt = 1e-16) holds the output
+  where simple-pid returns its 1e16-sized terms;
 * a sum that overflows is treated likewise instead of returning ±inf or NaN;
 * a ``time_fn`` that goes back gives dt = 1e-16, as one that stands still (simple-pid computes
   with the negative dt);
@@ -55,6 +59,7 @@ from typing import Any
 
 from loopworks.blocks.pid import PID as PIDBlock
 from loopworks.blocks.pid import X, Y
+from loopworks.blocks.status import GOOD_NC
 from loopworks.errors import ParameterError
 
 Limits = tuple[float | None, float | None]
@@ -197,7 +202,16 @@ class PID:
             d_fix = kd * (float(error) - mapped) / dt  # D on the unmapped error (docstring)
         ff += d_fix
         sp = float(self.setpoint) if self.error_map is None else pv + mapped
+        fresh = self._block.x.copy() if self._last_output is None else None
         out = self._block.step(float(dt), sp=sp, pv=pv, ff=ff)
+        if int(self._block.ys[Y.out]) & 0xC0 != GOOD_NC:
+            # a Bad input: the kernel held its output; the terms and the last input stay
+            # those of the last usable update, and before the first there is no output
+            # (None, not the kernel's 0) and the next usable update is the first
+            if fresh is not None:
+                self._block.x[:] = fresh
+            self._last_time = now
+            return self._last_output
         y = self._block.y
         p_term = float(y[Y.p_term])
         self._proportional = (p_term + ff - d_fix if self.proportional_on_measurement

@@ -344,6 +344,62 @@ def test_load_state_of_another_kind_is_an_error() -> None:
         pid.load_state(proc.state_dict())
 
 
+@pytest.mark.parametrize("kind", ["s5.pid", "pid", "process.fopdt"])
+@pytest.mark.parametrize("value", [math.nan, math.inf])
+def test_a_saved_state_that_is_not_finite_is_refused(kind: str, value: float) -> None:
+    """Every kernel keeps its state finite; load_state took any number, and an s5.pid whose
+    DW 48 was loaded as NaN gave y = NaN with a Good status for ever (found by an outside
+    audit). Now an error naming the state; the block is unchanged."""
+    block = loopworks.create_block(kind)
+    saved = block.state_dict()
+    name = next(iter(saved["state"]))
+    state = saved["state"][name]
+    saved["state"][name] = [value, *state[1:]] if isinstance(state, list) else value
+    before = block.state_dict()
+    with pytest.raises(InputError, match=rf"{kind}: saved state '{name}(\[0\])?' = "
+                                         rf"{value!r} is not allowed"):
+        block.load_state(saved)
+    assert json.dumps(block.state_dict()) == json.dumps(before)
+
+
+def test_a_saved_output_that_is_not_finite_must_be_bad() -> None:
+    pid = loopworks.create_block("pid")
+    saved = pid.state_dict()
+    saved["outputs"]["out"] = [math.nan, st.GOOD_NC]
+    with pytest.raises(InputError, match=r"saved output 'out' = nan with status 128"):
+        pid.load_state(saved)
+    saved["outputs"]["out"] = [math.nan, st.BAD]
+    pid.load_state(saved)
+    assert math.isnan(pid.outputs()["out"].value) and pid.outputs()["out"].status == st.BAD
+
+
+def _enumerated_inputs() -> list[tuple[str, str]]:
+    from loopworks.catalog import block_class, kinds
+
+    return [(kind, port.name) for kind in kinds() for port in block_class(kind).INPUTS
+            if port.choices]
+
+
+@pytest.mark.parametrize(("kind", "port"), _enumerated_inputs())
+@pytest.mark.parametrize("value", [math.nan, math.inf])
+def test_an_enumerated_input_that_is_not_a_number_is_no_value(kind: str, port: str,
+                                                              value: float) -> None:
+    """An enumerated input (a mode, an auto or off bit) given NaN or inf as a plain float was
+    refused ("expected one of MAN, AUTO ..."), while the same value as a Signal reached the
+    block, which treats it as a Bad input (s5.pid's page: "an auto or off bit that is NaN
+    ... holds the scan"; found by an outside audit). Both now give the same outputs."""
+    required = {"process.tf": {"sample_time": 1.0}}.get(kind, {})
+    plain = loopworks.create_block(kind, **required)
+    signal = loopworks.create_block(kind, **required)
+    for _ in range(2):
+        plain.step(1.0)
+        signal.step(1.0)
+    a = plain.step(1.0, **{port: value})
+    b = signal.step(1.0, **{port: loopworks.Signal(value, st.GOOD_NC)})
+    assert json.dumps({k: (v.value, v.status) for k, v in a.items()}) == \
+        json.dumps({k: (v.value, v.status) for k, v in b.items()})
+
+
 def test_inputs_latch_until_given_again() -> None:
     """An input keeps its last value: a second step without sp/pv repeats the error."""
     pid = loopworks.create_block("pid", k=1.0, ti=10.0)
@@ -369,7 +425,7 @@ def test_bad_input_value_names_the_input() -> None:
     pid = loopworks.create_block("pid")
     with pytest.raises(InputError, match="mode"):
         pid.step(1.0, mode="SEMIAUTO")
-    for code in (5, 1.5, -1.0, math.nan):
+    for code in (5, 1.5, -1.0):  # NaN is no value, not a wrong one (a Bad input, below)
         with pytest.raises(InputError, match=r"'mode' = .*codes 0\.\.2"):
             pid.step(1.0, mode=code)
     with pytest.raises(InputError, match="status"):

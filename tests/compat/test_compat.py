@@ -98,6 +98,47 @@ def test_bad_input_holds_the_output_where_simple_pid_gives_nan() -> None:
     assert abs(nxt - held) < 1.0  # re-initialised from the held output: one I step, no jump
 
 
+@pytest.mark.parametrize("pom", [False, True])
+def test_after_a_bad_input_the_controller_follows_simple_pid_again(pom: bool) -> None:
+    """One NaN input with proportional on measurement froze the output for ever: the NaN
+    became the last input, so every later feedforward was NaN (found by an outside audit),
+    and components after a held update no longer added up to the output. Now the held
+    update keeps the last usable terms and input; the next good input re-initialises the
+    integral from the held output (one update of simple-pid's law from there)."""
+    t = [0.0]
+    ours = PID(1.0, 0.5, 0.1, setpoint=1.0, proportional_on_measurement=pom,
+               sample_time=None, time_fn=lambda: t[0])
+    outs, terms = [], []
+    for x in (0.0, 0.2, math.nan, 0.3, 0.4):
+        t[0] += 1.0
+        outs.append(ours(x))
+        terms.append(ours.components)
+    assert outs[2] == outs[1] and terms[2] == terms[1]  # held: the last usable update's
+    assert sum(terms[2]) == pytest.approx(outs[2], abs=1e-12)
+    # by hand: I = held out - P - D at re-initialisation, then + Ki·e·dt; P and D from the
+    # last usable input 0.2 (P on measurement: P_prev - Kp·Δinput; D on measurement)
+    p_prev = -0.2 if pom else 0.8
+    p3 = p_prev - 0.1 if pom else 1.0 - 0.3
+    d3 = -0.1 * (0.3 - 0.2) / 1.0
+    i3 = (outs[1] - p3 - d3) + 0.5 * (1.0 - 0.3) * 1.0
+    assert outs[3] == pytest.approx(p3 + i3 + d3, abs=1e-12)
+    assert math.isfinite(outs[4]) and outs[4] != outs[3]
+
+
+@pytest.mark.parametrize("bad", [math.nan, 2e12])
+def test_a_bad_first_input_gives_no_output_and_the_next_is_the_first(bad: float) -> None:
+    """A bad first input returned 0.0 (the kernel's initial output, neither the starting
+    output nor simple-pid's "no output yet") and lost starting_output: now None, and the
+    next good input is simple-pid's first update (P 1 + I 3 + 1·1·1 = 5)."""
+    t = [0.0]
+    ours = PID(1.0, 1.0, 0.0, setpoint=1.0, sample_time=None, time_fn=lambda: t[0],
+               starting_output=3.0)
+    t[0] += 1.0
+    assert ours(bad) is None and ours.components == (0.0, 3.0, 0.0)
+    t[0] += 1.0
+    assert ours(0.0) == 5.0 and ours.components == (1.0, 4.0, 0.0)
+
+
 def test_mixed_sign_gains_are_refused_with_their_values() -> None:
     with pytest.raises(ParameterError, match=r"mixed signs \(Kp = 1, Ki = -0.5\)"):
         PID(1, -0.5, 0)

@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from loopworks.errors import FileFormatError
@@ -558,6 +559,79 @@ def test_a_wrong_action_is_named_as_the_reason_of_no_oscillation() -> None:
         tune_loop(sc.module, "ctl", sc.dt)
     right = parse_scenario(text.replace("gain = -1.0", "gain = 1.0"))
     assert tune_loop(right.module, "ctl", right.dt).identification is not None
+
+
+UNSETTLED = """\
+[simulation]
+dt = 0.05
+duration = 300.0
+
+[blocks.pid]
+kind = "pid"
+k = 1.0
+ti = 40.0
+out_lo = 0.0
+out_hi = 100.0
+sp = 50.0
+
+[blocks.process]
+kind = "process.ipdt"
+gain = 0.1
+dead_time = 2.0
+u0 = 50.0
+y0 = 50.0
+
+[wires]
+"process.u" = "pid.out"
+"pid.pv" = "process.y"
+"""
+
+
+def test_a_loop_not_at_rest_is_not_blamed_on_the_action_alone() -> None:
+    """An integrating loop still 14 off its setpoint at the test's start (the PI started at
+    output 0, balance 50): the relay's ±1 cannot turn its drift, and the refusal said the
+    action was the wrong one (found by an outside audit); with --start 400 the same loop,
+    same action, converges. Now it says the loop was not at rest, and what to do."""
+    from loopworks.sim.tune import RelayTestRefused, tune_loop
+
+    sc = parse_scenario(UNSETTLED)
+    with pytest.raises(RelayTestRefused, match=r"not at rest when the test began .* \(a "
+                                               r"later --start\) or give a larger --amplitude"):
+        tune_loop(sc.module, "pid", sc.dt, amplitude=1.0, hysteresis=0.0, biased=False)
+    sc = parse_scenario(UNSETTLED)
+    settled = tune_loop(sc.module, "pid", sc.dt, amplitude=1.0, hysteresis=0.0, biased=False,
+                        start=400.0)
+    assert settled.identification is not None
+
+
+@pytest.mark.parametrize("controller", ['kind = "pid"\nk = 1.0\nti = 40.0\nout_lo = 0.0',
+                                        'kind = "e2.pid"\nthrottling_range = 100.0\n'
+                                        'kp = 1.0\nki = 0.0005\nupdate_interval = 0.05\n'
+                                        'error_sign = "setpoint_minus_input"'],
+                         ids=["pid", "e2.pid"])
+def test_a_relay_test_leaves_the_caller_s_module_as_it_was(controller: str) -> None:
+    """The test spliced its relay into a module of the caller's blocks, which took their
+    buffers, kept only the events before its start and set the controller's handover
+    settings (e2.pid: override_updates_pid): a run of the module after tune_loop started
+    from the test's output (pid.out 50 instead of 0, PV 40 apart), and a second test on it
+    was refused (found by an outside audit). Now the module runs as before, twice alike."""
+    from loopworks.sim.tune import tune_loop
+
+    text = UNSETTLED.replace('kind = "pid"\nk = 1.0\nti = 40.0\nout_lo = 0.0\nout_hi = 100.0',
+                             controller) + (
+        '[[events]]\nt = 100.0\nset = "pid.sp"\nvalue = 55.0\n')
+    before = parse_scenario(text).module.run(300.0, 0.05)
+    sc = parse_scenario(text)
+    given = {n: dict(b.given) for n, b in sc.module.blocks.items()}
+    events = list(sc.module.events)
+    runs = [tune_loop(sc.module, "pid", sc.dt, amplitude=1.0, hysteresis=0.0, biased=False,
+                      start=400.0) for _ in range(2)]
+    assert runs[0].identification.ku == runs[1].identification.ku
+    assert {n: dict(b.given) for n, b in sc.module.blocks.items()} == given
+    assert sc.module.events == events
+    after = sc.module.run(300.0, 0.05)
+    for signal in ("process.y", "pid.out"):
+        assert np.array_equal(after[signal], before[signal])
 
 
 def test_a_large_hysteresis_read_as_integrating_says_so() -> None:

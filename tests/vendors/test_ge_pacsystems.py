@@ -294,6 +294,43 @@ def test_loading_the_clock_avoids_the_step(make: Make) -> None:
     assert solve(pid, 100.0, sp=10, pv=0)[1] == 1.0
 
 
+def test_the_clock_is_loaded_as_power_flow_comes_on_not_at_an_unpowered_first_sweep(
+        make: Make) -> None:
+    """spec 1.2 words 24-26: load the clock "before re-enabling a long-stopped loop, to avoid
+    a huge first dt". It was loaded at the first sweep, powered or not, so a block first
+    enabled at 1000 s still took the Ki·e·1000 s step (found by an outside audit). Now as
+    power flow comes on, and again at each re-enabling: ΔI of one period = 1 count."""
+    pid = make(kp=0.0, ki=1.0, sample_period=0.1, load_clock_at_start=True)
+    assert solve(pid, 0.1, sp=10, pv=0, enable=0)[2] == 0.0  # not powered
+    assert solve(pid, 1000.0, sp=10, pv=0, enable=1) == (0.0, 0.0, 1.0)  # loaded: no solve
+    assert solve(pid, 1000.1, sp=10, pv=0, enable=1)[1] == 1.0
+    assert solve(pid, 1000.2, sp=10, pv=0, enable=0)[2] == 0.0  # a long stop
+    assert solve(pid, 5000.0, sp=10, pv=0, enable=1)[1] == 1.0  # re-enabled: loaded, held
+    assert solve(pid, 5000.1, sp=10, pv=0, enable=1)[1] == 2.0
+
+
+def test_manual_cv_is_the_manual_command_when_the_integral_saturates(make: Make) -> None:
+    """spec 1.2 word 14 ("in Manual it is the CV source") and 1.7 step 9: the integral is
+    back-calculated so that P + I + D + Bias is word 14; a derivative kick beyond 2^31
+    counts (Kc 20, Td 100 s, 10 ms, SP 0 -> 20000) saturated that integral at 32 bits and
+    the CV was recomputed from it: 32000 for one solution (found by an outside audit)."""
+    pid = make(kind="ge.pid_isa", kc=20.0, td=100.0, sample_period=0.01,
+               lower_clamp=-32000, upper_clamp=32000)
+    cvs = [solve(pid, 0.01 * k, sp=sp, pv=0, man=1, manual_command=5000)[0]
+           for k, sp in enumerate((0, 0, 20000, 20000), start=1)]
+    assert cvs == [5000.0] * 4
+    assert abs(pid.state()["integral"]) <= 2**31 - 1
+
+
+def test_isa_ti_at_the_word_8_bound_is_refused() -> None:
+    """spec 1.2: word 8 (1000/Ti) is 0..32767. Ti = 1000/32767.5 rounds (half away from zero)
+    to 32768; it was accepted as the closed lower bound (found by an outside audit)."""
+    with pytest.raises(ParameterError, match=r"'ti' = 0.030518 is out of range: allowed "
+                                             r"\(0.030518, inf\] s"):
+        loopworks.create_block("ge.pid_isa", ti=1000.0 / 32767.5)
+    assert words_of(loopworks.create_block("ge.pid_isa", ti=1000.0 / 32767.4))[8] == 32767
+
+
 def test_own_clock_advances_by_dt(make: Make) -> None:
     """Without a clock input the block's clock reads dt, 2·dt, ...: with 0.1 s steps and a
     0.1 s period every step solves with dt = 1000 ticks (ΔI = 1 count)."""

@@ -494,6 +494,17 @@ class Block:
                             self.params)
         except (ValueError, TypeError) as exc:
             raise InputError(str(exc)) from None
+        if not np.isfinite(x).all():  # a block's state is finite (the kernels' contract)
+            names = layout.names(self.STATES, self.params)
+            at = int(np.flatnonzero(~np.isfinite(x))[0])
+            raise InputError(f"{self.kind}: saved state '{names[at]}' = {float(x[at])!r} "
+                             "is not allowed: a state is a finite number")
+        for port in self.OUTPUTS:
+            value, status = saved["outputs"][port.name]
+            if not math.isfinite(float(value)) and st.check_byte(status) & 0xC0 != st.BAD:
+                raise InputError(f"{self.kind}: saved output '{port.name}' = {value!r} "
+                                 f"with status {status} is not allowed: an output that is "
+                                 "not a finite number has a Bad status")
         self.x[:] = x
         for arr, sarr, ports, key in ((self.u, self.us, self.INPUTS, "inputs"),
                                       (self.y, self.ys, self.OUTPUTS, "outputs")):

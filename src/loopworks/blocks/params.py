@@ -142,7 +142,9 @@ class Port:
     choices: tuple[str, ...] = ()
 
     def parse(self, value: Any) -> float:
-        """A float for this port; an enumerated port takes its names (any case) or codes."""
+        """A float for this port; an enumerated port takes its names (any case) or codes, or a
+        value that is not a number (NaN, ±inf: no value, which the block treats as a Bad input,
+        as it does the same value with a status)."""
         expected = (f"one of {', '.join(self.choices)} or their codes 0..{len(self.choices) - 1}"
                     if self.choices else "a number")
         if isinstance(value, str):
@@ -155,7 +157,7 @@ class Port:
                 raise ValueError(f"input '{self.name}' = {value!r}: expected {expected}") from None
         else:
             x = float(value)
-        if self.choices and x not in range(len(self.choices)):
+        if self.choices and math.isfinite(x) and x not in range(len(self.choices)):
             raise ValueError(f"input '{self.name}' = {value!r}: expected {expected}")
         return x
 

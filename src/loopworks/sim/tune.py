@@ -159,11 +159,18 @@ def _why(outcome: str, relay: Relay, dt: float, pv: np.ndarray | None = None,
         # the relay drove the output one way and the PV left the setpoint (found by an
         # engineer: a process of negative gain under a reverse-acting PID got the hint "a
         # larger --amplitude")
-        return (f"the relay did not switch for {prm['max_half_period']:g} s, and the PV "
-                f"moved away from the setpoint (|SP - PV| {away[0]:.3g} at first, "
-                f"{away[1]:.3g} at the end) while the relay drove the output one way: the "
-                "controller's action is the wrong one for this process (the process gain "
-                "has the other sign: change direct/reverse action)")
+        moved = (f"the relay did not switch for {prm['max_half_period']:g} s, and the PV "
+                 f"moved away from the setpoint (|SP - PV| {away[0]:.3g} at first, "
+                 f"{away[1]:.3g} at the end) while the relay drove the output one way")
+        if away[0] > 3.0 * band:
+            # not at rest when the test began: a drift the relay's ±d cannot turn (an
+            # integrating loop off its balance) looks the same (found by an outside audit)
+            return (f"{moved}. The loop was not at rest when the test began ({away[0]:.3g} "
+                    "off the setpoint): let it settle first (a later --start) or give a "
+                    "larger --amplitude; if it was at rest, the controller's action is the "
+                    "wrong one for this process (change direct/reverse action)")
+        return (f"{moved}: the controller's action is the wrong one for this process (the "
+                "process gain has the other sign: change direct/reverse action)")
     return reasons.get(outcome, f"the test ended with '{outcome}'")
 
 
@@ -245,7 +252,9 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
     """Run a relay test on controller ``loop`` of ``module`` with scans of ``dt`` seconds
     (procedure in the module docstring). Raises InputError for a loop that is not a known
     controller or is not wired to a PV, and RelayTestRefused for a test that supports no
-    identification."""
+    identification. The test runs on a copy of ``module``: the caller's module, its
+    events and its controller's settings are left as they were."""
+    module = _private_copy(module)
     ctrl, pv_src, relay_params, d, start = _relay_setup(
         module, loop, dt, start, amplitude, hysteresis, biased, bias_ratio, offset, timeout,
         stable_cycles, max_deviation)
@@ -368,6 +377,20 @@ def relay_test(module: Module, loop: str, dt: float, *, start: float | None = No
                                f"{run.t[-1] - start if len(run.t) else 0.0:.0f} s and gives no "
                                f"identification: {run.refusal}", run)
     return run
+
+
+def _private_copy(module: Module) -> Module:
+    """``module`` with blocks of its own, made from the same kinds and parameters. The test
+    keeps only events before its start, sets the controller's handover settings and splices
+    a relay in, whose module takes the blocks' buffers; on the caller's module that left a
+    module whose later runs read the test's buffers (found by an outside audit: a run after
+    ``tune_loop`` started from the test's output, not the module's)."""
+    from loopworks.catalog import create_block
+
+    blocks = {name: create_block(b.kind, jit=b.jit, **b.given)
+              for name, b in module.blocks.items()}
+    return Module(blocks, wires=module.wires, inputs=module.constants, order=module.order,
+                  events=module.events)
 
 
 def _through_nonlinear_valve(module: Module, loop: str) -> str | None:

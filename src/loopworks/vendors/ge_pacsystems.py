@@ -136,7 +136,9 @@ Vendor behaviour reproduced
 * First solution / long gap (spec 1.7): words 24-26 (time of last solution) start at
   ``initial_last_solution`` (0 s), so a first solution at a large clock time has a huge dt and
   the integral steps by Ki·e·dt (saturated at 32 bits). ``load_clock_at_start = true`` loads the
-  clock at the first sweep instead, as the vendor's SVC_REQ 16/51 remedy does. The other
+  clock instead as power flow comes on (the first enabled sweep, and each return of power flow
+  after an unpowered sweep), as the vendor's SVC_REQ 16/51 remedy does "before re-enabling a
+  long-stopped loop" (spec 1.2 words 24-26). The other
   internal words also start at 0 (a fresh reference array): word 20 (the previous error, or
   PV with bit 2) is 0, so the first solution's derivative sees a change from 0: a full kick
   Kd·(-PV)/dt even with ``derivative_on_pv``, which a clamp can turn into a lasting offset
@@ -331,7 +333,7 @@ COEFFS: tuple[str, ...] = (
 STATES: tuple[str, ...] = (
     "manual_command", "control_word", "internal_sp", "internal_cv", "internal_pv", "output",
     "diff_storage", "integral", "int_remainder", "slew_storage", "last_solution", "clock",
-    "d_filter", "started", "cv", "solved")
+    "d_filter", "powered", "cv", "solved")
 P, X, U, Y = index(COEFFS, "P"), index(STATES, "X"), index(INPUTS, "U"), index(OUTPUTS, "Y")
 
 TICKS_PER_S = 10_000.0  # the controller clock has 100 µs resolution (spec 1.5)
@@ -458,12 +460,11 @@ def ge_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
                                                                      CLOCK_MAX_S)
     x[X.clock] = clock
     now = float(math.floor(clock * TICKS_PER_S + 0.5))
-    if x[X.started] == 0.0:
-        x[X.started] = 1.0
-        if p[P.load_clock] != 0.0:  # SVC_REQ 16/51 before enabling: no first-solution step
-            x[X.last_solution] = now
     # 1. power flow; 2. parameter check (spec 1.7)
     enabled = u[U.enable] > 0.5
+    if enabled and x[X.powered] == 0.0 and p[P.load_clock] != 0.0:
+        x[X.last_solution] = now  # SVC_REQ 16/51 as power flow returns: no first-dt step
+    x[X.powered] = 1.0 if enabled else 0.0
     if not enabled or p[P.param_err] != 0.0:
         _hold(x, y, 0.0)
         return
@@ -568,6 +569,8 @@ def ge_pid_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: In
         total = clamp(total_prev + inc, -imax, imax)
     icounts = _div(total, units, floor_mode) if native != 0.0 else total  # whole counts
     out = pterm + icounts + dterm + bias
+    if man:  # word 14 is the CV source in Manual (spec 1.2), also when the integral that
+        out = target  # would give it saturates at 32 bits (a derivative kick beyond 2^31)
     if p[P.sat_sum] != 0.0:
         out = clamp(out, WORD_MIN, WORD_MAX)
     # 10. slew limit; the integral follows the limited output
@@ -680,8 +683,9 @@ def _common_params() -> tuple[Param, ...]:
         Param("initial_last_solution", 0.0, "s", "time of last solution (words 24-26) at "
               "start: a first solution at a later clock integrates over the gap, spec 1.7",
               lo=0.0, hi=CLOCK_MAX_S, lo_open=False, hi_open=False),
-        Param("load_clock_at_start", False, "", "load the clock into words 24-26 at the first "
-              "sweep (the SVC_REQ 16/51 remedy), spec 1.2/1.7", "bool"),
+        Param("load_clock_at_start", False, "", "load the clock into words 24-26 as power "
+              "flow comes on: the first enabled sweep and each re-enabling (the SVC_REQ "
+              "16/51 remedy), spec 1.2/1.7", "bool"),
         Param("on_parameter_error", "raise", "", "bad dead band or clamps: raise, or ok_off "
               "(the PLC: ok = 0 and CV frozen every sweep), spec 1.7 step 2", "choice",
               choices=("raise", "ok_off")),
@@ -1184,7 +1188,7 @@ class GEPIDIndependent(GEPIDBlock):
         return kp, kd, ki, words
 
 
-_TI_MIN = 1000.0 / 32767.5  # word 8 = 1000/Ti must round to at most 32767
+_TI_MIN = 1000.0 / 32767.5  # word 8 = 1000/Ti must round to at most 32767: Ti > this
 
 
 @register
@@ -1199,7 +1203,7 @@ class GEPIDISA(GEPIDBlock):
         Param("kc", 1.0, "CV counts/PV count", "Kc (word 6, 0.01 steps), multiplies P, I and "
               "D, spec 1.2/1.6", lo=0.0, hi=_GAIN_MAX, lo_open=False, hi_open=False),
         Param("ti", math.inf, "s", "Ti: word 8 holds 1/Ti in 0.001 repeats/s, Ti = 1000/word8 "
-              "(at most 2000 s); inf = no integral, spec 1.2", lo=_TI_MIN, lo_open=False,
+              "(at most 2000 s); inf = no integral, spec 1.2", lo=_TI_MIN, lo_open=True,
               hi_open=False),
         Param("td", 0.0, "s", "Td (word 7, 0.01 s steps): derivative time, D = Kc·Td·Δ/dt, "
               "spec 1.2/1.6", lo=0.0, hi=_GAIN_MAX, lo_open=False, hi_open=False),
@@ -1216,7 +1220,7 @@ class GEPIDISA(GEPIDBlock):
         if ti != math.inf and w8 == 0 and native:
             raise self._fail(f"parameter 'ti' = {ti:g} s is out of range: word 8 = 1000/ti "
                              "would round to 0 (no integral); allowed "
-                             f"[{_TI_MIN:.4g}, 2000] s or inf")
+                             f"({_TI_MIN:.6g}, 2000] s or inf")
         words = {6: self._nonzero_word("kc", kc, 100.0, "0.01"),
                  7: self._nonzero_word("td", td, 100.0, "0.01 s"), 8: w8}
         if native:

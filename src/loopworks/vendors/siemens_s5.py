@@ -51,8 +51,9 @@ I-action at a limit, positioning mode (spec 2.8, realisation [A]): when the uncl
 Y_k = Y_{k-1} + dY_k is above BGOG and the I element pushes up (K·dI_k > 0), dY_k is
 recomputed with dI_k = 0, then clamped; symmetrically at BGUG. The comparison takes the true
 sum, before anything limits it (the CPU's fixed-point add reports an overflow, it does not hide
-one): a sum saturated to 16 bits first could never exceed the default BGOG = 32767, and a
-one-count change of BGOG would switch the suppression on or off (issue 11 point 6). The
+one; only ``overflow = "wrap"``, unchecked two's complement, compares the wrapped sum): a
+sum saturated to 16 bits first could never exceed the default BGOG = 32767, and a one-count
+change of BGOG would switch the suppression on or off (issue 11 point 6). The
 spec's suggested rule says "dI_k > 0"; it is read here as the I element's contribution to
 the output, K·dI_k, which is the same thing for K > 0 and the spec's stated intent ("the
 direction the I-element would push further") for K < 0. A consequence of this realisation,
