@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from typing import Any
 
 import matplotlib
 import numpy as np
@@ -147,6 +148,29 @@ def test_wiring_errors_name_what_is_wrong(wires: dict[str, str],
 def test_order_must_name_each_block_once() -> None:
     with pytest.raises(InputError, match="order"):
         Module({"pid": create_block("pid")}, order=["pid", "pid"])
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_module_whose_blocks_went_into_another_module_refuses_to_run(compiled: bool) -> None:
+    """A module moves its blocks' buffers into its own; putting the same block objects in a
+    second module moved them again, and the first module then ran on numbers its blocks no
+    longer held: a run that looked fine and was not (relay_test did this to the caller's
+    module, found by an outside audit). Now a located error; the second module runs."""
+    def blocks() -> dict[str, Any]:
+        return {"pid": create_block("pid", k=1.0, ti=10.0, jit=compiled),
+                "process": create_block("process.first_order", jit=compiled)}
+
+    wires = {"process.u": "pid.out", "pid.pv": "process.y"}
+    shared = blocks()
+    first = Module(shared, wires=wires)
+    first.run(5.0, 0.1)
+    second = Module(shared, wires=wires)
+    reference = Module(blocks(), wires=wires).run(5.0, 0.1)
+    assert np.array_equal(second.run(5.0, 0.1)["process.y"], reference["process.y"])
+    for call in (lambda: first.run(5.0, 0.1), lambda: first.scan(0.1), first.reset):
+        with pytest.raises(InputError, match=r"block 'pid' \(pid\) was put into another "
+                                             r"module .* \(create_block again"):
+            call()
 
 
 def test_run_rejects_bad_dt_and_duration() -> None:

@@ -218,6 +218,8 @@ class Block:
         # views into them (a module moves them into its plan's buffers, see adopt()).
         self._F: FloatArray = np.zeros(n_p + n_x + n_u + n_y)
         self._S: IntArray = np.zeros(n_u + n_y, dtype=np.int64)
+        #: the token of the module whose buffers these are (None: the block's own)
+        self._module: object | None = None
         self._F[:n_p] = self.p
         self._bind()
         # every scan runs under the numeric contract (kernel.guarded_scan), through entries

@@ -265,11 +265,23 @@ class Module:
         self._slots: list[Slot] = slots
         self._F: np.ndarray = np.zeros(slots[-1].f1 if slots else 0)
         self._S: np.ndarray = np.zeros(slots[-1].s1 if slots else 0, dtype=np.int64)
+        self._token = object()  # the blocks' buffers are this module's while they hold it
         for slot, name in zip(slots, self.order, strict=True):
             self.blocks[name].adopt(self._F[slot.f0:slot.f1], self._S[slot.s0:slot.s1])
+            self.blocks[name]._module = self._token
         self._rec_f = np.array([i for sl in slots for i in range(sl.u0, sl.f1)], dtype=np.int64)
         self._rec_s = np.array([i for sl in slots for i in range(sl.s0, sl.s1)], dtype=np.int64)
         self._scans: Any = None
+
+    def _check_blocks(self) -> None:
+        """InputError when a block of this module was put into another module since: it
+        moved its buffers there (a block belongs to one module), and this module would run
+        on numbers the blocks no longer hold."""
+        for name, block in self.blocks.items():
+            if getattr(block, "_module", None) is not self._token:
+                raise InputError(f"block '{name}' ({block.kind}) was put into another module "
+                                 "after this one was made: a block object belongs to one "
+                                 "module; make a block per module (create_block again)")
 
     @property
     def compiled(self) -> bool:
@@ -518,6 +530,7 @@ class Module:
         that run's first event, so every run from the start sees the same parameters; unless
         it was changed since (``set_params`` between runs: a sweep's value, an operator's), then
         that value stays."""
+        self._check_blocks()
         for (owner, key), (before, after) in self._undo.items():
             if self.blocks[owner].params[key] == after:
                 self.blocks[owner].set_params(**{key: before})
@@ -594,6 +607,7 @@ class Module:
         A compiled module runs the scan as one call of its plan (:meth:`run`'s ``scans``
         entry, recording nothing), so a scan loop from Python (a relay test, a live
         controller) loads one compiled plan instead of one entry per block."""
+        self._check_blocks()
         if not self.compiled:
             self._scan_blocks(dt)
             return
@@ -640,6 +654,7 @@ class Module:
         record (:meth:`record_bytes`) would not fit in memory is refused before its first
         scan.
         """
+        self._check_blocks()
         n = scan_count(duration, dt)
         names = self.signals()
         if record is None:
