@@ -197,6 +197,7 @@ class PID:
             # the kernel's P is -Kp·input_k: the offset makes it P_{k-1} - Kp·Δinput
             ff += self._proportional + kp * (pv if self._last_input is None
                                              else float(self._last_input))
+        ff_p = ff  # the proportional part of the feedforward
         d_fix = 0.0
         if self.error_map is not None and not self.differential_on_measurement and not first:
             d_fix = kd * (float(error) - mapped) / dt  # D on the unmapped error (docstring)
@@ -214,7 +215,7 @@ class PID:
             return self._last_output
         y = self._block.y
         p_term = float(y[Y.p_term])
-        self._proportional = (p_term + ff - d_fix if self.proportional_on_measurement
+        self._proportional = (p_term + ff_p if self.proportional_on_measurement
                               else p_term)
         self._derivative = float(y[Y.d_term]) + d_fix
         del out

@@ -139,6 +139,28 @@ def test_a_bad_first_input_gives_no_output_and_the_next_is_the_first(bad: float)
     assert ours(0.0) == 5.0 and ours.components == (1.0, 4.0, 0.0)
 
 
+def test_the_proportional_term_is_not_rounded_through_a_large_derivative() -> None:
+    """Proportional on measurement with an error map and derivative on error: P was read
+    back as (P + the derivative fix) - the derivative fix, and a D of 7e4 left 1.5e-11 of
+    rounding in a P of 11.5 (the docstring promises 1e-15 of Kp·input; found by an outside
+    audit). simple-pid itself is the reference."""
+    got = []
+    for cls in (simple_pid.PID, PID):
+        t = [4.318298397179304]
+        pid = cls(Kp=0.9921368608964709, Ki=0.0, Kd=3.0301958628096735,
+                  setpoint=4.618266054820353, sample_time=1.0,
+                  proportional_on_measurement=True, differential_on_measurement=False,
+                  starting_output=1.0384385838096986, error_map=lambda e: e * abs(e),
+                  time_fn=lambda t=t: t[0])
+        pid(8.721986820020856)
+        pid.sample_time = 0.0
+        t[0] = 6.326890252551946
+        pid(-2.9081396523824417, dt=0.001)
+        got.append(pid.components)
+    assert got[1][0] == pytest.approx(got[0][0], rel=1e-15, abs=0.0)
+    assert got[1][2] == pytest.approx(got[0][2], rel=1e-15)
+
+
 def test_mixed_sign_gains_are_refused_with_their_values() -> None:
     with pytest.raises(ParameterError, match=r"mixed signs \(Kp = 1, Ki = -0.5\)"):
         PID(1, -0.5, 0)

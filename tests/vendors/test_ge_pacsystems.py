@@ -331,6 +331,35 @@ def test_isa_ti_at_the_word_8_bound_is_refused() -> None:
     assert words_of(loopworks.create_block("ge.pid_isa", ti=1000.0 / 32767.4))[8] == 32767
 
 
+def test_a_dead_band_that_rounds_to_no_dead_band_is_refused_and_messages_give_the_value(
+        ) -> None:
+    """spec 1.2 words 4/5 hold whole counts in native arithmetic: ±0.4 rounded to 0/0 and
+    silently switched the dead band off (a gain that rounds to 0 is refused: so is this),
+    and the parameter check named the rounded words ("'upper_clamp' = 100 must be greater
+    than 'lower_clamp' = 100" for 100.4; found by an outside audit)."""
+    with pytest.raises(ParameterError, match=r"'deadband_pos' = 0.4 PV counts is out of "
+                                             r"range: .* rounds to 0"):
+        loopworks.create_block("ge.pid_ind", deadband_pos=0.4, deadband_neg=-0.4)
+    with pytest.raises(ParameterError, match=r"'upper_clamp' = 100.4 \(word 10 = 100\) must "
+                                             r"be greater than 'lower_clamp' = 100 "):
+        loopworks.create_block("ge.pid_ind", upper_clamp=100.4, lower_clamp=100.0)
+    float_mode = loopworks.create_block("ge.pid_ind", deadband_pos=0.4, deadband_neg=-0.4,
+                                        arithmetic="float")  # float arithmetic keeps it
+    assert float_mode.params["deadband_pos"] == 0.4
+
+
+def test_a_derivative_filter_at_full_gain_gives_the_integer_derivative(make: Make) -> None:
+    """Config bit 5: with dt far above the filter's time constant its gain 1 - exp(-dt/Tf)
+    is 1.0 and the filtered D is the D term: Kd·Δe/dt = 0.01·(-159 - 1)/0.1 = -16 counts
+    (IND, word 7 in 0.01 s). The lag left -15.999999999999998, which the integer
+    truncation made -15 (found by an outside audit)."""
+    pid = make(kp=0.0, kd=0.01, sample_period=0.0, derivative_filter=True,
+               lower_clamp=-32000, upper_clamp=32000)  # Tf default kd/10 = 1 ms
+    for clock, pv in ((0.01, 0), (0.02, -1)):
+        solve(pid, clock, sp=0, pv=pv)
+    assert solve(pid, 0.12, sp=0, pv=159)[0] == -16.0
+
+
 def test_own_clock_advances_by_dt(make: Make) -> None:
     """Without a clock input the block's clock reads dt, 2·dt, ...: with 0.1 s steps and a
     0.1 s period every step solves with dt = 1000 ticks (ΔI = 1 count)."""

@@ -44,9 +44,12 @@ def lag_step(y: float, target: float, dt: float, time_constant: float) -> float:
 
         y_k = y_{k-1} + (1 - exp(-dt/T))·(target - y_{k-1})
 
-    (Åström & Wittenmark, Computer-Controlled Systems, ch. 2: ZOH sampling of 1/(Ts+1)).
-    T = 0 passes the target through.
+    (Åström & Wittenmark, Computer-Controlled Systems, ch. 2: ZOH sampling of 1/(Ts+1)),
+    computed as target + exp(-dt/T)·(y_{k-1} - target): the same value, and exactly the
+    target once exp(-dt/T) is 0 (dt far above T; the other order left a rounding residue,
+    -15.999999999999998 for -16, that an integer truncation turned into -15). T = 0 passes
+    the target through.
     """
     if time_constant <= 0.0:
         return target
-    return y + (1.0 - math.exp(-dt / time_constant)) * (target - y)
+    return target + math.exp(-dt / time_constant) * (y - target)

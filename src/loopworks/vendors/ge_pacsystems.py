@@ -1046,19 +1046,32 @@ class GEPIDBlock(Controller, Block):
             db_pos, db_neg = float(words[4]), float(words[5])
             bias, upper, lower = float(words[9]), float(words[10]), float(words[11])
             slew = float(words[12])
+            for n, name in ((4, "deadband_pos"), (5, "deadband_neg")):
+                if words[n] == 0 and float(prm[name]) != 0.0:  # as a gain that rounds to 0
+                    raise self._fail(
+                        f"parameter '{name}' = {float(prm[name]):g} PV counts is out of "
+                        f"range: native arithmetic holds word {n} in whole counts and this "
+                        "rounds to 0, which turns the dead band off; allowed 0 or at least "
+                        "0.5 counts in size (spec 1.2)")
         else:
             db_pos, db_neg = float(prm["deadband_pos"]), float(prm["deadband_neg"])
             bias, upper, lower = (float(prm["bias"]), float(prm["upper_clamp"]),
                                   float(prm["lower_clamp"]))
         # the PLC's own parameter check (spec 1.7 step 2)
         problem = ""
+        def given(name: str, value: float, n: int) -> str:  # the value, and its word
+            v = float(prm[name])
+            return f"{v:g}" + (f" (word {n} = {value:g})" if native and v != value else "")
+
         if not (db_pos == 0.0 and db_neg == 0.0) and not (db_pos > 0.0 and db_neg < 0.0):
-            problem = (f"parameters 'deadband_pos' = {db_pos:g} and 'deadband_neg' = "
-                       f"{db_neg:g} are not allowed: both must be 0, or deadband_pos > 0 and "
-                       "deadband_neg < 0 (spec 1.7 step 2)")
+            problem = (f"parameters 'deadband_pos' = {given('deadband_pos', db_pos, 4)} and "
+                       f"'deadband_neg' = {given('deadband_neg', db_neg, 5)} are not allowed: "
+                       "both must be 0, or deadband_pos > 0 and deadband_neg < 0 (spec 1.7 "
+                       "step 2)")
         elif not upper > lower:
-            problem = (f"parameter 'upper_clamp' = {upper:g} must be greater than "
-                       f"'lower_clamp' = {lower:g} (spec 1.7 step 2)")
+            problem = (f"parameter 'upper_clamp' = {given('upper_clamp', upper, 10)} must be "
+                       f"greater than 'lower_clamp' = {given('lower_clamp', lower, 11)} (spec "
+                       "1.7 step 2)")
         if problem and prm["on_parameter_error"] == "raise":
             raise self._fail(problem + "; on_parameter_error = 'ok_off' gives the PLC's "
                              "ok = 0 instead")
