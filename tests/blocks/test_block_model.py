@@ -362,6 +362,21 @@ def test_a_saved_state_that_is_not_finite_is_refused(kind: str, value: float) ->
     assert json.dumps(block.state_dict()) == json.dumps(before)
 
 
+def test_a_value_is_given_in_full_when_its_short_form_would_be_another_number() -> None:
+    """"'dither_half_period' = 1e+09 is out of range: allowed [1, 1e+09]" read as a bound
+    refused: 1000000001.0 printed with 6 digits (found by an outside audit)."""
+    with pytest.raises(ParameterError, match=r"'dither_half_period' = 1000000001.0 is out of "
+                                             r"range: allowed \[1, 1e\+09\] integer scans"):
+        loopworks.create_block("deltav.stick_slip", dither_half_period=1000000001.0)
+    with pytest.raises(ParameterError, match=r"'dither_half_period' = 1.5 must be an integer: "
+                                             r"allowed \[1, 1e\+09\] integer scans$"):
+        loopworks.create_block("deltav.stick_slip", dither_half_period=1.5)
+    with pytest.raises(ParameterError, match=r"'resolution' = 3.4028236e\+38 is out of range"):
+        loopworks.create_block("deltav.stick_slip", resolution=3.4028236e38)
+    with pytest.raises(ParameterError, match=r"'ti' = -1 is out of range"):  # short when exact
+        loopworks.create_block("pid", ti=-1.0)
+
+
 def test_a_saved_output_that_is_not_finite_must_be_bad() -> None:
     pid = loopworks.create_block("pid")
     saved = pid.state_dict()

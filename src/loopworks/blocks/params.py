@@ -83,8 +83,8 @@ class Param:
                       f": allowed {self.range_text()}" + (f" {self.unit}" if self.unit else ""))
         if self.type == "int" and math.isfinite(x) and x != int(x):
             raise ParameterError(
-                f"{where}parameter '{self.name}' = {value!r} must be an integer "
-                f"in {self.range_text()}")
+                f"{where}parameter '{self.name}' = {value!r} must be an integer: allowed "
+                f"{self.range_text()}" + (f" {self.unit}" if self.unit else ""))
         below = x < self.lo or (self.lo_open and x == self.lo)
         above = x > self.hi or (self.hi_open and x == self.hi)
         if math.isnan(x) or below or above or (self.type == "int" and not math.isfinite(x)):
@@ -95,8 +95,13 @@ class Param:
 
 
 def _fmt_value(value: Any) -> str:
+    """A given value as the user can recognise it: short (``%g``) when that is the value,
+    else in full (1000000001.0 printed as 1e+09 looked like the allowed bound 1e+09)."""
     if isinstance(value, float):
-        return _fmt(value) if not math.isnan(value) else "nan"
+        if math.isnan(value):
+            return "nan"
+        short = _fmt(value)
+        return short if float(short) == value else repr(value)
     return repr(value) if isinstance(value, str) else str(value)
 
 

@@ -631,9 +631,9 @@ class Calc(Block):
             for port in (*self.INPUTS, *self.OUTPUTS):
                 if abs(port.default) >= FLOAT32_OVERFLOW:
                     raise ParameterError(
-                        f"{self.kind}: parameter '{port.name}' = {port.default:g} is out of "
-                        f"range: a float32 module parameter allows (-{FLOAT32_OVERFLOW:g}, "
-                        f"{FLOAT32_OVERFLOW:g}), i.e. values that round to a finite float32 "
+                        f"{self.kind}: parameter '{port.name}' = {port.default!r} is out of "
+                        f"range: a float32 module parameter allows (-{FLOAT32_OVERFLOW!r}, "
+                        f"{FLOAT32_OVERFLOW!r}), i.e. values that round to a finite float32 "
                         "(precision = float32, spec 6.1)")
         code = self._layout.compiled
         return {"precision": 1.0 if prm["precision"] == "float32" else 0.0,

@@ -446,8 +446,8 @@ class StickSlip(Block):
             value = float(prm[name])
             if single and abs(value) >= F32_OVERFLOW:
                 raise ParameterError(
-                    f"{self.kind}: parameter '{name}' = {value:g} is out of range: a float32 "
-                    f"module parameter allows (-{F32_OVERFLOW:g}, {F32_OVERFLOW:g}), i.e. "
+                    f"{self.kind}: parameter '{name}' = {value!r} is out of range: a float32 "
+                    f"module parameter allows (-{F32_OVERFLOW!r}, {F32_OVERFLOW!r}), i.e. "
                     "values that round to a finite float32 (precision = float32, spec 6.1)")
             coeffs[name] = f32(value) if single else value
         coeffs["upper_band_factor"] = float(prm["upper_band_factor"])
