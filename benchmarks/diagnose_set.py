@@ -84,8 +84,9 @@ def evaluate(loops: list[SimulatedLoop], diagnose: Diagnose) -> str:
         # sticky loops called no_stiction: the wrong answers among the misses (the others
         # are undetermined)
         wrong = sum(v["verdict"] == "no_stiction" for x, v in items if x.label == "stiction")
+        undetermined = sum(v["verdict"] == "undetermined" for x, v in items)
         text = (f"n {len(items):4d}  sens {sens:6.3f}  spec {spec:6.3f}  bal.acc {bal:6.3f}  "
-                f"sticky->no {wrong:3d}")
+                f"sticky->no {wrong:3d}  undet {undetermined:3d}")
         for name in ("s", "j"):
             errs = [abs(float(v[name]) - getattr(x, name)) / getattr(x, name)
                     for x, v in items if x.label == "stiction" and v["verdict"] == "stiction"

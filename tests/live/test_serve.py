@@ -457,6 +457,19 @@ def test_a_word_setpoint_takes_whole_counts_of_a_16_bit_word(tmp_path: Path) -> 
         assert ctl.snapshot()[f"{loop}.SP"][0] == 1200.0
 
 
+def test_a_word_manual_output_takes_whole_counts(tmp_path: Path) -> None:
+    """GE's Manual Command (word 14) and S5's YH are 16-bit words in native arithmetic (spec
+    vendor-blocks 1.2, 2.2): an operator's OUT of 12345.5 was answered Good and ran as 12346
+    (found by an outside audit), while an SP of 16000.5 is refused. Refused alike."""
+    ctl = live(tmp_path)
+    scans(ctl, 4)
+    for loop, value in (("ge", 12345.5), ("s5", 1000.5)):
+        ctl.write("op", "operator", loop, "MODE", MAN)
+        refused = refusal(ctl, loop, "OUT", value)
+        assert refused.code == "BadOutOfRange" and "a whole number of counts" in str(refused)
+        ctl.write("op", "operator", loop, "OUT", float(round(value)))
+
+
 def test_an_operators_manual_output_ends_with_manual(tmp_path: Path) -> None:
     """GE: an operator's OUT goes to the Manual Command input, a write into word 14 each
     sweep (spec vendor-blocks 1.2). It stayed latched after the return to Auto, so word 14
@@ -563,3 +576,34 @@ def test_a_ge_dead_band_is_set_edge_by_edge_as_the_plc_takes_it(tmp_path: Path) 
     assert ctl.snapshot()["ge.OUT"][1] & 0xC0 != 0
     words = ctl.module.blocks["ge"].parameter_words()
     assert (words[4], words[5]) == (5, -5)
+
+
+@pytest.mark.parametrize(("pv", "status"), [(150.0, 0x56), (-20.0, 0x55), (1e30, 0x56),
+                                            (60.0, st.GOOD_NC)])
+def test_a_pv_outside_its_scale_is_uncertain_not_good(pv: float, status: int) -> None:
+    """runtime-and-ecosystem 2d: Modbus has no quality bits; "a value outside the engineering
+    range -> Uncertain (EngineeringUnitsExceeded)". A device sending 150 on the deltav.pid's
+    0..100 PV_SCALE was used and published Good (found by an outside audit). Now Uncertain,
+    EU range violation, with the limit bit of its side (FF: 0x54 | high 2 / low 1), and the
+    deltav.pid treats an Uncertain PV as Bad (STATUS_OPTS "Use Uncertain as Good" off, spec
+    4.6): it sheds to MAN holding OUT instead of driving it to a limit. Within the scale the
+    PV stays Good and the loop in AUTO."""
+    ctl, io = make()
+    scans(ctl, 40)
+    real = io.read
+    point = ctl.reads[0][1]
+
+    async def read() -> dict[str, tuple[float, int]]:
+        values = await real()
+        values[point] = (pv, st.GOOD_NC)
+        return values
+
+    io.read = read  # type: ignore[method-assign]
+    before = pid_out(ctl, "out")
+    scans(ctl, 1)
+    snap = ctl.snapshot()
+    assert snap["pid.PV"] == (pv, status)
+    if status == st.GOOD_NC:
+        assert pid_out(ctl, "mode_actual") == AUTO
+    else:
+        assert pid_out(ctl, "mode_actual") == MAN and pid_out(ctl, "out") == before

@@ -120,6 +120,14 @@ class Controller(metaclass=ABCMeta):
     def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
         """The output's limits (low, high) in the output's own units."""
 
+    @classmethod
+    def pv_range(cls, params: Mapping[str, Any]) -> tuple[float, float] | None:
+        """The PV's engineering range (low, high) in the PV's units where the block declares
+        one (DeltaV's PV_SCALE), else None. A live PV read from a device outside it is
+        Uncertain, EU range violation (runtime-and-ecosystem 2d: "Modbus has no quality
+        bits ... a value outside the engineering range -> Uncertain")."""
+        return None
+
     # -- the discrete law both ways (loopworks.blocks.law; compared in tuning/convert.py) ----
     #: context values the law takes besides the block parameters (spans, a sample time, raw
     #: words); a conversion accepts them among the parameters too

@@ -311,7 +311,8 @@ class LiveController:
         values = self._values
         for dest, src in self.reads:
             block, port = dest.split(".", 1)
-            self.module.blocks[block].set_inputs({port: values[src]})
+            self.module.blocks[block].set_inputs({port: self._in_range(block, port,
+                                                                       values[src])})
         self.module.scan(self.dt)
         out: dict[str, float] = {}
         for point, src in self.writes:
@@ -324,6 +325,25 @@ class LiveController:
         self.scans += 1
         if self.checkpoint is not None and self.scans % self.checkpoint_every == 0:
             self.save()
+
+    def _in_range(self, block: str, port: str, value: tuple[float, int]) -> tuple[float, int]:
+        """``value`` for a loop's PV input, Uncertain with the limit bit of its side (EU
+        range violation, 0x55/0x56) when a Good reading lies outside the controller's PV
+        range (:meth:`Controller.pv_range`; runtime-and-ecosystem 2d): a device sending
+        150 on a 0..100 scale, or a word order that makes a huge number of two registers,
+        was used and published Good (found by an outside audit)."""
+        loop = self.by_name.get(block)
+        v, status = value
+        if loop is None or port != loop.pv or status & 0xC0 != st.GOOD_NC \
+                or not math.isfinite(v):
+            return value
+        ctrl = loop.block
+        assert isinstance(ctrl, Controller)  # a loop is a controller block (_loops)
+        span = type(ctrl).pv_range(ctrl.params)
+        if span is None or span[0] <= v <= span[1]:
+            return value
+        return v, st.UNCERTAIN_EU_RANGE_VIOLATION | (st.HIGH_LIMITED if v > span[1]
+                                                     else st.LOW_LIMITED)
 
     # -- what the OPC UA server shows ------------------------------------------------------
 
@@ -559,6 +579,13 @@ class LiveController:
             if not lo <= v <= hi:
                 raise WriteRefused("BadOutOfRange", f"OUT = {v:g} is outside the output "
                                    f"limits {lo:g}..{hi:g}")
+            if (isinstance(b, Controller) and type(b).SP_WORD is not None
+                    and b.params.get("arithmetic") == "native" and v != round(v)):
+                # GE's word 14 and S5's YH are 16-bit words: 12345.5 ran as 12346 and was
+                # answered Good (found by an outside audit), as an SP of 16000.5 is refused
+                raise WriteRefused("BadOutOfRange", f"OUT = {v!r}: this controller's manual "
+                                   "output is a 16-bit word in native arithmetic, a whole "
+                                   "number of counts")
             b.set_inputs({loop.man_out: v})
         elif name.lower() in loop.tuning:
             if is_scale(name) and self._mode_name(loop) != "OOS":

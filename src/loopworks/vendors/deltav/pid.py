@@ -898,6 +898,13 @@ class DeltaVPID(Controller, Block):
                                             {"track_enable": True})
 
     @classmethod
+    def pv_range(cls, params: Mapping[str, Any]) -> tuple[float, float] | None:
+        """PV_SCALE, 0..100 % of the PV span in EU (spec 4.1)."""
+        a = float(params.get("pv_scale_eu_0", 0.0))
+        b = float(params.get("pv_scale_eu_100", 100.0))
+        return (min(a, b), max(a, b))
+
+    @classmethod
     def output_range(cls, params: Mapping[str, Any]) -> tuple[float, float]:
         """OUT_LO_LIM..OUT_HI_LIM when both are given, else the OUT_SCALE span (OUT EU)."""
         if params["out_lo_lim"] is not None and params["out_hi_lim"] is not None:
