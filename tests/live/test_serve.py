@@ -607,3 +607,36 @@ def test_a_pv_outside_its_scale_is_uncertain_not_good(pv: float, status: int) ->
         assert pid_out(ctl, "mode_actual") == AUTO
     else:
         assert pid_out(ctl, "mode_actual") == MAN and pid_out(ctl, "out") == before
+
+
+def test_a_tuning_write_of_inf_is_the_block_s_to_judge() -> None:
+    """deltav.pid's RESET is (0, inf] s/repeat, inf = no integral action (spec 4.1); an
+    operator's RESET = inf was refused as "not finite" before the block saw it (found by an
+    outside audit). The block's range decides: RESET = inf is taken, GAIN = inf refused
+    (GAIN is finite), and NaN is never a value."""
+    ctl, _ = make()
+    scans(ctl, 4)
+    ctl.write("op", "operator", "pid", "RESET", math.inf)
+    assert ctl.module.blocks["pid"].params["reset"] == math.inf
+    scans(ctl, 2)
+    assert ctl.snapshot()["pid.RESET"][0] == math.inf
+    assert refusal(ctl, "pid", "GAIN", math.inf).code == "BadOutOfRange"
+    assert refusal(ctl, "pid", "RESET", math.nan).code == "BadOutOfRange"
+    assert refusal(ctl, "pid", "SP", math.inf).code == "BadOutOfRange"
+
+
+def test_cas_is_refused_for_a_generic_pid_whose_cascade_setpoint_nothing_feeds() -> None:
+    """The generic pid in CAS takes its setpoint from cas_sp; with cas_sp unwired a MODE =
+    CAS write was accepted and SP read NaN with a Good status (found by an outside audit).
+    Refused when nothing feeds cas_sp, with the reason; the cascade's secondary, whose
+    cas_sp is wired to the primary, still goes to CAS; an unfed setpoint is never Good."""
+    ctl = make_cascade()
+    scans(ctl, 5)
+    refused = refusal(ctl, "primary", "MODE", "CAS")
+    assert refused.code == "BadInvalidState"
+    assert "input cas_sp, which nothing feeds" in refused.message
+    ctl.write("op", "operator", "secondary", "MODE", "AUTO")
+    ctl.write("op", "operator", "secondary", "MODE", "CAS")  # fed: taken
+    primary = ctl.by_name["primary"]
+    primary.block.set_inputs({"mode": 2.0})  # CAS with nothing on cas_sp, as a file could
+    assert ctl.working_sp(primary)[1] == st.BAD_NOT_CONNECTED

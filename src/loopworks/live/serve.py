@@ -481,7 +481,10 @@ class LiveController:
         roles = type(b).ROLES
         if roles.working_sp is not None:
             return _output(b, roles.working_sp)
-        return _input(b, self._setpoint_input(loop))
+        value, status = _input(b, self._setpoint_input(loop))
+        if not math.isfinite(value) and status & 0xC0 != st.BAD:
+            return value, st.BAD_NOT_CONNECTED  # no value is no Good one
+        return value, status
 
     def _setpoint_input(self, loop: Loop) -> str:
         """The input the loop's controller takes its setpoint from now (``setpoint_input``)."""
@@ -489,6 +492,24 @@ class LiveController:
         assert isinstance(b, Controller)
         values = {p.name: float(b.u[i]) for i, p in enumerate(b.INPUTS)}
         return type(b).setpoint_input(values)
+
+    def _unfed_setpoint(self, loop: Loop, code: float) -> str | None:
+        """The input the setpoint would come from in the mode of ``code`` when that is not the
+        operator's SP and no wire feeds it (the generic pid's ``cas_sp`` in CAS: it read NaN,
+        published as SP with a Good status; found by an outside audit), else None. A block
+        with a working setpoint of its own (DeltaV: CAS_IN not connected keeps it in AUTO,
+        spec vendor-blocks 4.5) decides that itself."""
+        b = loop.block
+        assert isinstance(b, Controller)
+        if type(b).ROLES.working_sp is not None or loop.mode is None:
+            return None
+        values = {p.name: float(b.u[i]) for i, p in enumerate(b.INPUTS)}
+        values[loop.mode] = code
+        port = type(b).setpoint_input(values)
+        fed = {dest for dest, _ in self.reads} | set(self.module.wires)
+        if port == loop.sp or f"{loop.name}.{port}" in fed:
+            return None
+        return port
 
     def _sp_elsewhere(self, loop: Loop) -> str | None:
         """Why an operator's SP would not be used now, None when it would: the setpoint
@@ -540,6 +561,10 @@ class LiveController:
             if mode in NOT_REQUESTABLE:
                 raise WriteRefused("BadOutOfRange", f"mode {mode} cannot be requested (the "
                                    "block sets it itself)")
+            unfed = self._unfed_setpoint(loop, float(loop.modes.index(mode)))
+            if unfed is not None:
+                raise WriteRefused("BadInvalidState", f"mode {mode}: the setpoint would come "
+                                   f"from input {unfed}, which nothing feeds (not wired)")
             b.set_inputs({loop.mode: float(loop.modes.index(mode))})
             if mode != "MAN" and loop.man_out is not None:
                 # a manual output written as a program write each scan (GE's Manual Command,
@@ -552,7 +577,10 @@ class LiveController:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise WriteRefused("BadTypeMismatch", f"{name} takes a number, not {value!r}")
         v = float(value)
-        if not math.isfinite(v):
+        # a tuning parameter's own range says whether inf is a value (RESET = inf: no
+        # integral action, refused here before; found by an outside audit); NaN never is
+        tuning = name.lower() in loop.tuning
+        if math.isnan(v) or (math.isinf(v) and not tuning):
             raise WriteRefused("BadOutOfRange", f"{name} = {v!r} is not finite")
         if name == "SP":
             elsewhere = self._sp_elsewhere(loop)

@@ -112,8 +112,10 @@ With ``deferred_param_reads = false`` (default, spec 6.1 [A]) a write is seen at
 statements of the same scan. With ``true`` every read of a module parameter the expression
 writes sees its value at the start of the scan (the cached-reference reading of spec 6.1); the
 writes still all happen, and the last one is the parameter's new value. For the seed this
-moves lines 8 and 26 one scan late (NOISE_BAND from last scan's DITHER_AMP, SIGNAL_OUT from
-last scan's KICKER_DELT and DITHER_DELT).
+moves every line that reads a parameter the text writes one scan late, not only the two the
+spec names: line 8 (NOISE_BAND from last scan's DITHER_AMP), lines 15/19 (last scan's
+NOISE_BAND), lines 16/20 (last scan's KICKER_OUT) and line 26 (SIGNAL_OUT from last scan's
+KICKER_DELT and DITHER_DELT), as ``deltav.stick_slip`` does.
 
 The kernel is a small stack machine: the text is compiled (at construction) into a flat
 program of (opcode, argument) pairs stored in the coefficient array ``p`` (``code``, after a
