@@ -147,3 +147,17 @@ def test_an_oscillation_the_noise_hides_is_not_measured() -> None:
     res = area_ratio(e, DT, period=30.0 / DT)
     assert res.verdict == "undetermined" and res.half_cycles == 0
     assert "stand above the noise, of the 200 its period" in res.reason
+
+
+@pytest.mark.parametrize("period", [0.0, -5.0, math.nan, math.inf])
+def test_a_period_out_of_range_is_a_named_error(period: float) -> None:
+    """period = 0 raised ZeroDivisionError and a negative or NaN period was ignored (found by
+    an outside audit), in the area ratio and the curve fit alike."""
+    from loopworks.analysis.area_ratio import area_ratio
+    from loopworks.analysis.curve_fit import curve_fit_index
+
+    y = np.sin(np.arange(600) / 5.0)
+    with pytest.raises(ValueError, match=r"period = .* samples is out of range"):
+        area_ratio(y, 1.0, period=period)
+    with pytest.raises(ValueError, match=r"period = .* samples is out of range"):
+        curve_fit_index(y, 1.0, "self-regulating", period=period)

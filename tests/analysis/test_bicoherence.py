@@ -201,3 +201,23 @@ def test_bandpass_passes_f0_and_attenuates_the_third_harmonic() -> None:
     assert np.max(np.abs(y3[mid])) == pytest.approx(1.0 / (1.0 + omega**4), rel=0.03)
     with pytest.raises(ValueError, match="Nyquist"):
         bandpass(np.sin(w * t), dt, 0.15)
+
+
+def test_odd_inputs_are_named_errors_or_undetermined_not_an_answer() -> None:
+    """Found by an outside audit: dt = 0 raised ZeroDivisionError, alpha = 2 gave a NaN
+    threshold, collinear OP and PV a numpy LinAlgError, and a record of one or two segments
+    answered "Gaussian (linear)" though its threshold c = χ²/(2K) (3 and 1.5) is above every
+    possible b² (at most 1): it cannot tell."""
+    from loopworks.analysis.bicoherence import bicoherence_test, ellipse_fit
+
+    noise = np.random.default_rng(0).normal(size=4000)
+    with pytest.raises(ValueError, match=r"dt = 0.0 s is out of range"):
+        bicoherence_test(noise, dt=0.0)
+    with pytest.raises(ValueError, match=r"alpha = 2.0 is out of range: allowed \(0, 1\)"):
+        bicoherence_test(noise, alpha=2.0)
+    with pytest.raises(ValueError, match="lie on a straight line"):
+        ellipse_fit(np.arange(20.0), 2.0 * np.arange(20.0) + 1.0)
+    short = bicoherence_test(noise[:200])  # K = 2 segments of 128
+    assert short.segments == 2 and "undetermined" in short.reason
+    assert "Gaussian (linear)" not in short.reason
+    assert "undetermined" not in bicoherence_test(noise).reason  # K = 61: it answers

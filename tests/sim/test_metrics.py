@@ -84,6 +84,26 @@ def test_hagglund_detector_flags_large_half_periods() -> None:
         30.0 / np.pi)
 
 
+def test_hagglund_alarm_is_raised_when_the_counter_passes_the_limit_not_at_the_end() -> None:
+    """spec 4.2 "raise an oscillation alarm when x > n_lim": 40 large half periods and then
+    a quiet stretch (the counter forgets: 0.91 at the end) gave no alarm, though the counter
+    had passed 10 (found by an outside audit). Bad parameters are named errors (wu = 0 was a
+    ZeroDivisionError, wu < 0 a counter of 3366)."""
+    wu = 2 * np.pi / 20.0
+    t = np.arange(0.0, 8000.0, 0.1)
+    e = np.where(t < 400.0, 2.0 * np.sin(wu * t + 0.1), 0.01 * np.sin(wu * t + 0.1))
+    report = metrics.oscillation_detector(t, e, a=1.0, wu=wu)
+    assert report.counter < 10.0 and report.peak_counter > 10.0 and report.alarm
+    for kwargs, name in (({"wu": 0.0}, "wu"), ({"wu": -1.0}, "wu"), ({"ti": 0.0}, "ti"),
+                         ({"wu": wu, "a": math.nan}, "a"), ({"wu": wu, "t_sup": 0.0}, "t_sup")):
+        with pytest.raises(ValueError, match=f"{name} = .* out of range"):
+            metrics.oscillation_detector(t, e, **kwargs)
+    with pytest.raises(ValueError, match="t has 80000 samples and e 10"):
+        metrics.oscillation_detector(t, e[:10], wu=wu)
+    with pytest.raises(ValueError, match="t must increase"):
+        metrics.oscillation_detector(t[::-1], e, wu=wu)
+
+
 def test_loop_metrics_window_and_valve() -> None:
     t = np.arange(10.0)
     sp = np.full(10, 5.0)

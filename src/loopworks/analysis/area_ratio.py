@@ -101,6 +101,10 @@ def area_ratio(e: np.ndarray, dt: float, threshold: float = STICTION_THRESHOLD,
     """
     if dt <= 0 or not math.isfinite(dt):
         raise ValueError(f"dt must be a positive sample period in s, got {dt}")
+    if period is not None and not 0.0 < period < math.inf:
+        raise ValueError(f"period = {period!r} samples is out of range: allowed (0, inf)")
+    if not threshold > 0.0 or not math.isfinite(threshold):
+        raise ValueError(f"threshold = {threshold!r} is out of range: allowed (0, inf)")
     x = np.asarray(e, dtype=np.float64)
     if x.ndim != 1 or not np.all(np.isfinite(x)):
         raise ValueError("e must be a 1-D signal of finite samples")

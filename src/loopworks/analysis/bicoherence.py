@@ -78,6 +78,7 @@ and the controller change it).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -178,6 +179,10 @@ def squared_bicoherence(x: npt.ArrayLike, dt: float = 1.0, nfft: int = SEGMENT_L
         raise ValueError(f"nfft must be >= 8, not {nfft}")
     if not 0.0 <= overlap < 1.0:
         raise ValueError(f"overlap must be in [0, 1), not {overlap}")
+    if not 0.0 < dt < math.inf:
+        raise ValueError(f"dt = {dt!r} s is out of range: allowed (0, inf)")
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha = {alpha!r} is out of range: allowed (0, 1)")
     hop = max(1, round(nfft * (1.0 - overlap)))
     if y.size < nfft:
         raise ValueError(f"x has {y.size} samples, fewer than one segment of {nfft}")
@@ -218,8 +223,13 @@ def bicoherence_test(x: npt.ArrayLike, dt: float = 1.0, nfft: int = SEGMENT_LENG
              f"(b² > {c:.4g}); NGI = {ngi:.4g} "
              f"{'>' if non_gaussian else '<='} {NGI_THRESHOLD}, NLI = {nli:.4g} "
              f"{'>' if nli > NLI_THRESHOLD else '<='} {NLI_THRESHOLD}"]
-    parts.append("nonlinear" if nonlinear else
-                 "non-Gaussian but linear" if non_gaussian else "Gaussian (linear)")
+    if c >= 1.0:  # K <= 2: no b² (at most 1) can pass the threshold, whatever the signal
+        parts.append(f"undetermined: with K = {k} segments the threshold is {c:.3g} >= 1, so "
+                     "no bifrequency can be significant; a record of at least 3 segments is "
+                     "needed")
+    else:
+        parts.append("nonlinear" if nonlinear else
+                     "non-Gaussian but linear" if non_gaussian else "Gaussian (linear)")
     floor = (1.0 - c) / k
     if floor > NGI_THRESHOLD:
         parts.append(f"caution: with K = {k} Gaussian noise alone gives NGI ≈ (1 - c)/K = "
@@ -277,7 +287,10 @@ def ellipse_fit(op: npt.ArrayLike, pv: npt.ArrayLike) -> Ellipse:
     d1 = np.column_stack([x * x, x * y, y * y])
     d2 = np.column_stack([x, y, np.ones_like(x)])
     s1, s2, s3 = d1.T @ d1, d1.T @ d2, d2.T @ d2
-    t = -np.linalg.solve(s3, s2.T)
+    try:
+        t = -np.linalg.solve(s3, s2.T)
+    except np.linalg.LinAlgError:  # the points lie on a straight line
+        raise ValueError("op and pv lie on a straight line: no ellipse") from None
     mat = s1 + s2 @ t
     c1_inv = np.array([[0.0, 0.0, 0.5], [0.0, -1.0, 0.0], [0.5, 0.0, 0.0]])
     w, v = np.linalg.eig(c1_inv @ mat)

@@ -197,6 +197,8 @@ def curve_fit_index(x: npt.ArrayLike, dt: float, loop_type: LoopType,
         raise ValueError(f"loop_type must be one of {LOOP_TYPES}, not {loop_type!r}")
     if not dt > 0.0:
         raise ValueError(f"dt must be > 0, not {dt}")
+    if period is not None and not 0.0 < period < float("inf"):
+        raise ValueError(f"period = {period!r} samples is out of range: allowed (0, inf)")
     y = np.asarray(x, dtype=np.float64)
     if y.ndim != 1 or not np.all(np.isfinite(y)):
         raise ValueError("x must be a one-dimensional array of finite numbers")

@@ -365,12 +365,14 @@ def reversals(y: np.ndarray, threshold: float = 0.05) -> int:
 @dataclass(frozen=True)
 class OscillationReport:
     """Hägglund's load-disturbance detector (spec 4.2): the IAE limit used, the number of
-    half periods whose IAE exceeded it, the forgetting counter at the end and the alarm."""
+    half periods whose IAE exceeded it, the forgetting counter at the end, the alarm (the
+    counter above n_lim at any crossing of the record) and the counter's largest value."""
 
     iae_limit: float
     large_half_periods: int
     counter: float
     alarm: bool
+    peak_counter: float = 0.0
 
 
 def oscillation_detector(t: np.ndarray, e: np.ndarray, a: float = 1.0,
@@ -380,7 +382,24 @@ def oscillation_detector(t: np.ndarray, e: np.ndarray, a: float = 1.0,
     "large" when its IAE_i > IAE_lim = 2a/ωu (a in PV units, default 1 % of a 0..100 range;
     ωu from the tuner, or ωu = 2π/Ti, giving IAE_lim = a·Ti/π). The flags are counted with
     exponential forgetting x <- γ·x + flag at each crossing, γ = exp(-Δt/T_sup) over the time
-    since the previous crossing, T_sup = 50·Tu (Tu = 2π/ωu); alarm when x > n_lim."""
+    since the previous crossing, T_sup = 50·Tu (Tu = 2π/ωu); an alarm is raised when x >
+    n_lim, at any crossing of the record (an oscillation that stopped before the record's end
+    was alarmed; judged on the final counter it was not). ValueError names a parameter out
+    of range or a time axis that does not match ``e`` or does not increase."""
+    def positive(name: str, value: float | None) -> None:
+        if value is not None and not 0.0 < value < math.inf:
+            raise ValueError(f"oscillation_detector: {name} = {value!r} is out of range: "
+                             "allowed (0, inf)")
+
+    for name, value in (("a", a), ("wu", wu), ("ti", ti), ("t_sup", t_sup)):
+        positive(name, value)
+    if not math.isfinite(n_lim):
+        raise ValueError(f"oscillation_detector: n_lim = {n_lim!r} must be finite")
+    if len(t) != len(e):
+        raise ValueError(f"oscillation_detector: t has {len(t)} samples and e {len(e)}: "
+                         "one time per error sample")
+    if len(t) > 1 and not bool(np.all(np.diff(t) > 0)):
+        raise ValueError("oscillation_detector: t must increase")
     if wu is None:
         if ti is None:
             raise ValueError("oscillation_detector needs wu (rad/s) or ti (s)")
@@ -390,6 +409,7 @@ def oscillation_detector(t: np.ndarray, e: np.ndarray, a: float = 1.0,
     t_sup = 50.0 * tu if t_sup is None else t_sup
     ts = float(t[1] - t[0]) if len(t) > 1 else 0.0
     x = 0.0
+    peak = 0.0
     large = 0
     area = 0.0
     t_last = float(t[0]) if len(t) else 0.0
@@ -401,12 +421,13 @@ def oscillation_detector(t: np.ndarray, e: np.ndarray, a: float = 1.0,
             flag = 1.0 if area > iae_lim else 0.0
             large += int(flag)
             x = float(np.exp(-(float(t[k]) - t_last) / t_sup)) * x + flag
+            peak = max(peak, x)
             t_last = float(t[k])
             area = 0.0
         if s:
             sign = s
         area += abs(ek) * ts
-    return OscillationReport(iae_lim, large, x, x > n_lim)
+    return OscillationReport(iae_lim, large, x, peak > n_lim, peak)
 
 
 def _signal_metrics(u: np.ndarray, threshold: float) -> tuple[np.ndarray, np.ndarray]:
