@@ -107,6 +107,9 @@ def test_every_plant_file_gets_a_diagnosis(entry: dict[str, str], tmp_path: Path
         assert key in doc
     assert doc["verdict"] in ("stiction", "no_stiction", "undetermined")
     assert 0.0 <= doc["confidence"] <= 1.0
+    osc = doc["oscillation"]  # a period only where an oscillation was found (an irregular
+    if osc is not None and not osc["detected"]:  # record's crossings gave one: an outside
+        assert osc["period_s"] is None  # audit)
     if doc["recommendation"] is not None:  # the documented keys, a seized valve's too
         assert {"recommended", "summary", "options", "rule"} <= set(doc["recommendation"])
     assert (out / "report.html").exists() and (out / "pv_op.png").stat().st_size > 10_000
@@ -516,3 +519,28 @@ def test_the_fit_r2_says_which_signal_it_is_of() -> None:
     assert with_position.verdict == "stiction", with_position.reason
     assert with_position.stiction is not None
     assert with_position.stiction["r2_of"] == "position"
+
+
+def test_a_record_that_does_not_oscillate_regularly_reports_no_period() -> None:
+    """docs/diagnose.md: figures the data cannot support are null. A record of AR(1) noise
+    (not a regular oscillation) reported the period of its ACF's crossings, 339 s (found by
+    an outside audit). The first seed whose crossings give a period that is not regular."""
+    from scipy.signal import lfilter
+
+    from loopworks.analysis.loopdata import LoopData
+    from loopworks.analysis.oscillation import regularity
+
+    n = 2000
+    t = np.arange(n) * 1.0
+    for seed in range(200):
+        e = lfilter([1.0], [1.0, -0.9], np.random.default_rng(seed).standard_normal(n)) * 0.3
+        o = regularity(e, 1.0)
+        if not o.detected and math.isfinite(o.period_s):
+            break
+    else:
+        raise AssertionError("no irregular record with a period among 200 seeds")
+    data = LoopData(t=t, sp=np.full(n, 50.0), pv=50.0 - e, op=50.0 + np.cumsum(e) * 0.05,
+                    source="ar1")
+    doc = diagnose(data, "self-regulating", recommend=False).to_json()
+    assert doc["oscillation"]["detected"] is False
+    assert doc["oscillation"]["period_s"] is None

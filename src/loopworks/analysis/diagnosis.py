@@ -205,7 +205,8 @@ class Diagnosis:
             "quality": {"passed": self.quality.passed, "reasons": list(self.quality.reasons),
                         "notes": list(self.quality.notes), "samples": self.quality.n},
             "oscillation": None if osc is None else {
-                "detected": osc.detected, "period_s": osc.period_s,
+                # a period from crossings that are not regular is not one the data supports
+                "detected": osc.detected, "period_s": osc.period_s if osc.detected else None,
                 "regularity": osc.regularity, "reason": osc.reason},
             "indices": self.indices,
             "evidence": [{"key": e.key, "method": e.method, "vote": e.vote,
