@@ -138,3 +138,41 @@ def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up(
             await device.stop()
 
     asyncio.run(main())
+
+
+def test_a_refused_write_is_logged_once_with_what_the_loop_shows() -> None:
+    """A device that refuses the controller's write (here: the output mapped onto its
+    read-only heartbeat register) while every read succeeds: the refusal was logged every
+    scan (a good read reset the "already logged" mark) and said the points were "Bad
+    (configuration error)", while the loop publishes OUT Bad, no communication (found by an
+    outside audit). Logged once, saying so."""
+    import dataclasses
+
+    split = split_scenario(SC)
+    regmap = default_map(split)
+    wrong = object.__new__(type(regmap))
+    for name, value in vars(regmap).items():
+        object.__setattr__(wrong, name, value)
+    points = tuple(dataclasses.replace(p, address=regmap.heartbeat_address)
+                   if p.direction == "input" else p for p in regmap.points)
+    object.__setattr__(wrong, "points", points)
+
+    async def main() -> list[str]:
+        device = Device(split_scenario(SC), regmap, speedup=50.0)
+        port = await device.start("127.0.0.1", 0)
+        scanning = asyncio.create_task(device.run())
+        io = ModbusIO(wrong, "127.0.0.1", port)
+        try:
+            for _ in range(5):
+                values = await io.read()
+                assert values["sensor.pv"][1] == st.GOOD_NC
+                assert not await io.write({"valve.op": 50.0})
+            return [e for e in io.counters.events if "answered" in e]
+        finally:
+            io.close()
+            scanning.cancel()
+            await device.stop()
+
+    refusals = asyncio.run(main())
+    assert len(refusals) == 1 and "answered writing valve.op" in refusals[0]
+    assert "OUT is Bad (no communication)" in refusals[0]

@@ -86,7 +86,8 @@ class ModbusIO:
         self._backoff = RETRY_MIN
         self._lost_logged = False
         #: the last refusal logged ("what: exception code"), None after a good read
-        self._refusal: str | None = None
+        self._refusal: str | None = None  # the read refusal last logged
+        self._write_refusals: set[str] = set()  # the write refusals logged, until one works
 
     def _event(self, message: str, level: int = logging.WARNING) -> None:
         stamp = time.strftime("%Y-%m-%dT%H:%M:%S", time.localtime())
@@ -114,19 +115,28 @@ class ModbusIO:
             self._lost(f"cannot connect to the device {self.host}:{self.port}")
         return ok
 
-    def _refused(self, what: str, rr: Any) -> None:
+    def _refused(self, what: str, rr: Any, write: bool = False) -> None:
         """The device answered ``what`` with a Modbus exception: logged once per kind of
         refusal (the link stays up; a wrong unit id or address refuses every poll, which
-        logged "lost" and "connected again" every second before)."""
+        logged "lost" and "connected again" every second before). A refused write is logged
+        once until a write of that point succeeds (the good reads between did not count: it
+        was logged every scan, found by an outside audit)."""
         code = int(getattr(rr, "exception_code", 0) or 0)
         key = f"{what}: {code}"
-        if self._refusal != key:
+        if write:
+            if key in self._write_refusals:
+                return
+            self._write_refusals.add(key)
+        elif self._refusal == key:
+            return
+        else:
             self._refusal = key
-            meaning = EXCEPTIONS.get(code, "an exception")
-            self._event(f"device {self.host}:{self.port} answered {what} of unit id "
-                        f"{self.regmap.device_id} with exception {code} ({meaning}): check the "
-                        "[io] map's device_id and addresses against the device; its points "
-                        "are Bad (configuration error) meanwhile")
+        meaning = EXCEPTIONS.get(code, "an exception")
+        effect = ("the loop's OUT is Bad (no communication) until a write succeeds" if write
+                  else "its points are Bad (configuration error) meanwhile")
+        self._event(f"device {self.host}:{self.port} answered {what} of unit id "
+                    f"{self.regmap.device_id} with exception {code} ({meaning}): check the "
+                    f"[io] map's device_id and addresses against the device; {effect}")
 
     def _lost(self, why: str) -> None:
         self.counters.connected = False
@@ -211,9 +221,11 @@ class ModbusIO:
                     p.address, encode_f32(value, p.word_order), device_id=self.regmap.device_id)
                 if rr.isError():  # refused, not lost: the link stays up
                     self.counters.write_errors += 1
-                    self._refused(f"writing {p.name} (register {p.address})", rr)
+                    self._refused(f"writing {p.name} (register {p.address})", rr, write=True)
                     ok = False
                     continue
+                self._write_refusals = {k for k in self._write_refusals
+                                        if not k.startswith(f"writing {p.name} ")}
             except Exception as exc:
                 self.counters.write_errors += 1
                 self._lost(f"writing {p.name} failed ({type(exc).__name__}: {exc})")

@@ -182,6 +182,24 @@ def layout_key(module: Module) -> str:
     return hashlib.sha256(json.dumps(shape, sort_keys=True).encode()).hexdigest()[:16]
 
 
+def read_checkpoint(path: Path, module: Module) -> dict[str, Any]:
+    """The checkpoint at ``path`` for the controller ``module``; InputError when it is not
+    one, or is another module's (``serve`` checks it before its device starts: on a wrong
+    checkpoint it ran the built-in device for a hundred scans before the error; found by an
+    outside audit)."""
+    try:
+        saved = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise InputError(f"{path}: not a loopworks checkpoint ({exc})") from None
+    key = layout_key(module)
+    if not isinstance(saved, dict) or saved.get("layout") != key:
+        layout = saved.get("layout") if isinstance(saved, dict) else None
+        raise InputError(f"{path}: the checkpoint is of another controller module "
+                         f"(layout {layout!r}, this one {key!r}); remove it or give another "
+                         "--state-dir")
+    return saved
+
+
 def _atomic_write(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
@@ -275,14 +293,7 @@ class LiveController:
     # -- checkpoints ---------------------------------------------------------------------
 
     def _resume(self, path: Path) -> None:
-        try:
-            saved = json.loads(path.read_text(encoding="utf-8"))
-        except (OSError, ValueError) as exc:
-            raise InputError(f"{path}: not a loopworks checkpoint ({exc})") from None
-        if saved.get("layout") != self.key:
-            raise InputError(f"{path}: the checkpoint is of another controller module "
-                             f"(layout {saved.get('layout')!r}, this one {self.key!r}); "
-                             "remove it or give another --state-dir")
+        saved = read_checkpoint(path, self.module)
         kept = _overridden(self.module, saved["module"])
         self.module.load_state(saved["module"])
         if kept:
@@ -798,6 +809,9 @@ async def serve(config: str | Path | None = None, *, device: str | None = None,
     sc = load_scenario(config)
     split = split_scenario(sc, variant)
     regmap = map_of(sc, split)
+    state = state_dir if state_dir is not None else Path("loopworks-state")
+    if (state / "checkpoint.json").exists():  # refused before anything starts
+        read_checkpoint(state / "checkpoint.json", split.controller)
     local = None
     local_ua = None
     target = device_of(regmap, device)
@@ -818,7 +832,6 @@ async def serve(config: str | Path | None = None, *, device: str | None = None,
                 await local.stop()
                 raise
         device_task = asyncio.create_task(local.run())
-    state = state_dir if state_dir is not None else Path("loopworks-state")
     io = make_io(regmap, target)
     controller = LiveController(split, regmap, io, checkpoint=state / "checkpoint.json")
     server = None

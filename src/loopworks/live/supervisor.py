@@ -437,6 +437,11 @@ async def run(config: str | Path | None = None, *, device: str | None = None,
     else:
         regmap = map_of(sc, split_scenario(sc, variant))  # errors now, not in a child process
         target = device_of(regmap, device)
+    checkpoint = Path(state_dir) / "checkpoint.json"
+    if checkpoint.exists():  # another module's: one error line before any process starts
+        from loopworks.live.serve import read_checkpoint
+
+        read_checkpoint(checkpoint, split_scenario(sc, variant).controller)
     accounts = load_users(users) if users is not None else None
     stop = stop or asyncio.Event()
     if target is None:
