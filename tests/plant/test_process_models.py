@@ -879,3 +879,29 @@ def test_an_unstable_transfer_function_that_runs_away_holds_bad() -> None:
     first_bad = statuses.index(BAD_NS)
     assert 1000 < first_bad < 1030 and set(statuses[first_bad:]) == {BAD_NS}
     assert math.isfinite(p.y[0]) and p.y[0] > 1e307
+
+
+@pytest.mark.parametrize("den", ["1, -1", "1, -1.3, 0.3", "1, -1.1, 0.1", "1, -1.9, 0.9"])
+def test_a_z_domain_integrator_written_in_decimals_starts_at_zero(den: str) -> None:
+    """process.tf page: y0 left out is G(1)·u0 (z), "0 if integrating". (z - 1)(z - 0.3)
+    typed as 1, -1.3, 0.3 sums to -5.6e-17 in floats, not 0, and y0 came out as -9e16 with
+    a Good status (found by an outside audit): D(1) within the rounding of its terms is a
+    pole at z = 1. Held at u0, the plant stays at 0."""
+    tf = loopworks.create_block("process.tf", num="0.5", den=den, domain="z",
+                                sample_time=1.0, u0=10.0)
+    for _ in range(5):
+        out = tf.step(1.0, u=10.0)["y"]
+        assert (out.value, out.status) == (0.0, 0x80)
+
+
+def test_tf_messages_give_the_value_that_was_given() -> None:
+    """"dt = 0.1 s is not allowed: ... runs at sample_time = 0.1 s" for a dt of 0.1000002, and
+    "'dead_time' = 3 s ... must be a whole number of samples" for 3.0000001: the value
+    shown was the allowed one (found by an outside audit)."""
+    tf = loopworks.create_block("process.tf", num="1", den="10, 1", sample_time=0.1)
+    with pytest.raises(InputError, match=r"dt = 0.1000002 s is not allowed.*"
+                                       r"\(give sample_time = 0.1000002 "):
+        tf.step(0.1000002, u=1.0)
+    with pytest.raises(ParameterError, match=r"'dead_time' = 3.0000001 s"):
+        loopworks.create_block("process.tf", num="1", den="1, -0.5", domain="z",
+                               sample_time=1.0, dead_time=3.0000001)

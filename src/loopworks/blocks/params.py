@@ -94,6 +94,12 @@ class Param:
         return int(x) if self.type == "int" else x
 
 
+def fmt_value(value: Any) -> str:
+    """A value for a message: :func:`_fmt_value` (short when that is the value, else in
+    full)."""
+    return _fmt_value(value)
+
+
 def _fmt_value(value: Any) -> str:
     """A given value as the user can recognise it: short (``%g``) when that is the value,
     else in full (1000000001.0 printed as 1e+09 looked like the allowed bound 1e+09)."""

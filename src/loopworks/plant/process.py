@@ -218,7 +218,7 @@ from loopworks.blocks import layout
 from loopworks.blocks.block import Block, Outputs
 from loopworks.blocks.kernel import FloatArray, IntArray, primitive
 from loopworks.blocks.layout import Array, index
-from loopworks.blocks.params import Param, Port
+from loopworks.blocks.params import Param, Port, fmt_value
 from loopworks.blocks.primitives import finite, lag_step
 from loopworks.blocks.registry import register
 from loopworks.blocks.status import BAD, BAD_CONFIGURATION_ERROR, BAD_NON_SPECIFIC, GOOD_NC
@@ -879,8 +879,11 @@ class TransferFunction(_LineProcess):
         u0 = float(self.params["u0"])
         if self.params["domain"] == "s":
             n0, d0 = num[-1], den[-1]
-        else:
+        else:  # D(1) within the rounding of its terms is a pole at z = 1 (integrating):
+            # 1 - 1.3 + 0.3 sums to -5.6e-17, and y0 came out as -9e16 with a Good status
             n0, d0 = sum(num), sum(den)
+            if abs(d0) <= 1e-12 * sum(abs(c) for c in den):
+                d0 = 0.0
         return 0.0 if d0 == 0.0 else n0 / d0 * u0
 
     def _delay(self, ts: float) -> tuple[int, float]:
@@ -893,7 +896,8 @@ class TransferFunction(_LineProcess):
             f = 0.0
         if self.params["domain"] == "z" and f != 0.0:
             raise ParameterError(
-                f"{self.kind}: parameter 'dead_time' = {theta:g} s is not allowed for a "
+                f"{self.kind}: parameter 'dead_time' = {fmt_value(theta)} s is not allowed "
+                "for a "
                 f"z-domain transfer function: it must be a whole number of samples of "
                 f"sample_time = {ts:g} s")
         need = n + (1 if f > 0.0 else 0)
@@ -988,6 +992,7 @@ class TransferFunction(_LineProcess):
         ts = float(self.params["sample_time"])
         if not abs(dt - ts) <= DT_RTOL * ts:
             raise InputError(
-                f"{self.kind}: dt = {dt:g} s is not allowed: this transfer function runs at "
-                f"sample_time = {ts:g} s (give sample_time = {dt:g} to discretise it for "
+                f"{self.kind}: dt = {fmt_value(dt)} s is not allowed: this transfer function "
+                "runs at "
+                f"sample_time = {ts:g} s (give sample_time = {fmt_value(dt)} to discretise it for "
                 "that scan time)")
