@@ -562,6 +562,12 @@ def sweep(
         if len(loops) <= 1 and loop:
             _fail(f"--metric '{metric}': this scenario has one loop, whose metrics are "
                   f"named without it: '{name}'")
+        from loopworks.sim.sweep import metric_columns
+
+        have = metric_columns(load_scenario(scenario))
+        if metric not in have:  # a known metric this scenario has no data for (no valve)
+            _fail(f"--metric '{metric}': this scenario has no such metric; its metrics: "
+                  + ", ".join(have))
     console = Console(stderr=as_json)
     started = time.perf_counter()
     with Progress("[progress.description]{task.description}", BarColumn(),

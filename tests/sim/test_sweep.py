@@ -201,7 +201,8 @@ def test_monte_carlo_is_reproducible_and_processes_agree(scenario: Path) -> None
     (["valve.s=1,2"], "no block 'valve'"),
     (["pid.gain=1,2"], "'gain' is not a parameter or input of pid (pid)"),
     (["pid.k=-1,1"], "instance 0: pid.k = -1"),
-    (["pid.k=1,2", "pid.K=3"], "a name is varied twice"),  # parameter names: any case
+    (["pid.k=1,2", "pid.K=3"], "--vary pid.k is given twice (pid.k=1,2; pid.K=3)"),
+    # parameter names: any case; the repeated one named (all the names were listed)
     (["pid.sp=uniform(0,1)", "pid.mode=choice(AUTO,BOGUS)"], "pid.mode = 'BOGUS'"),
     # a wired input: the constant was taken and silently never applied (found by a user)
     (["pid.pv=0,100"], "--vary pid.pv: the input is wired from 'tx.pv' in variant 'base': "
@@ -323,6 +324,26 @@ def test_an_unknown_metric_is_refused_before_the_run(scenario: Path, tmp_path: P
     assert result.exit_code == 2
     assert "--metric 'PV sdt': no such metric" in result.output
     assert not (tmp_path / "o" / "results.parquet").exists()
+
+
+def test_a_metric_this_scenario_lacks_is_refused_before_the_run(
+        scenario: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """"valve travel" is a metric, but this scenario has no valve: it was refused only after
+    every instance had run, and nothing was written (found by an outside audit). Now before
+    the sweep runs, with the scenario's own metrics."""
+    import loopworks.sim.sweep as sweep_module
+
+    def never(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the sweep ran")
+
+    monkeypatch.setattr(sweep_module, "sweep", never)
+    result = CliRunner().invoke(app, ["sweep", str(scenario), "--vary", "pid.k=1,2",
+                                      "--metric", "valve travel", "-o", str(tmp_path / "o"),
+                                      "-q"])
+    assert result.exit_code == 2, result.output
+    assert "--metric 'valve travel': this scenario has no such metric; its metrics: IAE" \
+        in result.output
+    assert "valve" not in result.output.split("its metrics:")[1]
 
 
 def test_a_reused_output_directory_keeps_no_file_of_an_earlier_sweep(

@@ -242,6 +242,18 @@ def _metrics(result: SimResult, window: tuple[float, float] | None) -> list[dict
     return [{name: float(col[i]) for name, col in columns.items()} for i in range(count)]
 
 
+def metric_columns(sc: Any) -> list[str]:
+    """The metric columns a sweep of scenario ``sc`` has (:func:`_metrics`' names, over
+    every variant: a valve's metrics only where a loop has a valve), from a run of a few
+    scans of each variant, so that a ``--metric`` the scenario lacks is refused before the
+    sweep runs (found by an outside audit: after every instance had run, nothing written)."""
+    names: dict[str, None] = {}
+    for module in sc.variants.values():
+        for name in _metrics(module.run(4 * sc.dt, sc.dt), None)[0]:
+            names[name] = None
+    return list(names)
+
+
 _TEMPLATES: dict[tuple[str, str, str, tuple[tuple[str, Value], ...]], Any] = {}
 
 
@@ -413,7 +425,10 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     axes = [replace(a, name=".".join(split_ref(a.name))) for a in axes]  # the column name
     names = [a.name for a in axes]
     if len(set(names)) != len(names):
-        raise InputError("a name is varied twice: " + ", ".join(names))
+        twice = next(n for n in names if names.count(n) > 1)
+        given = [t for t, a in zip(texts, axes, strict=True) if a.name == twice]
+        raise InputError(f"--vary {twice} is given twice ({'; '.join(given)}): vary each "
+                         "name once")
     if scheduler is not None:
         from loopworks.sim.cluster import check_address
 
