@@ -6,6 +6,7 @@ from __future__ import annotations
 import asyncio
 import math
 import time
+from typing import Any
 
 import pytest
 from pymodbus.client import AsyncModbusTcpClient
@@ -97,6 +98,15 @@ def test_no_device_at_all_is_bad_without_a_usable_value() -> None:
     assert status == st.BAD_NO_COMM_NO_LUV and math.isnan(value)
 
 
+def _altered(regmap: Any, **fields: Any) -> Any:
+    """A copy of the register map ``regmap`` with ``fields`` changed (what the controller
+    believes, against a device that serves ``regmap``)."""
+    copy = object.__new__(type(regmap))
+    for name, value in {**vars(regmap), **fields}.items():
+        object.__setattr__(copy, name, value)
+    return copy
+
+
 def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up(
         caplog: pytest.LogCaptureFixture) -> None:
     """A device that answers every poll with a Modbus exception (a wrong unit id in the [io]
@@ -106,10 +116,7 @@ def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up(
     is logged once, naming the unit id."""
     split = split_scenario(SC)
     regmap = default_map(split)
-    wrong = object.__new__(type(regmap))
-    for name, value in vars(regmap).items():
-        object.__setattr__(wrong, name, value)
-    object.__setattr__(wrong, "device_id", regmap.device_id + 1)
+    wrong = _altered(regmap, device_id=regmap.device_id + 1)
 
     async def main() -> None:
         device = Device(split_scenario(SC), regmap, speedup=50.0)
@@ -150,12 +157,9 @@ def test_a_refused_write_is_logged_once_with_what_the_loop_shows() -> None:
 
     split = split_scenario(SC)
     regmap = default_map(split)
-    wrong = object.__new__(type(regmap))
-    for name, value in vars(regmap).items():
-        object.__setattr__(wrong, name, value)
-    points = tuple(dataclasses.replace(p, address=regmap.heartbeat_address)
-                   if p.direction == "input" else p for p in regmap.points)
-    object.__setattr__(wrong, "points", points)
+    wrong = _altered(regmap, points=tuple(
+        dataclasses.replace(p, address=regmap.heartbeat_address) if p.direction == "input"
+        else p for p in regmap.points))
 
     async def main() -> list[str]:
         device = Device(split_scenario(SC), regmap, speedup=50.0)
