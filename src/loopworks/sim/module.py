@@ -28,7 +28,7 @@ import math
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -201,6 +201,9 @@ def check_record_size(need: int, duration: float, dt: float, n: int,
 class Module:
     """Named blocks, wires from destination input to source output, and a run order."""
 
+    #: how many modules were laid out in this process (a block changes module only then)
+    _layouts: ClassVar[int] = 0
+
     def __init__(self, blocks: Mapping[str, Block], wires: Mapping[str, str] | None = None,
                  inputs: Mapping[str, Mapping[str, Any]] | None = None,
                  order: Sequence[str] | None = None,
@@ -266,6 +269,8 @@ class Module:
         self._F: np.ndarray = np.zeros(slots[-1].f1 if slots else 0)
         self._S: np.ndarray = np.zeros(slots[-1].s1 if slots else 0, dtype=np.int64)
         self._token = object()  # the blocks' buffers are this module's while they hold it
+        Module._layouts += 1  # any module laid out since a check may have taken a block
+        self._checked_at = -1
         for slot, name in zip(slots, self.order, strict=True):
             self.blocks[name].adopt(self._F[slot.f0:slot.f1], self._S[slot.s0:slot.s1])
             self.blocks[name]._module = self._token
@@ -276,12 +281,16 @@ class Module:
     def _check_blocks(self) -> None:
         """InputError when a block of this module was put into another module since: it
         moved its buffers there (a block belongs to one module), and this module would run
-        on numbers the blocks no longer hold."""
+        on numbers the blocks no longer hold. One comparison when no module was laid out
+        since the last check (a scan loop from Python calls it every scan)."""
+        if self._checked_at == Module._layouts:
+            return
         for name, block in self.blocks.items():
             if getattr(block, "_module", None) is not self._token:
                 raise InputError(f"block '{name}' ({block.kind}) was put into another module "
                                  "after this one was made: a block object belongs to one "
                                  "module; make a block per module (create_block again)")
+        self._checked_at = Module._layouts
 
     @property
     def compiled(self) -> bool:
