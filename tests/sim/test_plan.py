@@ -223,17 +223,15 @@ def test_a_split_compiled_run_equals_one_run() -> None:
 
 
 def test_the_fused_plan_equals_the_interpreted_run(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A long run takes the ``fused`` plan (every kernel inlined): the same numbers as the
-    Python loop, on pid + fopdt with events split over two runs, and on the default example's
-    variants (DeltaV PID, valves with stiction, compensators, sensors, a Karnopp valve)."""
-    from loopworks.sim import module as module_mod
-
-    monkeypatch.setattr(module_mod, "PLAN_FUSE_BLOCK_SCANS", 0)  # every run is "long"
-
+    """The ``fused`` plan (every kernel inlined, ``plan="fused"``): the same numbers as the
+    Python loop, on pid + fopdt with events split over two runs (the second takes the fused
+    plan by itself, since it is cached now), and on the default example's variants (DeltaV
+    PID, valves with stiction, compensators, sensors, a Karnopp valve)."""
     split = retuned_loop()
-    first = split.run(5.0, 0.1, plan="compiled")
+    first = split.run(5.0, 0.1, plan="fused")
     assert split._scans[0] == "fused"
     second = split.run(15.0, 0.1, plan="compiled", reset=False)
+    assert split._scans[0] == "fused"
     reference = retuned_loop().run(20.0, 0.1, plan="python")
     for name in reference.values:
         np.testing.assert_array_equal(np.concatenate([first.values[name], second.values[name]]),
@@ -245,11 +243,37 @@ def test_the_fused_plan_equals_the_interpreted_run(monkeypatch: pytest.MonkeyPat
     monkeypatch.setenv("LOOPWORKS_JIT", "0")
     interpreted = load_scenario(path)
     for name, module in compiled.variants.items():
-        a = module.run(600 * compiled.dt, compiled.dt, plan="compiled")
+        a = module.run(600 * compiled.dt, compiled.dt, plan="fused")
         assert module._scans[0] == "fused"
         b = interpreted.variants[name].run(600 * compiled.dt, compiled.dt, plan="python")
         assert_same(a, b, where=f"default.toml [{name}]")
 
+
+
+def test_a_long_run_takes_the_fused_plan_only_when_it_pays_for_its_compilation(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fusing saves tens of ns per block-scan; compiling it cost 63 s for the built-in
+    scenario's module. A run of 1e6 block-scans (a 20-hour simulate of it) compiled it, to
+    save 0.06 s: it now takes the scans plan unless the fused one is cached, asked for, or the
+    run is PLAN_FUSE_BLOCK_SCANS long. Not cached here: nothing is compiled or loaded."""
+    from loopworks.sim import module as module_mod
+
+    monkeypatch.setattr(module_mod, "is_cached", lambda *args: False)
+    taken: list[str] = []
+    monkeypatch.setattr(module_mod, "entry", lambda slots, what, *args: taken.append(what) or (
+        lambda *a: None))
+    m = retuned_loop()
+    assert module_mod.PLAN_FUSE_BLOCK_SCANS >= 10**9
+    m.run(500_000 * 0.1, 0.1, plan="compiled", record=["pid.out"])  # 1e6 block-scans
+    m.run(1.0, 0.1, plan="fused")
+    monkeypatch.setattr(module_mod, "PLAN_FUSE_BLOCK_SCANS", 20)
+    retuned_loop().run(1.0, 0.1, plan="compiled")  # 10 scans of 2 blocks: "long" here
+    assert taken == ["scans", "fused", "fused"]
+    with pytest.raises(InputError, match="expected auto, compiled, fused or python"):
+        m.run(1.0, 0.1, plan="fast")
+    monkeypatch.setenv("LOOPWORKS_JIT", "0")
+    with pytest.raises(InputError, match="plan = 'fused' needs every block compiled"):
+        retuned_loop().run(1.0, 0.1, plan="fused")
 
 
 @pytest.mark.parametrize("what", ["scans", "fused"])

@@ -47,11 +47,15 @@ RECORD_CAP = 8 * 1024**3
 #: compiled step), which costs less than compiling the module would
 PLAN_MIN_BLOCK_SCANS = 20_000
 #: a run of at least this many block-scans takes the module's ``fused`` plan (every kernel
-#: inlined: about half the time per scan of ``scans``, which reaches each kernel through its
-#: kind's cached entry), compiling it once for this module's shape when it is not cached yet
-#: (about a second per kind of block); a shorter run takes ``scans`` (only its glue to
-#: compile) unless the fused plan is already cached
-PLAN_FUSE_BLOCK_SCANS = 1_000_000
+#: inlined, which reaches each kernel directly instead of through its kind's cached entry),
+#: compiling it once for this module's shape when it is not cached yet; a shorter run takes
+#: ``scans`` (only its glue to compile) unless the fused plan is already cached or asked for
+#: (``plan="fused"``). Fusing saves 20-60 ns per block-scan, and compiling it costs about a
+#: second per light kind (pid, fopdt: 2 s) and up to ten for the heavy ones (the built-in
+#: scenario's seven blocks, DeltaV PID, Karnopp valve, calc: 63 s, 2026-12-07, saving 0.4 µs
+#: of 2.1 µs a scan): 1e9 block-scans pays for the heaviest compile. It was 1e6, and a
+#: 20-hour simulate of the built-in scenario spent a minute compiling to save 0.06 s.
+PLAN_FUSE_BLOCK_SCANS = 1_000_000_000
 # the record arguments of a one-scan plan call that records nothing (Module.scan)
 _T1 = np.empty(1)
 _NO_F = np.empty((0, 1))
@@ -655,7 +659,10 @@ class Module:
         block from Python (the reference; each block interpreted or through its own compiled
         step); ``"auto"`` (default) takes the compiled plan when every block is compiled
         (``jit``) and the plan is cached or the run has at least ``PLAN_MIN_BLOCK_SCANS``
-        block-scans. All three give the same numbers.
+        block-scans; ``"fused"`` is the compiled plan with every kernel inlined, compiled now
+        if it is not cached (seconds to a minute, once per module shape: worth it for a module
+        run many times; "compiled" and "auto" take it once it is cached, or for a run of
+        ``PLAN_FUSE_BLOCK_SCANS``). All four give the same numbers.
 
         With ``reset=False`` the run continues from the current state (and time), so a run can
         be split, saved with :meth:`state_dict` and resumed. ``record``: the signals
@@ -689,17 +696,18 @@ class Module:
         RS = np.empty((len(rows), n + 1), dtype=np.uint8)
         RF[:, 0] = self._F[rec_f]
         RS[:, 0] = self._S[rec_s]
-        if plan not in ("auto", "compiled", "python"):
-            raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or python")
-        if plan == "compiled" and not self.compiled:
-            raise InputError("plan = 'compiled' needs every block compiled (jit); blocks "
+        if plan not in ("auto", "compiled", "fused", "python"):
+            raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled, fused "
+                             f"or python")
+        if plan in ("compiled", "fused") and not self.compiled:
+            raise InputError(f"plan = {plan!r} needs every block compiled (jit); blocks "
                              + ", ".join(n for n, b in self.blocks.items() if not b.jit)
                              + " are interpreted")
-        if plan == "compiled" or (plan == "auto" and self.compiled and (
+        if plan in ("compiled", "fused") or (plan == "auto" and self.compiled and (
                 n * len(self.blocks) >= PLAN_MIN_BLOCK_SCANS
                 or is_cached(self._slots, "scans", self._usual_record())
                 or is_cached(self._slots, "fused", self._usual_record()))):
-            self._run_compiled(n, dt, T, RF, RS, rec_f, rec_s, progress)
+            self._run_compiled(n, dt, T, RF, RS, rec_f, rec_s, progress, plan == "fused")
         else:
             self._run_python(n, dt, T, RF, RS, rec_f, rec_s, progress)
         # a record is evidence, and a row may be two signals' record: read-only
@@ -749,11 +757,12 @@ class Module:
 
     def _run_compiled(self, n: int, dt: float, t: np.ndarray, RF: np.ndarray, RS: np.ndarray,
                       rec_f: np.ndarray, rec_s: np.ndarray,
-                      progress: Callable[[int, int], None] | None) -> None:
+                      progress: Callable[[int, int], None] | None,
+                      fuse: bool = False) -> None:
         """The compiled plan, in chunks: events are applied between chunks (a parameter
         change recomputes the coefficients once), and progress is reported per chunk."""
         usual = self._usual_record()
-        what = "fused" if (n * len(self.blocks) >= PLAN_FUSE_BLOCK_SCANS
+        what = "fused" if (fuse or n * len(self.blocks) >= PLAN_FUSE_BLOCK_SCANS
                            or is_cached(self._slots, "fused", usual)) else "scans"
         if self._scans is None or self._scans[0] != what:
             self._scans = (what, entry(self._slots, what, SCANS_SIGNATURE, usual))
