@@ -647,9 +647,13 @@ def diagnose(
         "--op-range", metavar="LO:HI", help="the OP's units at 0 % and 100 % of the valve's "
         "span (default: an OP in %, 0:100; a fraction 0:1, GE counts 0:32000, a DeltaV "
         "OUT_SCALE of 0..200 EU 0:200)")] = None,
+    sample_time: Annotated[float | None, typer.Option(
+        "--sample-time", metavar="SECONDS", help="the period of the rows of a file without a "
+        "time column")] = None,
 ) -> None:
     """Say whether a loop's valve sticks, from its data: the evidence, the verdict, how sticky
-    and what to do."""
+    and what to do. A file without a setpoint column is read with the SP at the PV's mean (a
+    loop with integral action holds its PV there on average; said in the output)."""
     import json
 
     from rich.console import Console
@@ -677,7 +681,10 @@ def diagnose(
         except ValueError:
             _fail(f"--op-range {op_range}: expected LO:HI, two numbers (the OP's units at 0 % "
                   "and 100 %), e.g. 0:32000")
-    loop = read_csv(data, mapping, duplicates="last")
+    if sample_time is not None and not (math.isfinite(sample_time) and sample_time > 0):
+        _fail(f"--sample-time {sample_time:g}: expected a number of seconds > 0 (the period "
+              "of the rows of a file without a time column)")
+    loop = read_csv(data, mapping, duplicates="last", sample_time=sample_time, sp_optional=True)
     result = run_diagnosis(loop, loop_type, op_range=span)
     if output is not None:
         from loopworks.analysis.diagnosis_report import write_report

@@ -193,6 +193,35 @@ def test_an_op_in_counts_is_refused_or_read_in_percent_of_its_span() -> None:
         diagnose(data, recommend=False, op_range=(1.0, 1.0))
 
 
+def test_op_and_pv_every_ts_without_setpoint_or_time_are_diagnosed(tmp_path: Path) -> None:
+    """An export of OP and PV only, sampled every Ts (the International Stiction Database's
+    form): ``--sample-time`` gives the times and the SP is the PV's mean, which a loop with
+    integral action holds on average. The spec sticky loop at a fixed SP is found sticky with
+    the S of its full record; the output says how the SP was taken."""
+    data = _spec_loop("choudhury", 3.0, 1.0)
+    assert np.ptp(data.sp) == 0.0  # the SP step is in the warm-up, before the record
+    full = diagnose(data, recommend=False)
+    assert full.verdict == "stiction" and full.stiction is not None
+    assert full.stiction["s"] == pytest.approx(3.0, rel=0.3)
+    path = tmp_path / "isdb.csv"
+    path.write_text("PV,OP\n" + "".join(f"{float(pv)!r},{float(op)!r}\n" for pv, op in zip(
+        data.pv, data.op, strict=True)))
+    run = CliRunner().invoke(app, ["diagnose", str(path), "--sample-time", "1", "--json"])
+    assert run.exit_code == 0, run.output
+    doc = json.loads(run.stdout)
+    assert doc["verdict"] == "stiction"
+    assert doc["stiction"]["s"] == pytest.approx(full.stiction["s"], rel=0.1)
+    mean = float(np.mean(data.pv))
+    assert any(n.startswith("the record has no setpoint column") and f"{mean:.6g}" in n
+               for n in doc["quality"]["notes"]), doc["quality"]["notes"]
+    assert diagnose(path, sample_time=1.0, recommend=False).verdict == "stiction"
+    with pytest.raises(InputError, match="a LoopData has its times"):
+        diagnose(data, sample_time=1.0)
+    run = CliRunner().invoke(app, ["diagnose", str(path), "--sample-time", "0"])
+    assert run.exit_code != 0 and "--sample-time 0: expected a number of seconds > 0" in \
+        run.output
+
+
 def test_an_op_recorded_as_a_fraction_is_refused_unless_its_range_is_given() -> None:
     """An OP recorded as a fraction of the span (0..1) read as % moves a hundredth as far:
     the sticky valve's 3 % band would read 0.03 %. With no range given it is refused, naming

@@ -210,6 +210,40 @@ def test_no_time_column_says_which_names_were_looked_for(tmp_path: Path) -> None
     assert "no time column" in str(exc.value) and "t, time, timestamp, datetime" in str(exc.value)
 
 
+def test_rows_at_a_given_sample_time_need_no_time_column(tmp_path: Path) -> None:
+    """An export of OP and PV and a sample time Ts (as the International Stiction Database
+    gives its loops): the rows are samples every Ts seconds. A time column and a sample time
+    together, or a sample time that is not a number of seconds > 0, are refused."""
+    path = write(tmp_path, "sp,pv,op\n1,2,3\n1,2.5,3\n1,2,4\n")
+    with pytest.raises(FileFormatError, match=r"--sample-time SECONDS"):
+        read_csv(path)
+    data = read_csv(path, sample_time=2.5)
+    assert data.t.tolist() == [0.0, 2.5, 5.0] and data.dt == 2.5 and data.resampled == ""
+    assert data.pv.tolist() == [2.0, 2.5, 2.0] and data.op.tolist() == [3.0, 3.0, 4.0]
+    timed = write(tmp_path, "t,sp,pv,op\n0,1,2,3\n1,1,2,3\n", "timed.csv")
+    with pytest.raises(InputError, match=r"sample_time = 2\.5 s .* time column 't'"):
+        read_csv(timed, sample_time=2.5)
+    for bad in (0.0, -1.0, float("nan"), float("inf"), True):
+        with pytest.raises(InputError, match=r"sample_time = .*: expected a finite number"):
+            read_csv(path, sample_time=bad)
+
+
+def test_a_record_without_setpoint_is_read_only_when_asked_with_the_pvs_mean(
+        tmp_path: Path) -> None:
+    """Without an SP column the reader refuses the file, unless ``sp_optional``: then the SP
+    is constant at the PV's mean over the samples in automatic with a finite PV (here the
+    manual row's 90 and the empty cell are left out: (2 + 4 + 6) / 3 = 4), and
+    ``sp_recorded`` is False (also in a window)."""
+    path = write(tmp_path, "t,pv,op,mode\n0,2,3,1\n1,90,3,0\n2,,3,1\n3,4,3,1\n4,6,3,auto\n")
+    with pytest.raises(FileFormatError, match="no setpoint column"):
+        read_csv(path)
+    data = read_csv(path, sp_optional=True)
+    assert data.sp.tolist() == [4.0] * 5 and not data.sp_recorded
+    assert not data.window(0.0, 3.0).sp_recorded
+    assert read_csv(write(tmp_path, "t,sp,pv,op\n0,1,2,3\n1,1,2,3\n", "with.csv"),
+                    sp_optional=True).sp_recorded
+
+
 def test_mapped_column_absent(tmp_path: Path) -> None:
     with pytest.raises(FileFormatError) as exc:
         read_csv(write(tmp_path, "t,sp,pv,op\n0,1,2,3\n1,1,2,3\n"), columns={"pv": "FIC.PV"})

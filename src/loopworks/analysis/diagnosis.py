@@ -360,7 +360,8 @@ def verdict_of(evidence: list[Evidence]) -> tuple[Verdict, float, float, str]:
 
 def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
              columns: Mapping[str, str] | str | None = None, *, recommend: bool = True,
-             samples: int = 24, op_range: tuple[float, float] | None = None) -> Diagnosis:
+             samples: int = 24, op_range: tuple[float, float] | None = None,
+             sample_time: float | None = None) -> Diagnosis:
     """Diagnose one loop (module docstring) from ``data``: a :class:`LoopData`, or the path
     of a historian CSV (read by :func:`~loopworks.analysis.loopdata.read_csv` with
     ``columns``; a repeated time stamp keeps the later row, as a historian's hold does, and
@@ -369,7 +370,9 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     letter case (:func:`~loopworks.analysis.loop_type_of`). ``recommend``: simulate the
     options for a sticky valve (``samples`` draws of the fit's uncertainty each).
     ``op_range``: the OP's units at 0 % and 100 % of the valve's span (:func:`op_in_percent`;
-    S, J and every OP figure are in % of it)."""
+    S, J and every OP figure are in % of it). A file without a setpoint column is read with
+    the SP at the PV's mean (the quality notes say so); one without a time column needs
+    ``sample_time`` (s, the period of its rows)."""
     lt = loop_type_of(loop_type)
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise InputError(f"samples = {samples!r}: expected a whole number >= 1 (the draws of "
@@ -377,7 +380,11 @@ def diagnose(data: LoopData | str | Path, loop_type: str = "self-regulating",
     if not isinstance(data, LoopData):
         if isinstance(columns, str):  # the CLI's text form, "sp=FIC101.SV,pv=..."
             columns = parse_columns(columns)
-        data = read_csv(data, columns, duplicates="last")
+        data = read_csv(data, columns, duplicates="last", sample_time=sample_time,
+                        sp_optional=True)
+    elif sample_time is not None:
+        raise InputError(f"sample_time = {sample_time!r} is for a file without a time column; "
+                         f"a LoopData has its times")
     data = op_in_percent(_bad_as_nan(data), op_range)
     quality = check_quality(data)
     seized = seized_valve(data)

@@ -15,7 +15,15 @@ reads a historian export with the csv module and numpy (no pandas):
   ``sp=FIC101.SV,pv=FIC101.PV``); roles not mapped are still looked for by name;
 * the time column holds seconds (numbers) or ISO 8601 time stamps (``2024-03-01 12:00:10``,
   ``2024-03-01T12:00:10``, with fractions of a second or a UTC offset), converted to seconds
-  from the first sample; a file without a time column is refused;
+  from the first sample; a file without a time column is refused, unless its sample period
+  is given (``sample_time``, s: the rows are then samples every ``sample_time`` seconds, as
+  the International Stiction Database gives its loops: OP, PV and a sample time Ts);
+* a file without a setpoint column is refused, unless read with ``sp_optional=True``
+  (``loopworks diagnose``): then the SP is taken as constant at the PV's mean over the samples
+  in automatic, and :attr:`LoopData.sp_recorded` is False. A loop with integral action holds
+  its PV at its SP on average (the integral of the error stays bounded while the OP does), so
+  this is the SP of a regulatory loop at a fixed setpoint; it is not that of a loop whose SP
+  moved (a cascade secondary);
 * time must increase from row to row. A repeated time stamp is an error, unless read with
   ``duplicates="last"``: then the later row at that time is kept, as a historian's zero-order
   hold would (the earlier one is overwritten), and :attr:`LoopData.resampled` says how many
@@ -93,8 +101,9 @@ class LoopData:
     :data:`REGULAR_TOLERANCE`); ``sp``, ``pv``, ``op`` and the optional ``position`` (valve
     stem) and ``mode`` (1 automatic, 0 manual; None when the record has none) have one value
     per time, NaN for a Bad value. ``source`` names the file in messages; ``resampled`` is empty,
-    or a sentence saying what resampling rule the reader applied. The arrays are read-only
-    float64 copies.
+    or a sentence saying what resampling rule the reader applied. ``sp_recorded`` is False
+    when the record had no setpoint and ``sp`` is the PV's mean (:func:`read_csv`). The
+    arrays are read-only float64 copies.
     """
 
     t: FloatArray
@@ -105,6 +114,7 @@ class LoopData:
     mode: FloatArray | None = None
     source: str = ""
     resampled: str = ""
+    sp_recorded: bool = True
 
     def __post_init__(self) -> None:
         n = -1
@@ -147,7 +157,7 @@ class LoopData:
 
         return LoopData(t=self.t[keep], sp=self.sp[keep], pv=self.pv[keep], op=self.op[keep],
                         position=cut(self.position), mode=cut(self.mode), source=self.source,
-                        resampled=self.resampled)
+                        resampled=self.resampled, sp_recorded=self.sp_recorded)
 
 
 def bad(a: FloatArray) -> npt.NDArray[np.bool_]:
@@ -222,10 +232,11 @@ def _check_mapping(columns: Mapping[str, str]) -> dict[str, str]:
 
 
 def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
-            line: int) -> dict[str, int]:
+            line: int, optional: Sequence[str] = ()) -> dict[str, int]:
     """Each role's position in the header: mapped names first (exactly, else in any letter
-    case), then the aliases of the roles not mapped. A missing required role, or a role two
-    columns could be, is a FileFormatError naming the columns present."""
+    case), then the aliases of the roles not mapped. A missing required role (not in
+    ``optional``), or a role two columns could be, is a FileFormatError naming the columns
+    present."""
     names = [h.strip() for h in header]
     lower = [h.lower() for h in names]
     present = ", ".join(repr(h) for h in names)
@@ -270,7 +281,7 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
         if hits:
             found[role] = hits[0]
             taken.add(hits[0])
-        elif role in REQUIRED:
+        elif role in REQUIRED and role not in optional:
             looked = ", ".join(ALIASES[role])
             # a module's CSV (loopworks simulate) names its ports block.port: offer those
             # the setpoint the controller worked to first (DeltaV's working_sp: its SP
@@ -281,31 +292,45 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
                           key=lambda n: ports.index(n.lower().rpartition(".")[2]))
             hint = (f"; perhaps {', '.join(repr(n) for n in near)} (--columns "
                     f"{role}={near[0]})" if near else "")
+            other = (", or give the sample period (sample_time, --sample-time SECONDS) of "
+                     "a file whose rows are samples at a fixed period" if role == "t" else "")
             raise FileFormatError(f"{source}, line {line}: no {MEANING[role]} column: looked "
                                   f"for {looked} (any letter case){hint}; the columns are "
                                   f"{present}; map one with columns={{'{role}': NAME}} "
-                                  f"(--columns {role}=NAME)")
+                                  f"(--columns {role}=NAME){other}")
     return found
 
 
 # ----------------------------------------------------------------------------- reading
 
 def read_csv(path: str | os.PathLike[str], columns: Mapping[str, str] | None = None, *,
-             duplicates: Literal["error", "last"] = "error") -> LoopData:
+             duplicates: Literal["error", "last"] = "error", sample_time: float | None = None,
+             sp_optional: bool = False) -> LoopData:
     """Read one loop from a historian CSV export (the rules are in the module docstring).
 
     ``columns`` maps roles (t, sp, pv, op, position, mode) to header names; ``duplicates``
     says what a repeated time stamp does: ``"error"`` refuses the file naming the line,
     ``"last"`` keeps the later row at that time and says so in ``resampled``.
+    ``sample_time`` (s): the period of the rows of a file without a time column.
+    ``sp_optional``: a file without a setpoint column is read with the SP at the PV's mean.
     """
     source = os.fspath(path)
     mapping = _check_mapping(columns or {})
+    if sample_time is not None and (isinstance(sample_time, bool) or not isinstance(
+            sample_time, (int, float)) or not math.isfinite(sample_time) or sample_time <= 0):
+        raise InputError(f"sample_time = {sample_time!r}: expected a finite number of seconds "
+                         f"> 0 (the period of the rows of a file without a time column)")
     rows = list(_rows(source))
     if not rows:
         raise FileFormatError(f"{source}: the file is empty: expected a header row naming "
                               f"the columns (t, sp, pv, op) and rows of samples")
     header_line, header = rows[0]
-    where = _locate(header, mapping, source, header_line)
+    optional = (("t",) if sample_time is not None else ()) + (("sp",) if sp_optional else ())
+    where = _locate(header, mapping, source, header_line, optional)
+    if sample_time is not None and "t" in where:
+        raise InputError(f"sample_time = {sample_time:g} s was given, but {source} has a time "
+                         f"column {header[where['t']].strip()!r}: give the sample time only "
+                         f"for a file without one")
     body = rows[1:]
     if len(body) < 2:
         raise FileFormatError(f"{source}: {len(body)} data row{'s' * (len(body) != 1)} after "
@@ -317,18 +342,35 @@ def read_csv(path: str | os.PathLike[str], columns: Mapping[str, str] | None = N
     lines = np.array([line for line, _ in body], dtype=np.int64)
     names = {role: header[i].strip() for role, i in where.items()}
     cells = {role: [row[i] for _, row in body] for role, i in where.items()}
-    t = _times(cells["t"], lines, source, names["t"])
     values = {role: _values(cells[role], lines, source, names[role], role)
               for role in where if role != "t"}
-    t, values, dropped = _ordered(t, values, lines, source, names["t"], cells["t"], duplicates)
-    t, values, note = _uniform(t, values)
-    if dropped:
-        kept = (f"{dropped} row{'s' * (dropped != 1)} with a repeated time stamp dropped "
-                f"(the later row at each time kept, as a historian's hold would)")
-        note = f"{kept}; {note}" if note else f"{kept}."
+    note = ""
+    if sample_time is None:
+        t = _times(cells["t"], lines, source, names["t"])
+        t, values, dropped = _ordered(t, values, lines, source, names["t"], cells["t"],
+                                      duplicates)
+        t, values, note = _uniform(t, values)
+        if dropped:
+            kept = (f"{dropped} row{'s' * (dropped != 1)} with a repeated time stamp dropped "
+                    f"(the later row at each time kept, as a historian's hold would)")
+            note = f"{kept}; {note}" if note else f"{kept}."
+    else:
+        t = np.arange(len(body), dtype=np.float64) * float(sample_time)
+    recorded = "sp" in values
+    if not recorded:
+        values["sp"] = np.full(len(t), _mean_in_auto(values["pv"], values.get("mode")))
     return LoopData(t=t, sp=values["sp"], pv=values["pv"], op=values["op"],
                     position=values.get("position"), mode=values.get("mode"), source=source,
-                    resampled=note)
+                    resampled=note, sp_recorded=recorded)
+
+
+def _mean_in_auto(pv: FloatArray, mode: FloatArray | None) -> float:
+    """The PV's mean over its finite samples in automatic (all, without a mode column; NaN
+    when there are none: the quality gate then refuses the record)."""
+    keep = np.isfinite(pv) & (np.abs(pv) <= INPUT_LIMIT)
+    if mode is not None:
+        keep &= mode == 1.0
+    return float(np.mean(pv[keep])) if keep.any() else math.nan
 
 
 def _rows(source: str) -> Iterator[tuple[int, list[str]]]:

@@ -166,7 +166,14 @@ def check_quality(data: LoopData, *,
     unique, quantum = _quantisation_check(data.pv, reasons, notes)
     saturated = _saturation_check(data.op, op_limits, reasons)
     manual = _manual_check(data.mode, reasons, notes)
-    sp_changes = _sp_check(data.sp, data.pv, notes)
+    if data.sp_recorded:
+        sp_changes = _sp_check(data.sp, data.pv, notes)
+    else:
+        sp_changes = 0
+        notes.append(f"the record has no setpoint column: the SP is taken as constant at the "
+                     f"PV's mean, {data.sp[0]:.6g} (a loop with integral action holds its PV "
+                     f"at its SP on average); wrong for a loop whose SP moved (a cascade "
+                     f"secondary)")
     return Quality(passed=not reasons, reasons=reasons, notes=notes, n=n,
                    unique_pv_fraction=unique, saturated_fraction=saturated,
                    manual_fraction=manual, sp_changes=sp_changes, nan_fraction=nan_fraction,
