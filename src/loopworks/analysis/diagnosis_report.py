@@ -32,7 +32,8 @@ def trends(data: LoopData, path: Path) -> Path:
     plt = _plt()
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(12, 6), sharex=True, layout="constrained")
     top.plot(data.t, data.pv, lw=0.8, label="PV")
-    top.plot(data.t, data.sp, lw=1.0, color="k", ls="--", label="SP")
+    top.plot(data.t, data.sp, lw=1.0, color="k", ls="--",
+             label="SP" if data.sp_recorded else "SP (not recorded: the PV's mean)")
     top.set_ylabel("PV, SP")
     top.legend(loc="upper right")
     bottom.plot(data.t, data.op, lw=0.8, color="tab:orange", label="OP")
