@@ -71,28 +71,53 @@ def compiled(kernel: Any, inline: bool = False) -> Any:
 
     ``inline=True`` gives a variant that numba inlines into its caller (the packed step and the
     row runner), which saves the per-call reference counting of six array arguments. The plain
-    variant is cached on disk when possible.
+    variant is cached on disk when possible. The primitives a kernel calls are linked in as
+    plain compiled functions (:func:`_primitive`).
     """
     key = (kernel, inline)
     fn = _compiled.get(key)
     if fn is None:
         import numba
 
-        linked = dict(kernel.__globals__)
-        for name in kernel.__code__.co_names:
-            obj = kernel.__globals__.get(name)
-            if obj is not kernel and getattr(obj, "_lw_primitive", False):
-                linked[name] = compiled(obj, inline=True)
-        copy = types.FunctionType(kernel.__code__, linked, kernel.__name__,
-                                  kernel.__defaults__, kernel.__closure__)
-        copy.__qualname__ = kernel.__qualname__
-        copy.__module__ = kernel.__module__
+        copy = _linked_copy(kernel)
         if inline:
             fn = numba.njit(inline="always", nogil=True)(copy)
         else:
             fn = numba.njit(cache=True, nogil=True)(copy)
         _compiled[key] = fn
     return fn
+
+
+def _linked_copy(fn: Any) -> Any:
+    """A copy of ``fn`` whose globals name the compiled primitives instead of the Python ones
+    (so the interpreted function stays pure Python)."""
+    linked = dict(fn.__globals__)
+    for name in fn.__code__.co_names:
+        obj = fn.__globals__.get(name)
+        if obj is not fn and getattr(obj, "_lw_primitive", False):
+            linked[name] = _primitive(obj)
+    copy = types.FunctionType(fn.__code__, linked, fn.__name__, fn.__defaults__,
+                              fn.__closure__)
+    copy.__qualname__ = fn.__qualname__
+    copy.__module__ = fn.__module__
+    return copy
+
+
+def _primitive(fn: Any) -> Any:
+    """A primitive compiled for the kernels that call it: a plain njit function, not inlined
+    by numba (``inline="always"`` inlines in numba's IR, which made each kernel three times
+    as slow to compile: pid, deltav.pid, valve.karnopp and process.fopdt 36 s, against 15 s
+    this way, 2026-12-07). LLVM still inlines it into the kernel when the kernel's machine
+    code is made, and numba prunes the reference counting of its array arguments there:
+    ``Module.run`` of pid + fopdt ran at 0.118-0.121 of the numba anchor either way. Not
+    cached on disk by itself: it is compiled into each cached kernel entry that calls it."""
+    key = ("primitive", fn)
+    compiled_fn = _compiled.get(key)
+    if compiled_fn is None:
+        import numba
+
+        compiled_fn = _compiled[key] = numba.njit(nogil=True)(_linked_copy(fn))
+    return compiled_fn
 
 
 _entries: dict[Any, Any] = {}
