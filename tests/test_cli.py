@@ -624,8 +624,8 @@ def test_compile_without_kinds_also_compiles_the_helpers_once(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """`loopworks compile` (every kind) also compiles the CSV formatter and the metrics'
     reversal loop; a later process then loads them from numba's cache (no miss), and a
-    read-only array (a pyarrow column) is no second signature to compile (it was: 8 s then,
-    2 s now, for the formatter, in a fresh install's first replay of a Parquet file)."""
+    read-only array (a pyarrow column) is no second signature to compile (it was: 8 s for
+    the formatter, in a fresh install's first replay of a Parquet file)."""
     import loopworks.cli as cli
 
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba")}  # empty: compiles

@@ -793,7 +793,7 @@ def compile_kinds(
 
 def _compile_helpers() -> None:
     """Compile (or load) the package's own cached compiled functions that are not kernels:
-    the CSV formatter of ``simulate`` and ``replay`` (2 s to compile) and the reversal count
+    the CSV formatter of ``simulate`` and ``replay`` (8 s to compile) and the reversal count
     of the metrics, each for the one signature it is called with (their arguments go through
     :func:`loopworks.sim.arrays.compiled_arg`). numba caches them beside the installed
     package (or in ``NUMBA_CACHE_DIR``)."""

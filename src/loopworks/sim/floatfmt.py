@@ -11,9 +11,10 @@ render doubles", 2020): the value's rounding interval is scaled by a 128-bit pow
 the shortest decimal in it read off with 64-bit integer arithmetic. The powers of ten are
 computed here, exactly, with Python integers.
 
-The helpers are plain cached njit functions, not ``inline="always"``: numba's own inlining of
-them made the formatter take 8.5 s to compile on a fresh machine, against 1.7 s now, for the
-same speed (LLVM inlines them anyway: 1e6 values in 0.111-0.116 s either way, 2026-12-07).
+The helpers are inlined by numba (``inline="always"``): compiling the formatter takes 8.5 s
+on a fresh machine (once: ``loopworks compile`` does it), against 1.7 s as plain functions,
+but those formatted rows 22 % slower (300,000 rows of 5 floats and 2 ints: 0.066 s against
+0.054 s; 2026-12-07), and formatting is most of a replay's or a simulate CSV's writing.
 
 This module imports numba; :mod:`loopworks.sim.replay` imports it only for large outputs.
 """
@@ -92,7 +93,7 @@ def _mul_hi_typed(typingctx: Any, a: Any, b: Any) -> Any:
 _mul_hi: Any = intrinsic(_mul_hi_typed)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _round_to_odd(g_hi: Any, g_lo: Any, cp: Any) -> Any:
     """floor(g·cp / 2^127) for the 128-bit g, its last bit set when the part of the product
     below (from bit 64 on) is not zero: the scaled value, rounded to odd."""
@@ -107,7 +108,7 @@ def _round_to_odd(g_hi: Any, g_lo: Any, cp: Any) -> Any:
     return r
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _to_decimal(mant: Any, biased: Any) -> tuple[Any, Any]:
     """(d, e) with d·10^e the shortest decimal that reads back as the positive finite double
     of mantissa field ``mant`` and exponent field ``biased`` (and, of those, the closest)."""
@@ -171,7 +172,7 @@ def _store_typed(typingctx: Any, buf: Any, pos: Any, word: Any) -> Any:
 _store8: Any = intrinsic(_store_typed)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _eight(x: Any) -> Any:
     """The 8 decimal digits of x < 10^8 (zero-padded) as ASCII bytes in one uint64, the first
     digit in the lowest byte: split into 4-, 2- and 1-digit lanes by multiplying, no loop."""
@@ -184,7 +185,7 @@ def _eight(x: Any) -> Any:
     return y + _U(0x3030303030303030)
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _put_digits(buf: Any, pos: int, d: Any, n: int) -> int:
     """Write the n decimal digits of d (n at least its length: zero-padded) at buf[pos:];
     return the end. Eight digits a store: up to 7 bytes past the end are overwritten (the
@@ -204,7 +205,7 @@ def _put_digits(buf: Any, pos: int, d: Any, n: int) -> int:
     return pos + n
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _n_digits(d: Any) -> int:
     """How many decimal digits d has (at least 1): a double's shortest digits are mostly 16
     or 17, so counting starts from the top."""
@@ -214,7 +215,7 @@ def _n_digits(d: Any) -> int:
     return n
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _put_float(buf: Any, pos: int, bits: Any) -> int:
     """Write ``repr`` of the double with these bits at buf[pos:]; return the end."""
     biased = (bits >> _S52) & _EXP
@@ -291,7 +292,7 @@ def _put_float(buf: Any, pos: int, bits: Any) -> int:
     return pos + n + 1
 
 
-@numba.njit(cache=True, error_model="numpy")
+@numba.njit(cache=True, inline="always", error_model="numpy")
 def _put_int(buf: Any, pos: int, v: Any) -> int:
     """Write ``str`` of the int64 v at buf[pos:]; return the end."""
     if v < 0:
