@@ -51,10 +51,11 @@ PLAN_MIN_BLOCK_SCANS = 20_000
 #: compiling it once for this module's shape when it is not cached yet; a shorter run takes
 #: ``scans`` (only its glue to compile) unless the fused plan is already cached or asked for
 #: (``plan="fused"``). Fusing saves 20-60 ns per block-scan, and compiling it costs about a
-#: second per light kind (pid, fopdt: 2 s) and up to ten for the heavy ones (the built-in
-#: scenario's seven blocks, DeltaV PID, Karnopp valve, calc: 63 s, 2026-12-07, saving 0.4 µs
-#: of 2.1 µs a scan): 1e9 block-scans pays for the heaviest compile. It was 1e6, and a
-#: 20-hour simulate of the built-in scenario spent a minute compiling to save 0.06 s.
+#: second per light kind (pid, fopdt: 2 s) and several for the heavy ones (the built-in
+#: scenario's seven blocks, DeltaV PID, Karnopp valve, calc: 22 s, 63 s before the
+#: primitives were linked instead of inlined by numba, 2026-12-07; saving 0.4 µs of 2.2 µs a
+#: scan): 1e9 block-scans pays for the heaviest compile. It was 1e6, and a 20-hour simulate
+#: of the built-in scenario spent a minute compiling to save 0.06 s.
 PLAN_FUSE_BLOCK_SCANS = 1_000_000_000
 # the record arguments of a one-scan plan call that records nothing (Module.scan)
 _T1 = np.empty(1)
