@@ -4,8 +4,10 @@ Modbus does not carry (runtime-and-ecosystem.md 2d, 3.2), read-back, reconnectio
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import math
 import time
+from collections.abc import AsyncIterator
 from typing import Any
 
 import pytest
@@ -98,6 +100,22 @@ def test_no_device_at_all_is_bad_without_a_usable_value() -> None:
     assert status == st.BAD_NO_COMM_NO_LUV and math.isnan(value)
 
 
+@contextlib.asynccontextmanager
+async def _device_and_io(regmap: Any, wrong: Any) -> AsyncIterator[tuple[Device, ModbusIO]]:
+    """The scenario's device serving ``regmap`` at speedup 50 on loopback, scanning, and a
+    ModbusIO client to it that uses the altered map ``wrong``; both stopped after."""
+    device = Device(split_scenario(SC), regmap, speedup=50.0)
+    port = await device.start("127.0.0.1", 0)
+    scanning = asyncio.create_task(device.run())
+    io = ModbusIO(wrong, "127.0.0.1", port)
+    try:
+        yield device, io
+    finally:
+        io.close()
+        scanning.cancel()
+        await device.stop()
+
+
 def _altered(regmap: Any, **fields: Any) -> Any:
     """A copy of the register map ``regmap`` with ``fields`` changed (what the controller
     believes, against a device that serves ``regmap``)."""
@@ -119,11 +137,7 @@ def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up(
     wrong = _altered(regmap, device_id=regmap.device_id + 1)
 
     async def main() -> None:
-        device = Device(split_scenario(SC), regmap, speedup=50.0)
-        port = await device.start("127.0.0.1", 0)
-        scanning = asyncio.create_task(device.run())
-        io = ModbusIO(wrong, "127.0.0.1", port)
-        try:
+        async with _device_and_io(regmap, wrong) as (device, io):
             for _ in range(5):
                 values = await io.read()
                 assert values["sensor.pv"][1] == st.BAD_CONFIGURATION_ERROR
@@ -139,10 +153,6 @@ def test_a_wrong_unit_id_is_one_line_and_the_link_stays_up(
             assert len(lines) == 1 and "unit id 1" in lines[0].getMessage()
             assert not [r for r in caplog.records
                         if "Datastore unable" in r.getMessage()]
-        finally:
-            io.close()
-            scanning.cancel()
-            await device.stop()
 
     asyncio.run(main())
 
@@ -162,20 +172,12 @@ def test_a_refused_write_is_logged_once_with_what_the_loop_shows() -> None:
         else p for p in regmap.points))
 
     async def main() -> list[str]:
-        device = Device(split_scenario(SC), regmap, speedup=50.0)
-        port = await device.start("127.0.0.1", 0)
-        scanning = asyncio.create_task(device.run())
-        io = ModbusIO(wrong, "127.0.0.1", port)
-        try:
+        async with _device_and_io(regmap, wrong) as (_, io):
             for _ in range(5):
                 values = await io.read()
                 assert values["sensor.pv"][1] == st.GOOD_NC
                 assert not await io.write({"valve.op": 50.0})
             return [e for e in io.counters.events if "answered" in e]
-        finally:
-            io.close()
-            scanning.cancel()
-            await device.stop()
 
     refusals = asyncio.run(main())
     assert len(refusals) == 1 and "answered writing valve.op" in refusals[0]
