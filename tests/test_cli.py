@@ -340,6 +340,34 @@ def test_replay_in_a_subprocess(tmp_path: Path) -> None:
     assert column(header, rows, "out") == pytest.approx([22.0, 24.0])
 
 
+EXIT_CHILD = """
+import atexit, sys, threading, time
+from loopworks.cli import _exit
+atexit.register(lambda: print("exit handler ran", flush=True))
+print("buffered output", end="")  # not flushed yet: _exit must flush it
+if sys.argv[1] == "thread":  # a thread still running: the exit waits for it
+    threading.Thread(target=lambda: (time.sleep(0.3), print(" thread done"))).start()
+_exit({"int": 3, "none": None, "text": "a message", "thread": 4}[sys.argv[1]])
+print("never")
+"""
+
+
+@pytest.mark.parametrize(("case", "status", "out", "err"), [
+    ("int", 3, "buffered outputexit handler ran\n", ""),
+    ("none", 0, "buffered outputexit handler ran\n", ""),
+    ("text", 1, "buffered outputexit handler ran\n", "a message\n"),
+    ("thread", 4, "buffered output thread done\nexit handler ran\n", ""),
+])
+def test_the_console_script_exits_as_sys_exit_does(case: str, status: int, out: str,
+                                                   err: str) -> None:
+    """main() ends the process without the interpreter's finalization (cli._exit): the
+    status sys.exit gives, the exit handlers run, buffered output flushed, and a thread
+    still running is waited for (the normal exit then)."""
+    proc = subprocess.run([sys.executable, "-c", EXIT_CHILD, case], capture_output=True,
+                          text=True, timeout=120)
+    assert (proc.returncode, proc.stdout, proc.stderr) == (status, out, err)
+
+
 # -- blocks ------------------------------------------------------------------------------------
 
 
