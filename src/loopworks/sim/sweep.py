@@ -115,6 +115,13 @@ def _item(text: str) -> Value:
     return t
 
 
+def _decimal(value: float) -> float:
+    """A grid value as the decimal it stands for: linspace's rounding (1:2:11 gave
+    1.7000000000000002, shown so in the results) taken off at 15 significant digits, the
+    most a double keeps for every decimal."""
+    return float(f"{value:.15g}")
+
+
 def parse_vary(text: str) -> Axis:
     """``NAME=SPEC`` as an :class:`Axis`; an InputError that quotes it and says what was
     expected."""
@@ -153,13 +160,17 @@ def parse_vary(text: str) -> Axis:
     if grid:
         a, b = _number(grid.group(1), where), _number(grid.group(2), where)
         n_text = grid.group(3).strip()
-        if not n_text.isdigit() or int(n_text) < 1:
+        try:
+            n_value = float(n_text)
+        except ValueError:
+            n_value = math.nan
+        if not (math.isfinite(n_value) and n_value >= 1 and n_value.is_integer()):  # 3, 3.0
             raise InputError(f"{where}: in a:b:n, n = '{n_text}' must be a whole number >= 1")
-        n = int(n_text)
+        n = int(n_value)
         if n == 1 and a != b:
             raise InputError(f"{where}: a:b:1 is one value, a = {a:g}, and drops b = {b:g}: "
                              "give n >= 2, or the one value")
-        values = (a,) if n == 1 else tuple(float(v) for v in np.linspace(a, b, n))
+        values = (a,) if n == 1 else tuple(_decimal(float(v)) for v in np.linspace(a, b, n))
         return Axis(name, values=values)
     if ":" in spec:
         raise InputError(f"{where}: a range is a:b:n, three parts (n values from a to b), "
@@ -445,6 +456,16 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
         variants = [variant]
     for axis in axes:
         _check_axis(sc, axis, variants)
+        for value, inside, what in _support(axis):
+            try:
+                _check_value(sc, axis.name, value, variants, what)
+            except InputError:  # an end on a bound the parameter excludes: fine if inside
+                if inside is None:
+                    raise
+                try:
+                    _check_value(sc, axis.name, inside, variants, what)
+                except InputError:
+                    _check_value(sc, axis.name, value, variants, what)  # the end's error
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
         raise InputError(f"--seed {seed!r}: expected a whole number")
     sweep_seed = (sc.seed if sc.seed is not None else 0) if seed is None else int(seed)
@@ -546,6 +567,24 @@ def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:
                 raise InputError(f"--vary {axis.name}: the input is wired from '{source}'"
                                  + (f" in variant '{v}'" if len(variants) > 1 else "")
                                  + ": an input takes a wire or a constant, not both")
+
+
+def _support(axis: Axis) -> list[tuple[Value, Value | None, str]]:
+    """The values a sampled axis can draw that decide whether all its draws are allowed:
+    (value, a value just inside it or None, where it comes from). A uniform's or a
+    log-uniform's ends, with the value a billionth of the interval inside each (an end may
+    sit on a bound the parameter excludes: the draws never reach it), and every choice.
+    Checked before any point is drawn, so a distribution that reaches outside a
+    parameter's range is refused whatever the seed (it was refused only when a draw fell
+    outside). A normal reaches every value and is checked draw by draw."""
+    if axis.distribution == "choice":
+        return [(v, None, f"{axis.distribution}() value") for v in axis.args]
+    if axis.distribution in ("uniform", "loguniform"):
+        a, b = (float(v) for v in axis.args)
+        spec = f"{axis.distribution}({a:g}, {b:g})"
+        return [(a, axis.at(1e-9), f"{spec} reaches a"),
+                (b, axis.at(1.0 - 1e-9), f"{spec} reaches b")]
+    return []
 
 
 def _check_value(sc: Any, name: str, value: Value, variants: list[str], where: str) -> None:
