@@ -543,6 +543,7 @@ def sweep(
     from rich.table import Table
 
     from loopworks.sim import sweep_report
+    from loopworks.sim.sweep import AUTOTUNE_ERROR
     from loopworks.sim.sweep import sweep as run_sweep
 
     _check_report_directory(output)
@@ -606,19 +607,21 @@ def sweep(
     chosen = sweep_report._metric(result, metric)
     rows = sweep_report.summary_table(result, chosen)
     finite = any(math.isfinite(x) for row in rows for x in row[1:])
+    failed = sum(e is not None for e in result.columns.get(AUTOTUNE_ERROR, []))
     if as_json:  # a metric with no value (n/a) is null, as in simulate's metrics.json
         from loopworks.sim.report import json_text
 
         typer.echo(json_text({
             "instances": len(set(result.columns["point"])), "runs": len(result),
-            "design": result.design, "varied": result.varied,
+            "not_run": failed, "design": result.design, "varied": result.varied,
             "seconds": result.seconds, "metric": chosen,
             "variants": {v: {"median": a, "p5": b, "p95": c, "best": d}
                          for v, a, b, c, d in rows},
             "best": _given_values(result.best(chosen), result.metrics) if finite else None,
             "output": str(output)}), nl=False)
         return
-    table = Table(title=escape(f"{title}: {result.design}, {len(result)} runs in "
+    not_run = f" ({failed} not run: {AUTOTUNE_ERROR})" if failed else ""
+    table = Table(title=escape(f"{title}: {result.design}, {len(result)} runs{not_run} in "
                                f"{result.seconds:.1f} s"))
     for col in ("variant", f"{chosen}: median", "5 %", "95 %", "best"):
         table.add_column(escape(col), justify="right")

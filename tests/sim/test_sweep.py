@@ -568,6 +568,54 @@ def test_each_point_is_relay_tested_as_simulate_would(tmp_path: Path) -> None:
         sweep(path, {"compensator.process_gain": "0.5,1"}, workers=1)
 
 
+def test_a_point_whose_relay_test_fails_is_n_a_and_the_others_run(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """One point of a Monte Carlo whose [autotune] relay test identifies no gain (the
+    built-in scenario's valve.resolution = 0.2637 of uniform(0.2, 0.8) did not converge)
+    failed the whole sweep, every other point's test and run lost. Its rows are now n/a with
+    the test's error in a column and one warning; the other rows are the sweep's without it.
+    When every point fails, the first one's error is raised, as before."""
+    import loopworks.sim.scenario as scenario_module
+    from loopworks.errors import LoopworksError
+
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "examples" / "default.toml").read_text(encoding="utf-8")
+    text = text.replace("duration = 3600.0", "duration = 300.0").replace(
+        "metrics_window = [1800.0, 3600.0]", "metrics_window = [100.0, 300.0]")
+    path = tmp_path / "short.toml"
+    path.write_text(text, encoding="utf-8")
+    vary = {"pid.gain": "0.8,1.0,1.2"}
+    whole = sweep(path, vary, variant="compensation_on", workers=1)
+    real = scenario_module.autotune_gain
+
+    def failing(sc: object, point: dict[str, object] | None = None, **kw: object) -> object:
+        if point and point.get("pid.gain") == 1.0:
+            raise LoopworksError("the relay test did not converge (a test's failure)")
+        return real(sc, point, **kw)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(scenario_module, "autotune_gain", failing)
+    with pytest.warns(UserWarning, match=r"1 of 3 points' \[autotune\] relay tests identified "
+                      r"no process gain.*point 1 \(pid.gain = 1.0\): the relay test did not"):
+        part = sweep(path, vary, variant="compensation_on", workers=1)
+    assert part.columns["autotune_error"] == [
+        None, "the relay test did not converge (a test's failure)", None]
+    assert math.isnan(part.columns["compensator.process_gain"][1])
+    from loopworks.sim import sweep_report
+
+    sweep_report.write_summary(part, tmp_path / "report", "t", "loopworks sweep", None)
+    page = (tmp_path / "report" / "summary.html").read_text(encoding="utf-8")
+    assert "1 of 3 points did not run" in page and "a test&#x27;s failure" in page
+    for name in whole.metrics:
+        assert math.isnan(part.columns[name][1]), name
+        for row in (0, 2):
+            assert part.columns[name][row] == pytest.approx(
+                whole.columns[name][row], rel=1e-12, abs=1e-15, nan_ok=True), (row, name)
+    monkeypatch.setattr(scenario_module, "autotune_gain", lambda *a, **k: (_ for _ in ()).throw(
+        LoopworksError("no gain")))
+    with pytest.raises(InputError, match=r"point 0 \(pid.gain = 0.8\): no gain"):
+        sweep(path, vary, variant="compensation_on", workers=1)
+
+
 def test_a_loop_name_missing_from_the_metric_is_refused_before_the_run(tmp_path: Path) -> None:
     """Two loops: metrics are "LOOP: name"; `--metric IAE` was refused only after every
     instance had run, and nothing was written."""

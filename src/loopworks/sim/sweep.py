@@ -48,6 +48,7 @@ import os
 import re
 import statistics
 import time
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from contextlib import suppress
@@ -473,7 +474,7 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     for i, point in enumerate(points):
         for name, value in point.items():
             _check_value(sc, name, value, variants, f"instance {i}")
-    tuned = _autotune_points(sc, points, names, relay_progress)
+    tuned, untuned = _autotune_points(sc, points, names, relay_progress)
     from loopworks.plant.sensor import mix_seed
 
     for keep in trajectories:
@@ -483,9 +484,14 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     seeds = [mix_seed(sweep_seed, i) for i in range(len(points))]
     jobs = [Job(i, v, {**point, **tuned[i]}, seeds[i])
             for v in variants for i, point in enumerate(points)]
+    runnable = [k for k, job in enumerate(jobs) if job.point not in untuned]
     start = time.perf_counter()
-    metrics = _execute(sc.text, sc.source, jobs, workers, scheduler, progress)
+    ran = _execute(sc.text, sc.source, [jobs[k] for k in runnable], workers, scheduler,
+                   progress)
     seconds = time.perf_counter() - start
+    metrics: list[dict[str, float]] = [{} for _ in jobs]  # n/a where the relay test failed
+    for k, row in zip(runnable, ran, strict=True):
+        metrics[k] = row
     metric_names = list(dict.fromkeys(k for row in metrics for k in row))
     columns: dict[str, list[Any]] = {"variant": [j.variant for j in jobs],
                                      "point": [j.point for j in jobs],
@@ -495,6 +501,8 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
         if any(isinstance(v, str) for v in values):  # a choice input's names and codes mixed
             values = [v if isinstance(v, str) else f"{v:g}" for v in values]
         columns[name] = values
+    if untuned:
+        columns[AUTOTUNE_ERROR] = [untuned.get(j.point) for j in jobs]
     for m in metric_names:
         columns[m] = [row.get(m, math.nan) for row in metrics]
     grid_axes = [a for a in axes if not a.sampled]
@@ -502,6 +510,8 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
             "monte carlo" if not grid_axes else "grid × monte carlo")
     kept: dict[tuple[str, int], SimResult] = {}
     for keep in trajectories:
+        if keep in untuned:  # no gain to run it with: its row says why
+            continue
         for v in variants:
             job = next(j for j in jobs if j.variant == v and j.point == keep)
             kept[(v, keep)] = sc.build(v, job.changes, job.seed).run(sc.duration, sc.dt)
@@ -509,38 +519,63 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
                        seconds, metric_names, kept)
 
 
+#: the results column that says why a point's ``[autotune]`` relay test gave no gain (null
+#: for the points whose test did); present only when a test failed
+AUTOTUNE_ERROR = "autotune_error"
+
+
 def _autotune_points(sc: Any, points: Sequence[Mapping[str, Value]], names: Sequence[str],
                      progress: Callable[[int, int], None] | None = None
-                     ) -> list[dict[str, Value]]:
+                     ) -> tuple[list[dict[str, Value]], dict[int, str]]:
     """Per point, the ``[autotune]`` parameters with the gain its own relay test identifies
     (the scenario with the point's values, then ``[autotune] set``, as ``simulate`` of that
     point would run it: the test uses no run seed, so one test per distinct point); empty
     dicts without ``[autotune]``. Varying a parameter ``[autotune]`` writes is refused (the
-    test would overwrite the value, as in ``simulate``)."""
+    test would overwrite the value, as in ``simulate``).
+
+    A point whose test identifies no gain (a relay that did not converge on that valve) gets
+    NaN and is returned in the second value, point -> the test's error: its instances do
+    not run (``simulate`` of the point fails alike), their metrics are n/a, and one warning
+    counts them. A whole sweep failed on one such point of a Monte Carlo before (the
+    built-in scenario's valve.resolution = 0.2637 of uniform(0.2, 0.8)). When every point
+    fails, the first one's error is raised."""
     from loopworks.sim.scenario import autotune_gain, split_ref
 
     if sc.autotune_test is None:
-        return [{} for _ in points]
+        return [{} for _ in points], {}
     targets = [".".join(split_ref(ref)) for ref in sc._model.autotune.process_gain]
     for name in names:
         if name in targets:
             raise InputError(f"--vary {name}: [autotune] writes this parameter from its relay "
                              f"test (as simulate does, it would overwrite each value); remove "
                              "[autotune] from the scenario to vary it")
-    gains: dict[tuple[tuple[str, Value], ...], float] = {}
+    gains: dict[tuple[tuple[str, Value], ...], float | str] = {}
     out: list[dict[str, Value]] = []
+    failed: dict[int, str] = {}
     for i, point in enumerate(points):
         key = tuple(sorted(point.items()))
         if key not in gains:
             try:
                 gains[key] = autotune_gain(sc, point)[0]
             except LoopworksError as exc:
-                values = ", ".join(f"{k} = {v!r}" for k, v in point.items())
-                raise InputError(f"point {i} ({values}): {exc}") from None
-        out.append({t: gains[key] for t in targets})
+                gains[key] = str(exc)
+        gain = gains[key]
+        if isinstance(gain, str):
+            failed[i] = gain
+            gain = math.nan
+        out.append({t: gain for t in targets})
         if progress is not None:
             progress(i + 1, len(points))
-    return out
+    if failed:
+        first = min(failed)
+        values = ", ".join(f"{k} = {v!r}" for k, v in points[first].items())
+        if len(failed) == len(points):
+            raise InputError(f"point {first} ({values}): {failed[first]}")
+        warnings.warn(f"{len(failed)} of {len(points)} points' [autotune] relay tests "
+                      f"identified no process gain; their instances did not run and their "
+                      f"metrics are n/a (column {AUTOTUNE_ERROR}). The first, point {first} "
+                      f"({values}): {failed[first]}", stacklevel=2)
+    return out, failed
 
 
 def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:

@@ -190,8 +190,11 @@ def figures(result: SweepResult, directory: Path, metric: str | None = None) -> 
             ax.set_ylabel("instances")
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize=8)
-        fig.suptitle(f"distribution over {len(result) // max(1, len(variants))} instances "
-                     "per variant")
+        per = len(result) // max(1, len(variants))
+        not_run = len(_not_run(result))
+        fig.suptitle(f"distribution over {per - not_run} instances per variant"
+                     + (f" ({not_run} not run: their relay test gave no gain)"
+                        if not_run else ""))
         paths.append(_save(fig, directory / "histograms.png"))
         if travel is not None:
             pv = next((c for c in result.metrics if c == "PV std" or c.endswith(": PV std")),
@@ -272,6 +275,15 @@ def summary_table(result: SweepResult, metric: str) -> list[tuple[str, float, fl
     return rows
 
 
+def _not_run(result: SweepResult) -> dict[int, str]:
+    """Point -> why it did not run (its ``[autotune]`` relay test gave no gain)."""
+    from loopworks.sim.sweep import AUTOTUNE_ERROR
+
+    return {p: e for p, e in zip(result.columns["point"],
+                                 result.columns.get(AUTOTUNE_ERROR, []), strict=False)
+            if e is not None}
+
+
 def write_summary(result: SweepResult, directory: Path, title: str, command: str,
                   metric: str | None = None) -> Path:
     """``summary.html``: what was swept, a per-variant table of the chosen metric (and valve
@@ -298,7 +310,13 @@ def write_summary(result: SweepResult, directory: Path, title: str, command: str
         best_html = f"<p>{html.escape(chosen)} is n/a in every instance.</p>"
     n_var = len(set(result.columns["variant"]))
     per = len(result) // max(1, n_var)
+    from loopworks.sim.sweep import AUTOTUNE_ERROR
+
     rate = len(result) / result.seconds if result.seconds > 0 else math.nan
+    errors = _not_run(result)
+    failed = (f"<p>{len(errors)} of {per} points did not run: their [autotune] relay test "
+              f"identified no process gain (their rows are n/a; column {AUTOTUNE_ERROR}). "
+              f"Point {min(errors)}: {html.escape(errors[min(errors)])}</p>" if errors else "")
     imgs = "\n".join(f'<img src="{html.escape(p.name)}" alt="{html.escape(p.stem)}">'
                      for p in images)
     page = f"""<!doctype html>
@@ -310,6 +328,7 @@ img{{max-width:100%;display:block;margin:1em 0}}code{{background:#f4f4f4}}</styl
 <p>{html.escape(result.design)}: {per} instances × {n_var} variant(s) = {len(result)} runs,
 varying {html.escape(", ".join(result.varied))}; {result.seconds:.1f} s ({rate:.1f}
 instances/s).</p>
+{failed}
 <p><code>{html.escape(command)}</code></p>
 {best_html}
 {"".join(tables)}
