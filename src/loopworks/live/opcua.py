@@ -531,6 +531,11 @@ class LoopServer:
                     # no such node: said so, not "access denied" (asyncua checks the user's
                     # rights first; found by an operator writing a loop's missing MODE)
                     results.append(_code("BadNodeIdUnknown"))
+                elif node is None and item.AttributeId == AttributeIds.Value and (
+                        self._kept(item.NodeId)):
+                    # a node the server keeps itself (<NAME>_TEXT, LAST_REFUSAL): read-only
+                    # for everyone, so not "access denied" (asyncua checks the user first)
+                    results.append(_code("BadNotWritable"))
                 elif node is None or item.AttributeId != AttributeIds.Value:
                     results += await original(ua.WriteParameters(NodesToWrite=[item]),
                                               user=user)
@@ -539,6 +544,12 @@ class LoopServer:
             return results
 
         service.write = write  # type: ignore[method-assign]
+
+    def _kept(self, nodeid: ua.NodeId) -> bool:
+        """A value node the server keeps itself: a mode's ``<NAME>_TEXT`` or a loop's
+        ``LAST_REFUSAL``."""
+        return nodeid in self._refusals.values() or any(
+            n.text_nodeid == nodeid for n in self._nodes.values())
 
     async def _client_write(self, user: UaUser, node: _Node,
                             dv: ua.DataValue) -> ua.StatusCode:
