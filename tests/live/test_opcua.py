@@ -20,6 +20,7 @@ from typing import Any, TypeVar
 import pytest
 from asyncua import Client, ua
 from asyncua.crypto.cert_gen import setup_self_signed_certificate
+from asyncua.ua.attribute_ids import AttributeIds
 from asyncua.ua.status_codes import StatusCodes
 from cryptography.x509.oid import ExtendedKeyUsageOID
 
@@ -286,6 +287,29 @@ def test_anonymous_and_viewer_writes_are_refused(served: Served,
     assert any("pid.SP = 60.0 by anonymous: refused, BadUserAccessDenied" in m for m in refused)
     assert any("pid.SP = 60.0 by viewer (viewer): refused, BadUserAccessDenied" in m
                for m in refused)
+
+
+def test_the_user_access_level_is_the_sessions_own(served: Served) -> None:
+    """OPC UA Part 3 5.6.2: UserAccessLevel is what *this* user may do. Anonymous and viewer
+    sessions were shown SP as writable (3) while every write was refused, so a generic
+    client offered them an editable field; an operator's is 3, and AccessLevel (what the
+    node allows anyone) is 3 for everyone."""
+    write = ua.AccessLevel.CurrentWrite.mask
+    read_ = ua.AccessLevel.CurrentRead.mask
+
+    async def levels(user: str | None, password: str = "") -> list[tuple[int, int]]:
+        async with session(served, user, password) as client:
+            out = []
+            for key in ("pid.SP", "pid.MODE", "pid.PV"):
+                n = await node(client, key)
+                out.append(((await n.read_attribute(AttributeIds.AccessLevel)).Value.Value,
+                            (await n.read_attribute(AttributeIds.UserAccessLevel)).Value.Value))
+            return out
+
+    sp_mode_pv = [(read_ | write, read_ | write)] * 2 + [(read_, read_)]
+    assert asyncio.run(levels("op", "op-pass")) == sp_mode_pv
+    for who in ((None,), ("viewer", "view-pass")):
+        assert asyncio.run(levels(*who)) == [(read_ | write, read_)] * 2 + [(read_, read_)], who
 
 
 @pytest.mark.parametrize(("user", "password"), [("op", "wrong"), ("op", ""),

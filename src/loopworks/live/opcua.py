@@ -72,6 +72,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal, Protocol, cast
 
 from asyncua import ua
+from asyncua.common.callback import CallbackType
 from asyncua.crypto.permission_rules import User as UaUser
 from asyncua.crypto.permission_rules import UserRole
 from asyncua.server.server import Server
@@ -423,6 +424,7 @@ class LoopServer:
         self.namespace_index = idx
         await self._build(server, idx, loops)
         self._intercept_writes(server)
+        server.subscribe_server_callback(CallbackType.PostRead, self._user_access_level)
         await server.start()
         self.server = server
         bound = server.bserver.port if server.bserver is not None else self.port
@@ -544,6 +546,26 @@ class LoopServer:
             return results
 
         service.write = write  # type: ignore[method-assign]
+
+    def _user_access_level(self, event: Any, _dispatcher: Any) -> None:
+        """A read's answer as its session's user has the rights: a writable loop variable's
+        ``UserAccessLevel`` (OPC UA Part 3, 5.6.2: the access level *this user* has) lacks
+        CurrentWrite unless the user is an operator. A generic client offered anonymous and
+        viewer sessions an editable SP that every write refused (``AccessLevel``, what the
+        node allows anyone, is unchanged). Runs after every read (asyncua's PostRead
+        callback); the answer's list is replaced item by item, never the stored value."""
+        user = event.user
+        if not isinstance(user, _Identity) or user.loop_role == "operator":
+            return  # the server's own session (asyncua's Admin), or an operator
+        answers = event.response_params
+        for i, item in enumerate(event.request_params.NodesToRead):
+            if item.AttributeId != AttributeIds.UserAccessLevel or (
+                    item.NodeId not in self._by_nodeid):
+                continue
+            value = answers[i].Value
+            if value is not None and isinstance(value.Value, int):
+                answers[i] = ua.DataValue(ua.Variant(
+                    value.Value & ~ua.AccessLevel.CurrentWrite.mask, ua.VariantType.Byte))
 
     def _kept(self, nodeid: ua.NodeId) -> bool:
         """A value node the server keeps itself: a mode's ``<NAME>_TEXT`` or a loop's
