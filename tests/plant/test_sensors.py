@@ -182,6 +182,21 @@ def test_range_clamps_with_limit_bits_and_uncertain_quality(make: Make) -> None:
     assert run(good, [101.0, -1.0]) == [(100.0, GOOD | 2), (0.0, GOOD | 1)]
 
 
+def test_a_value_beyond_the_range_is_limited_even_when_quantised_onto_its_edge(
+        make: Make) -> None:
+    """A measured 100.1 on 0..100 is a saturated signal; quantised to 0.5 it is 100.0, which
+    the range check after the quantiser let through as Good. The limit bits and the range
+    status come from the value before the quantiser as well as after it; a value inside
+    the range that the quantiser puts beyond it is limited as before, and one that stays in
+    keeps its quantised value."""
+    tt = make(pv_lo=0.0, pv_hi=100.0, quantum=0.5)
+    assert run(tt, [100.1, -0.2, 99.9, 0.2, 99.7]) == [
+        (100.0, UNCERTAIN_RANGE | 2), (0.0, UNCERTAIN_RANGE | 1), (100.0, GOOD),
+        (0.0, GOOD), (99.5, GOOD)]
+    edge = make(pv_lo=0.0, pv_hi=99.9, quantum=0.5)  # 99.8 rounds up to 100.0, beyond 99.9
+    assert run(edge, [99.8, 99.7]) == [(99.9, UNCERTAIN_RANGE | 2), (99.5, GOOD)]
+
+
 def test_noise_statistics_mean_std_normality_whiteness() -> None:
     """N = 40 000 scans, σ = 0.5: the sample mean within 5σ/√N, the sample std within
     5σ/√(2N), P(|n| < σ) within 5·√(p(1-p)/N) of 0.6827, lag-1 autocorrelation within 5/√N,

@@ -14,7 +14,9 @@ Signal path, one scan of ``dt`` seconds (k = this scan)::
     z_k  = z_{k-1} + (1 - exp(-dt/T))·(m_k - z_{k-1})        first-order lag, T = time_constant
     v_k  = z_k + noise_std·n_k                                n_k ~ N(0, 1), seeded
     v_k  = q·floor(v_k/q + 1/2)                               quantisation, q = quantum > 0
-    pv_k = clamp(v_k, pv_lo, pv_hi)                           output range
+    pv_k = clamp(v_k, pv_lo, pv_hi)                           output range (limited when
+                                                              v_k before or after the
+                                                              quantiser is beyond it)
 
 * The lag is the exact zero-order-hold step of T·dz/dt = m - z (Åström & Wittenmark,
   *Computer-Controlled Systems*, ch. 2; the shared primitive ``lag_step``); T = 0 is no lag.
@@ -292,22 +294,21 @@ def usable(reading: float, status: int) -> bool:
 @primitive
 def shaped(p: FloatArray, value: float, status_in: int) -> tuple[float, int]:
     """(pv, status) of a measured value: quantised (q > 0), then limited to pv_lo..pv_hi with
-    the limit bits and the range status; Good, or the Uncertain input's byte (limit bits
-    cleared)."""
+    the limit bits and the range status when the value or its quantised value is beyond the
+    range (a value above pv_hi that the quantiser rounds down onto it is still a saturated
+    signal: 100.1 on 0..100 with q = 0.5 read 100, Good); Good, or the Uncertain input's
+    byte (limit bits cleared)."""
     q = float(p[P.quantum])
-    if q > 0.0:
-        value = quantise(value, q)
+    digital = quantise(value, q) if q > 0.0 else value
     status = GOOD_NC
     if (status_in & 0xC0) == UNCERTAIN:
         status = status_in & 0xFC
     base = GOOD_NC if p[P.range_good] != 0.0 else UNCERTAIN_EU_RANGE_VIOLATION
-    if value > p[P.pv_hi]:
-        value = float(p[P.pv_hi])
-        status = base | HIGH_LIMITED
-    elif value < p[P.pv_lo]:
-        value = float(p[P.pv_lo])
-        status = base | LOW_LIMITED
-    return value, status
+    if value > p[P.pv_hi] or digital > p[P.pv_hi]:
+        return float(p[P.pv_hi]), base | HIGH_LIMITED
+    if value < p[P.pv_lo] or digital < p[P.pv_lo]:
+        return float(p[P.pv_lo]), base | LOW_LIMITED
+    return digital, status
 
 
 def transmitter_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: IntArray,
