@@ -14,6 +14,7 @@ from loopworks.analysis.oscillation import (
     DECAY_RATIO_THRESHOLD,
     REGULARITY_THRESHOLD,
     acf,
+    acf_band,
     decay_ratio,
     regularity,
     zero_crossings,
@@ -90,6 +91,47 @@ def test_white_noise_rarely_detected() -> None:
     hits = sum(regularity(np.random.default_rng(s).standard_normal(3000), 1.0).detected
                for s in range(60))
     assert hits <= 6
+
+
+def test_the_noise_band_is_bartletts_standard_error() -> None:
+    """se = √((1 + 2·Σ_{k<=q} r_k²)/n) over the ACF's first lobe (Box & Jenkins eq. 2.1.13):
+    1/√n for white noise; for the theoretical AR(1) ACF φ^k, which never changes sign, the
+    whole sum, φ²/(1 - φ²) for a long record."""
+    n = 2000
+    white = np.r_[1.0, np.zeros(50)]
+    assert acf_band(white, n) == pytest.approx(1.0 / math.sqrt(n), rel=1e-12)
+    phi = 0.9
+    ar1 = phi ** np.arange(400)
+    assert acf_band(ar1, n) == pytest.approx(
+        math.sqrt((1.0 + 2.0 * phi**2 / (1.0 - phi**2)) / n), rel=1e-9)
+    lobe = np.array([1.0, 0.5, 0.2, -0.3, 0.4])  # the lobe ends before the sign change
+    assert acf_band(lobe, 100) == pytest.approx(math.sqrt((1.0 + 2.0 * 0.29) / 100), rel=1e-12)
+
+
+@pytest.mark.parametrize("phi", [0.9, 0.95, 0.98])
+def test_slowly_decaying_noise_is_not_a_regular_oscillation(phi: float) -> None:
+    """AR(1) noise (a slow load) has no oscillation; under the white-noise band ±3/√N its
+    sample ACF's wandering lobes read as a regular oscillation in 37 (φ 0.9), 65 (0.95) and
+    46 (0.98, 751 samples) of 200 records. Under the Bartlett band: none of 100."""
+    from scipy.signal import lfilter
+
+    n = 751 if phi == 0.98 else 2000
+    hits = sum(regularity(lfilter([1.0], [1.0, -phi],
+                                  np.random.default_rng(s).standard_normal(n)), 1.0).detected
+               for s in range(100))
+    assert hits == 0
+
+
+@pytest.mark.parametrize("period", [20, 60, 150, 300])
+def test_a_sine_in_noise_is_still_found(period: int) -> None:
+    """The Bartlett band widens with the ACF's first lobe, which a sine has too: a sine of
+    std 0.5 in unit white noise (2000 samples) is found in every one of 20 records, at 20 to
+    300 samples a period, as under ±3/√N."""
+    t = np.arange(2000)
+    for s in range(20):
+        rng = np.random.default_rng(s)
+        x = 0.5 * math.sqrt(2.0) * np.sin(2.0 * np.pi * (t + rng.uniform(0, period)) / period)
+        assert regularity(x + rng.standard_normal(2000), 1.0).detected, s
 
 
 def test_few_crossings_give_period_then_nothing() -> None:
