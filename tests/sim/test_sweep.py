@@ -534,6 +534,19 @@ def test_a_seed_that_is_not_a_whole_number_is_refused(scenario: Path) -> None:
         sweep(scenario, ["pid.k=1,2"], seed=1.5, workers=1)  # type: ignore[arg-type]
 
 
+def short_default(tmp_path: Path, duration: float, window: tuple[float, float]
+                  ) -> tuple[Path, str]:
+    """examples/default.toml (the built-in scenario, with [autotune]) run for ``duration`` s
+    and scored over ``window``, written to tmp_path: its path and text."""
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "examples" / "default.toml").read_text(encoding="utf-8")
+    text = text.replace("duration = 3600.0", f"duration = {duration!r}").replace(
+        "metrics_window = [1800.0, 3600.0]", f"metrics_window = [{window[0]!r}, {window[1]!r}]")
+    path = tmp_path / "short.toml"
+    path.write_text(text, encoding="utf-8")
+    return path, text
+
+
 def test_each_point_is_relay_tested_as_simulate_would(tmp_path: Path) -> None:
     """A scenario with [autotune]: the sweep ran the relay test once, on the scenario as
     written, and put that gain into every instance, while `simulate` of a row's values runs
@@ -542,12 +555,7 @@ def test_each_point_is_relay_tested_as_simulate_would(tmp_path: Path) -> None:
     parameter [autotune] writes is refused (simulate's test would overwrite it)."""
     from loopworks.sim.scenario import parse_scenario, run_autotune
 
-    root = Path(__file__).resolve().parents[2]
-    text = (root / "examples" / "default.toml").read_text(encoding="utf-8")
-    text = text.replace("duration = 3600.0", "duration = 600.0").replace(
-        "metrics_window = [1800.0, 3600.0]", "metrics_window = [300.0, 600.0]")
-    path = tmp_path / "short.toml"
-    path.write_text(text, encoding="utf-8")
+    path, text = short_default(tmp_path, 600.0, (300.0, 600.0))
     result = sweep(path, {"pid.gain": "0.8,1.0"}, variant="compensation_on", workers=1)
     gains = result.columns["compensator.process_gain"]
     assert gains[0] != gains[1]
@@ -578,12 +586,7 @@ def test_a_point_whose_relay_test_fails_is_n_a_and_the_others_run(
     import loopworks.sim.scenario as scenario_module
     from loopworks.errors import LoopworksError
 
-    root = Path(__file__).resolve().parents[2]
-    text = (root / "examples" / "default.toml").read_text(encoding="utf-8")
-    text = text.replace("duration = 3600.0", "duration = 300.0").replace(
-        "metrics_window = [1800.0, 3600.0]", "metrics_window = [100.0, 300.0]")
-    path = tmp_path / "short.toml"
-    path.write_text(text, encoding="utf-8")
+    path, _ = short_default(tmp_path, 300.0, (100.0, 300.0))
     vary = {"pid.gain": "0.8,1.0,1.2"}
     whole = sweep(path, vary, variant="compensation_on", workers=1)
     real = scenario_module.autotune_gain
