@@ -577,3 +577,12 @@ def test_a_record_that_does_not_oscillate_regularly_reports_no_period() -> None:
     doc = diagnose(data, "self-regulating", recommend=False).to_json()
     assert doc["oscillation"]["detected"] is False
     assert doc["oscillation"]["period_s"] is None
+    # nor are the indices of the methods made for oscillating loops: null, their computed
+    # values kept in the evidence with why they abstain (Horch's phase read 24-57 degrees)
+    evidence = {e["key"]: e for e in doc["evidence"]}
+    for key in ("horch", "area_ratio", "curve_fit"):
+        assert doc["indices"][key] is None, key
+        assert evidence[key]["vote"] == "undetermined"
+        assert evidence[key]["reason"].startswith("abstains: published for oscillating")
+    assert evidence["horch"]["value"] is not None  # computed, not an index
+    assert doc["indices"]["bicoherence"] is not None  # a method for any record

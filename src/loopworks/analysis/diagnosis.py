@@ -151,7 +151,10 @@ _SIGN = {"stiction": 1.0, "no_stiction": -1.0, "undetermined": 0.0}
 @dataclass(frozen=True)
 class Evidence:
     """One method's vote: ``key`` (``horch``, ``area_ratio``, ``curve_fit``, ``bicoherence``),
-    its name and source, the vote, its weight, the index value and the method's reason."""
+    its name and source, the vote, its weight, the index value and the method's reason;
+    ``applies`` False when the method was not made for this record (an oscillation method
+    on a loop that does not oscillate regularly, or on a cycle of too few samples): its
+    value is then kept here, with the reason, but is no index (:attr:`Diagnosis.indices`)."""
 
     key: str
     method: str
@@ -159,6 +162,7 @@ class Evidence:
     weight: float
     value: float
     reason: str
+    applies: bool = True
 
 
 @dataclass(frozen=True)
@@ -187,8 +191,10 @@ class Diagnosis:
 
     @property
     def indices(self) -> dict[str, float]:
-        """Each method's index value by its key (NaN where it could not be computed)."""
-        return {e.key: e.value for e in self.evidence}
+        """Each method's index value by its key: NaN where it could not be computed or the
+        method does not apply to the record (``Evidence.applies``: Horch's phase of a loop
+        that does not oscillate is a number, not an index of anything)."""
+        return {e.key: e.value if e.applies else math.nan for e in self.evidence}
 
     def to_json(self) -> dict[str, Any]:
         """The JSON object of ``loopworks diagnose --json`` (docs/diagnose-json.md)."""
@@ -224,8 +230,8 @@ def _battery(data: LoopData, loop_type: LoopType, osc: Oscillation) -> list[Evid
         return out
     return [Evidence(e.key, e.method, "undetermined", e.weight, e.value,
                      f"abstains: published for oscillating loops, and this one does not "
-                     f"oscillate regularly ({e.reason})") if e.key in NEEDS_OSCILLATION else e
-            for e in out]
+                     f"oscillate regularly ({e.reason})", applies=False)
+            if e.key in NEEDS_OSCILLATION else e for e in out]
 
 
 def _methods(data: LoopData, loop_type: LoopType, period: float | None = None
@@ -242,11 +248,13 @@ def _methods(data: LoopData, loop_type: LoopType, period: float | None = None
         h = horch_test(data.op, data.pv, data.dt, loop_type)
         out.append(Evidence("horch", "Horch (1999) cross-correlation of OP and PV",
                             "undetermined" if coarse else h.verdict,
-                            WEIGHTS["horch"], h.asymmetry * 90.0, h.reason + coarse))
+                            WEIGHTS["horch"], h.asymmetry * 90.0, h.reason + coarse,
+                            applies=not coarse))
         a = area_ratio(e, data.dt, period=period)
         out.append(Evidence("area_ratio", "area ratio of the error's half cycles (Singhal & "
                             "Salsbury 2005)", "undetermined" if coarse else a.verdict,
-                            WEIGHTS["area_ratio"], a.ratio, a.reason + coarse))
+                            WEIGHTS["area_ratio"], a.ratio, a.reason + coarse,
+                            applies=not coarse))
     c = curve_fit_loop(data.op, data.pv, data.dt, loop_type, period=period)
     signal = "OP" if loop_type == "self-regulating" else "PV"
     out.append(Evidence("curve_fit", f"curve fitting of the {signal}'s half cycles (He et al. "
