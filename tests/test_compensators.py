@@ -535,15 +535,21 @@ def test_op_out_holds_bad_when_the_sum_overflows(make: Make) -> None:
     assert cr.step(1.0, op_in=1.0)["op_out"] == (1.0 - 1e308, GOOD)  # u fell: -α
 
 
-def test_knocker_without_a_known_reference_gives_no_pulse(make: Make) -> None:
-    """The pulse direction needs u at the pulse start: a NaN there (first pulse) gives no
-    pulse until the next pulse start with a finite u (a = 1, τ = 0.5 s, h_k = 1 s, 0.25 s)."""
+def test_knocker_whose_first_pulse_starts_on_nan_refers_to_the_first_finite_u(
+        make: Make) -> None:
+    """The pulse direction needs u at the pulse start. A NaN there, with no u known before,
+    left the first pulse without a reference, and so the second too (it refers to the
+    first's start): no pulse for two intervals (found by an outside audit). The first finite
+    u after the start is now the reference (a = 1, τ = 0.5 s, h_k = 1 s, 0.25 s scans)."""
     kn = make(KNOCKER, amplitude=1.0, pulse_width=0.5, interval=1.0)
     ops = [NAN, 50.1, 50.2, 50.3, 50.4, 50.5, 50.6, 50.7, 50.8, 50.9]
     got = corrections(kn, ops, 0.25)
-    # scan 0: NaN, correction holds 0; scans 1-3 have no reference; scan 4 (pulse start,
-    # u = 50.4 becomes the reference, the previous one unknown): no pulse; scan 8: +1 since 50.4
-    assert got == [0, 0, 0, 0, 0, 0, 0, 0, 1, 1]
+    # scan 0: NaN, correction holds 0; scan 1: 50.1 becomes the first pulse's reference,
+    # sign(0) = 0; scan 4 (second pulse): +1 since 50.1; scan 8: +1 since 50.4; as with a
+    # finite first u from the second pulse on
+    assert got == [0, 0, 0, 0, 1, 1, 0, 0, 1, 1]
+    finite = make(KNOCKER, amplitude=1.0, pulse_width=0.5, interval=1.0)
+    assert corrections(finite, [50.0, *ops[1:]], 0.25)[4:] == got[4:]
     assert np.isfinite(kn.x).all()
 
 

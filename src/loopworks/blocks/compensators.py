@@ -62,7 +62,10 @@ of the loop as stated (controller, valve, process, L = 2.0 s) gives figures 10-2
 table's (PV σ 0.065 for its 0.074 at a = 1.5) and reproduces them with ``dead_time = 2.2``.
 ``direction_reference = "pulse_start"`` is the literal sampling of the formula
 with u(t_p) of the current pulse: the first scan of every pulse then has sign(0) = 0, so with
-τ ≤ dt no pulse ever fires; it is there for pulses several scans wide.
+τ ≤ dt no pulse ever fires; it is there for pulses several scans wide. u(t_p) is the finite
+u at the pulse start; a pulse that starts on a non-finite u takes the last one known, or,
+when none is known yet, the first finite u after its start (a NaN on the first scan left
+the second pulse with no direction).
 
 Improved knockers stop pulsing inside an error band to save valve wear (Cuadros, Munaro &
 Munareto 2012, spec 2.4 [L]): with ``error_band`` > 0 no pulse is applied on a scan with
@@ -289,6 +292,9 @@ def knocker_kernel(dt: float, p: FloatArray, x: FloatArray, u: FloatArray, us: I
             x[KX.u_pulse_known] = 1.0
         x[KX.since_pulse] = 0.0
         x[KX.pulses] = min(x[KX.pulses] + 1.0, 2.0)
+    elif usable and x[KX.u_pulse_known] == 0.0:  # started on a non-finite u, none known yet:
+        x[KX.u_pulse] = op                        # the first finite u after the start
+        x[KX.u_pulse_known] = 1.0
     ref = float(x[KX.u_pulse])
     known = x[KX.u_pulse_known] != 0.0
     if p[KP.from_previous] != 0.0 and x[KX.pulses] >= 2.0:
