@@ -458,15 +458,12 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     for axis in axes:
         _check_axis(sc, axis, variants)
         for value, inside, what in _support(axis):
-            try:
-                _check_value(sc, axis.name, value, variants, what)
-            except InputError:  # an end on a bound the parameter excludes: fine if inside
-                if inside is None:
-                    raise
-                try:
-                    _check_value(sc, axis.name, inside, variants, what)
-                except InputError:
-                    _check_value(sc, axis.name, value, variants, what)  # the end's error
+            try:  # just inside an end: an end on a bound the parameter excludes is fine
+                _check_value(sc, axis.name, value if inside is None else inside, variants,
+                             what)
+            except InputError:
+                _check_value(sc, axis.name, value, variants, what)  # the end's own error
+                raise
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
         raise InputError(f"--seed {seed!r}: expected a whole number")
     sweep_seed = (sc.seed if sc.seed is not None else 0) if seed is None else int(seed)
