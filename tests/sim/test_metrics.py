@@ -554,3 +554,48 @@ def test_a_velocity_output_is_scored_on_the_position_its_increments_build() -> N
     assert velocity.incremental_outputs() == {"c"}
     assert Module({"c": loopworks.create_block("s5.pid")}).incremental_outputs() == set()
 
+
+
+def test_a_window_bound_on_a_rounded_scan_time_holds_that_scan() -> None:
+    """Scan k runs at t = k·dt, and 3·0.3 = 0.8999999999999999: a window written from 0.9 s
+    holds the scan at 0.9 s, as the scenario counts it (a window starting on the scan of a
+    setpoint change holds the step). The window lost that scan, and with it the step (step
+    size n/a) and, in [0.9, 1.2], one of its two scans (found by an outside audit)."""
+    dt = 0.3
+    t = np.arange(200) * dt
+    assert t[3] < 0.9  # the rounding this is about
+    sp = np.where(np.arange(200) >= 3, 1.0, 0.0)
+    pv = np.where(np.arange(200) >= 3, 1.0 - np.exp(-(t - t[3]) / 2.0), 0.0)
+    out = np.zeros_like(t)
+    m = metrics.loop_metrics(t, sp, pv, out, window=(0.9, float(t[-1])))
+    assert m["step size"] == pytest.approx(1.0)  # SP after the step minus PV at it (0)
+    assert m["rise time s"] == pytest.approx(
+        metrics.loop_metrics(t, sp, pv, out)["rise time s"], abs=1e-12)
+    two = metrics.loop_metrics(t, sp, pv, out, window=(0.9, 1.2))
+    e = sp - pv
+    assert two["IAE"] == pytest.approx((abs(e[3]) + abs(e[4])) * dt, rel=1e-12)
+    assert two["PV std"] == pytest.approx(float(np.std(pv[3:5])), rel=1e-12)
+
+
+def test_a_bad_setpoint_sample_is_no_setpoint_step() -> None:
+    """docs/metrics.md: the step figures come from the last setpoint change; a Bad (NaN)
+    setpoint sample is no change, and a Bad sample from the step on makes them n/a. A
+    regulatory window with one NaN setpoint scan had a step size of -0.0001 and a rise time
+    of 0.5 s, measured from the NaN back to the setpoint (found by an outside audit)."""
+    t = np.arange(0.0, 100.0, 0.5)
+    sp = np.ones_like(t)
+    pv = 1.0 - 0.01 * np.exp(-t / 10.0)
+    out = np.zeros_like(t)
+    sp[150] = math.nan  # t = 75 s
+    m = metrics.loop_metrics(t, sp, pv, out, window=(10.0, 99.5))
+    for name in ("step size", "overshoot %", "rise time s", "settling time s (2 %)"):
+        assert math.isnan(m[name]), name
+    # a real step at 20 s, then one Bad setpoint scan in its response: n/a, not a new step
+    step = np.where(t >= 20.0, 2.0, 1.0)
+    y = np.where(t >= 20.0, 2.0 - np.exp(-(t - 20.0) / 5.0), 1.0)
+    clean = metrics.loop_metrics(t, step, y, out)
+    assert clean["step size"] == pytest.approx(1.0)
+    step[150] = math.nan
+    bad = metrics.loop_metrics(t, step, y, out)
+    for name in ("step size", "rise time s", "settling time s (2 %)"):
+        assert math.isnan(bad[name]), name

@@ -70,11 +70,15 @@ METRICS: tuple[MetricInfo, ...] = (
                "Σ(t − t₀)·|e|·Ts from t₀ on, t₀ the setpoint step when the window holds "
                "exactly one setpoint change (spec 4.1: t from the set-point change), else the "
                "start of the window (regulatory, or a moving setpoint: a cascade secondary's)",
-               _INTEGRAL),
+               "the run has fewer than 2 scans (no scan period), or a sample from t₀ on is "
+               "NaN or infinite (a Bad value; the samples before t₀ are not in the sum)"),
     MetricInfo("mean |e|", "PV units", "mean absolute error over the window", _NONFINITE),
     MetricInfo("step size", "PV units", "the last setpoint step in the window: SP after it "
                "minus PV at it (Δr)",
-               "no setpoint change in the window (a regulatory window), or " + _NONFINITE),
+               "no setpoint change in the window (a regulatory window; a Bad setpoint "
+               "sample is no change), the change is on the window's last scan (no response "
+               "to measure), or a sample of SP or PV from the change on is NaN or infinite "
+               "(a Bad value; one before the change does not touch the response)"),
     MetricInfo("overshoot %", "% of the step", "how far the PV went beyond its final value "
                "y∞ (the mean of the last 5 % of the response), in % of |Δr|; 0 if never",
                "no step (step size n/a), or the response has not settled (see settling time)"),
@@ -447,6 +451,22 @@ def _signal_metrics(u: np.ndarray, threshold: float) -> tuple[np.ndarray, np.nda
     return np.where(finite, moves, math.nan), turns
 
 
+#: the tolerance of a window's bounds, in scan periods: scan k runs at t = k·dt, which rounds
+#: (0.8999999999999999 for the 4th scan at 0.3 s), and a bound written as 0.9 means that scan;
+#: the scenario counts a window's scans by the same rule (``scenario._window``)
+WINDOW_TOLERANCE = 1e-9
+
+
+def in_window(t: np.ndarray, window: tuple[float, float], ts: float) -> np.ndarray:
+    """The samples of ``t`` inside ``window`` = (t0, t1) s, both ends included, each end
+    widened by :data:`WINDOW_TOLERANCE` of the scan period ``ts`` (none when ``ts`` is not
+    finite: a one-sample run) and by the rounding of the bound itself."""
+    t0, t1 = (float(w) for w in window)
+    tol = (WINDOW_TOLERANCE * ts if math.isfinite(ts) else 0.0) \
+        + 4.0 * np.finfo(np.float64).eps * max(abs(t0), abs(t1))
+    return np.asarray((t >= t0 - tol) & (t <= t1 + tol))
+
+
 def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
                  position: np.ndarray | None = None,
                  window: tuple[float, float] | None = None,
@@ -479,7 +499,7 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     # window starting on a setpoint step held the step but lost its proportional kick)
     moving = [out, position, command]
     if window is not None:
-        keep = (t >= window[0]) & (t <= window[1])
+        keep = in_window(t, window, ts)
         if not keep.any():
             raise ValueError(f"window {window} s holds no sample of the run "
                              f"({t[0]:g}..{t[-1]:g} s)")
@@ -492,11 +512,17 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     e = sp - pv
     ae = np.abs(e)
     # changed[:, j]: the setpoint of scan j differs from the scan before it (the window's
-    # first scan against the one before the window)
-    changed = np.diff(np.concatenate([before, sp], axis=1), axis=1) != 0.0
+    # first scan against the one before the window); a Bad (non-finite) setpoint sample is
+    # no change: going Bad and back is not a step
+    both = np.concatenate([before, sp], axis=1)
+    finite_sp = np.isfinite(both)
+    with np.errstate(invalid="ignore"):
+        changed = (np.diff(both, axis=1) != 0.0) & finite_sp[:, 1:] & finite_sp[:, :-1]
     has_change = changed.any(axis=1)
     start = np.where(has_change, n - 1 - changed[:, ::-1].argmax(axis=1), 0)
-    size, over, rise, settle, decay = _step_rows(t, pv, sp[:, -1], start)
+    # the response needs SP and PV from the step on: a Bad setpoint sample there is one too
+    size, over, rise, settle, decay = _step_rows(
+        t, np.where(np.isfinite(sp), pv, math.nan), sp[:, -1], start)
     # ITAE's t from the setpoint step (spec 4.1) when the window holds one change, else from
     # the window's start (regulatory, or a setpoint that moves: a cascade secondary's changes
     # every scan, and its last change is no step to weigh from)

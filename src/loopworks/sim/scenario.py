@@ -45,6 +45,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
 from loopworks.blocks.controller import Controller
 from loopworks.errors import FileFormatError, LoopworksError
+from loopworks.sim.metrics import WINDOW_TOLERANCE
 from loopworks.sim.module import Event, Module, check_record_size, scan_count
 
 DEFAULT_SCENARIO = "default.toml"
@@ -308,7 +309,8 @@ def _window(sim: _Simulation, n: int, source: str) -> tuple[float, float] | None
     if t0 < 0.0 or t1 > sim.duration:
         raise FileFormatError(f"{where} s is outside the run: expected 0 <= t0 < t1 <= "
                               f"duration = {sim.duration:g} s")
-    k0, k1 = math.ceil(t0 / sim.dt - 1e-9), min(math.floor(t1 / sim.dt + 1e-9), n - 1)
+    tol = WINDOW_TOLERANCE  # the metrics' rule (loopworks.sim.metrics.in_window)
+    k0, k1 = math.ceil(t0 / sim.dt - tol), min(math.floor(t1 / sim.dt + tol), n - 1)
     if k1 - k0 + 1 < 2:
         raise FileFormatError(f"{where} s holds {max(k1 - k0 + 1, 0)} scan(s) of the run "
                               f"(scans at 0, {sim.dt:g}, ..., {end:g} s): it must hold at "
