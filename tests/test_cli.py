@@ -690,6 +690,7 @@ def test_convert_json_gives_the_stated_errors_as_data() -> None:
     assert omegas == [1 / 16, 1 / 2]  # 1/Ti, 1/Td
     for entry in data["response_errors"]:
         assert f"{entry['error']:.3g} at ω" in data["note"]
+    assert data["unmodelled"] == []  # the figures hold every difference of the two laws
     exact = CliRunner().invoke(app, ["convert", "--from", "pid", "--to", "ge.pid_isa", "-p",
                                      "k=2", "-p", "ti=16", "-t",
                                      "arithmetic=float", "--json"])

@@ -462,7 +462,8 @@ def convert(
     if as_json:
         data = {**dict(result.params), "exact": result.exact, "note": result.note,
                 "response_errors": [{"omega": w, "error": e}
-                                    for w, e in result.response_errors]}
+                                    for w, e in result.response_errors],
+                "unmodelled": list(result.unmodelled)}
         typer.echo(json.dumps(_json_safe(data), indent=2))
         return
     for key, value in result.params.items():

@@ -467,3 +467,43 @@ def test_a_target_at_another_sample_time_is_not_told_two_things() -> None:
     assert "fixed to Δ = 2 s (run the target at that Δ); at the 1 s asked for" in out.note
     same = convert("e2.pid", {"update_interval": 2.0, "ki": 0.1}, "pid", sample_time=2.0)
     assert "Run the target at Δ = 2 s." in same.note
+
+
+def test_a_p_only_e2_keeps_the_sample_time_it_ran_at() -> None:
+    """convert(): sample_time is the E2's update interval when it is not given. A P-only E2
+    converted to itself kept the block's 2 s default (the laws compared equal: no I or D
+    term), and its output was held four times as long; outputs held over other intervals
+    are not the same law (found by an outside audit)."""
+    src = {"throttling_range": 40.0, "kp": 2.0, "ki": 0.0, "kd": 0.0,
+           "min_accumulated_error": 0.0}
+    c = convert("e2.pid", src, "e2.pid", sample_time=0.5)
+    assert c.exact and c.params["update_interval"] == 0.5
+    held = convert("e2.pid", {**src, "update_interval": 2.0}, "pid", sample_time=0.5,
+                   target={"form": "ideal"})
+    assert not held.exact and "every 2 s" in held.note
+
+
+def test_a_ge_sample_period_shorter_than_the_scan_is_the_scans_law() -> None:
+    """Spec vendor-blocks 1.7 step 3: the GE block measures dt; with a Sample Period of 0.5 s
+    on 1 s scans it runs every scan, at 1 s: the same law as the pid at 1 s (it was called
+    inexact, with a response error, while the outputs agreed to 1e-14)."""
+    c = convert("ge.pid_ind", {"kp": 2.0, "ki": 0.125, "sample_period": 0.5}, "pid",
+                sample_time=1.0)
+    assert c.exact and c.response_errors == ()
+    slower = convert("ge.pid_ind", {"kp": 2.0, "ki": 0.125, "sample_period": 2.0}, "pid",
+                     sample_time=1.0)
+    assert not slower.exact
+
+
+def test_what_the_response_errors_leave_out_is_named() -> None:
+    """docs/conversion.md: ``unmodelled`` names what ``response_errors`` do not hold: an
+    option outside the linear laws (a GE dead band: its stated error 0 while it moved the
+    output 11 times as far), or the discretisation when no sample time is known."""
+    band = convert("ge.pid_ind", {"kp": 2.0, "ki": 0.1, "deadband_pos": 50,
+                                  "deadband_neg": -50}, "pid", sample_time=1.0)
+    assert not band.exact and any("dead band" in u for u in band.unmodelled)
+    late = convert("pid", {"k": 2.0, "ti": 16.0}, "deltav.pid")
+    assert not late.exact and any("no sample time" in u for u in late.unmodelled)
+    timed = convert("pid", {"k": 2.0, "ti": 16.0}, "deltav.pid", sample_time=1.0)
+    assert timed.unmodelled == () and timed.response_errors[0][1] > 0.0
+    assert convert("pid", {"k": 2.0, "ti": 16.0}, "ge.pid_ind").unmodelled == ()

@@ -201,3 +201,26 @@ def test_an_inexact_conversion_states_the_kernels_error(src: str, tgt: str,
         measured = abs(ct - cs) / abs(cs)
         assert measured == pytest.approx(stated, rel=1e-3), (w, conv.note)
         assert measured > 1e-4  # the error is real, not a rounding residue
+
+
+@pytest.mark.parametrize("tgt", KINDS)
+def test_an_inverted_ge_output_is_converted_with_its_sign(tgt: str) -> None:
+    """Spec vendor-blocks 1.3, Config Word bit 1: CV = -Output after the clamp. From error
+    to CV that is the other action, and the conversion takes it so: the target moves as the
+    inverted GE block does (identically where the pair is exact). It was read as a setting
+    "not converted", the pair still called exact, and the target's moves had the opposite
+    sign (found by an outside audit)."""
+    rng = np.random.default_rng(13)
+    dt = 1.0
+    law = Ideal(1.2, 20.0, 0.0, 0.0, False)
+    params = {**source_params("ge.pid_ind", law, dt), "invert_output": True,
+              "lower_clamp": -32000, "upper_clamp": 32000}
+    conv = convert("ge.pid_ind", params, tgt, sample_time=dt, target=TARGET.get(tgt, {}))
+    assert conv.ideal.direct  # reverse acting, inverted: direct from error to CV
+    sp, pv = random_walk(rng, 300)
+    a = run("ge.pid_ind", params, sp, pv, dt)
+    b = run(tgt, conv.params, sp, pv, dt)
+    moves_a, moves_b = np.diff(a[WARM + SKIP:]), np.diff(b[WARM + SKIP:])
+    assert float(np.dot(moves_a, moves_b)) > 0.9 * float(np.dot(moves_a, moves_a))
+    if conv.exact:
+        assert np.abs(moves_a - moves_b).max() <= 1e-9, conv.note

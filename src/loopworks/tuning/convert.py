@@ -83,6 +83,11 @@ class Conversion:
     #: where not exact, the stated controller frequency-response errors as data:
     #: (ω rad/s, |C_t(jω) - C_s(jω)|/|C_s(jω)|) at ω = 1/Ti and 1/Td (the note's figures)
     response_errors: tuple[tuple[float, float], ...] = ()
+    #: the options of either side outside the two linear laws (a dead band, E2's Minimum
+    #: Accumulated Error, a filter cell): their effect is not in ``response_errors``, which
+    #: compare the linear laws only (a dead band of ±50 counts, stated 0, moved the output
+    #: 11 times as far at ω = 1/Ti; found by an outside audit)
+    unmodelled: tuple[str, ...] = ()
 
 
 # ----------------------------------------------------------------------------------------------
@@ -219,12 +224,18 @@ def _compare(src: DiscreteLaw, tgt: DiscreteLaw) -> tuple[bool, list[str]]:
                    f"|1/(1+jωTf_t) - 1/(1+jωTf_s)| is {e:.3g} at ω = 1/Td = {w:.4g} rad/s "
                    f"(≤ ω·|ΔTf| = {w * abs(s.tf - t.tf):.3g}).")
     dt = src.dt if src.dt is not None else tgt.dt
-    if src.dt is not None and tgt.dt is not None and _rel(src.dt, tgt.dt) > TOL \
-            and (has_i or has_d):
-        why.append(f"The source runs at Δ = {src.dt:g} s, the target at {tgt.dt:g} s: each "
-                   "rectangular integral differs from 1/s by (ωΔ/2)/sin(ωΔ/2) in magnitude "
-                   f"and ωΔ/2 in phase ({_rect(s.ti, src.dt)} vs {_rect(s.ti, tgt.dt)} at "
-                   "ω = 1/Ti), and the backward differences likewise.")
+    if src.dt is not None and tgt.dt is not None and _rel(src.dt, tgt.dt) > TOL:
+        if has_i or has_d:
+            why.append(f"The source runs at Δ = {src.dt:g} s, the target at {tgt.dt:g} s: "
+                       "each rectangular integral differs from 1/s by (ωΔ/2)/sin(ωΔ/2) in "
+                       f"magnitude and ωΔ/2 in phase ({_rect(s.ti, src.dt)} vs "
+                       f"{_rect(s.ti, tgt.dt)} at ω = 1/Ti), and the backward differences "
+                       "likewise.")
+        else:  # P only: the same gain, but its output held over other intervals
+            why.append(f"The source updates its output every {src.dt:g} s, the target every "
+                       f"{tgt.dt:g} s: the same proportional gain, its output held over "
+                       "different intervals (a P-only E2 kept its 2 s default where the source "
+                       "ran at the sample time given, and was called exact).")
     if has_i and src.integral != tgt.integral:
         bound = f"≤ Δ/Ti = {dt / s.ti:.3g}" if dt is not None and s.ti < math.inf \
             else "≤ Δ/Ti (give sample_time for a number)"
@@ -371,6 +382,12 @@ class _Read(dict[str, Any]):
         return super().__getitem__(key)
 
 
+#: what ``response_errors`` leave out when no sample time is known (``Conversion.unmodelled``)
+CONTINUOUS = ("the discretisation: no sample time was given, so the responses are compared in "
+              "continuous time, where an integral one sample late or a forward against a "
+              "backward Euler sum does not show (give sample_time)")
+
+
 def _from_law(kind: str, law: DiscreteLaw, dt: float | None, ctx: dict[str, Any], *,
               strict: bool = False) -> Conversion:
     """The ``kind`` block realising ``law``; ``strict``: every name of ``ctx`` must be a target
@@ -402,8 +419,11 @@ def _from_law(kind: str, law: DiscreteLaw, dt: float | None, ctx: dict[str, Any]
     errors = () if exact else tuple(
         (w, e) for _, w, e in _response_errors(law, tgt, law.dt if law.dt is not None
                                                 else tgt.dt) if w is not None)
+    unmodelled = (*law.flags, *tgt.flags)
+    if errors and law.dt is None and tgt.dt is None:
+        unmodelled += (CONTINUOUS,)
     return Conversion(params=made.params, exact=exact, note=_note(notes + why, exact),
-                      ideal=law.ideal, response_errors=errors)
+                      ideal=law.ideal, response_errors=errors, unmodelled=unmodelled)
 
 
 @_computable

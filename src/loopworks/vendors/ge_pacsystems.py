@@ -852,8 +852,9 @@ class GEPIDBlock(Controller, Block):
     LAW_CONTEXT: ClassVar[tuple[str, ...]] = ("pv_span", "cv_span", "word6", "word7", "word8")
     #: the parameters the law reads besides the gains (each form adds its three)
     LAW_PARAMS: ClassVar[tuple[str, ...]] = (
-        "direct_acting", "derivative_on_pv", "derivative_filter", "derivative_filter_time",
-        "config_word", "sample_period", "arithmetic", "deadband_pos", "deadband_neg")
+        "direct_acting", "invert_output", "derivative_on_pv", "derivative_filter",
+        "derivative_filter_time", "config_word", "sample_period", "arithmetic", "deadband_pos",
+        "deadband_neg")
 
     #: context ``pv_span``, ``cv_span``: counts of 100 % (default 32000, 32000)
     SPANS: ClassVar[tuple[tuple[str, float], tuple[str, float]]] = (
@@ -952,7 +953,21 @@ class GEPIDBlock(Controller, Block):
                          "does not have (not converted).")
         period = float(prm["sample_period"])
         law_dt = max(period, 0.01) if period > 0.0 else dt
-        ideal = Ideal(kp * pv_span / cv_span, ti, td, tf, bits["direct_acting"])
+        if dt is not None and 0.0 < period <= dt:
+            # a Sample Period no longer than the scan: the block runs every scan, on the
+            # measured dt (spec 1.7 step 3), the same law as the loop's sample time gives
+            law_dt = dt
+        direct = bits["direct_acting"]
+        if bits["invert_output"]:
+            # CV = -Output after the clamp (spec 1.3, bit 1): from error to CV the law acts
+            # the other way (it was read as not converted, and the target's output had the
+            # opposite sign while the conversion was called exact; found by an outside audit)
+            direct = not direct
+            notes.append("invert_output (Config Word bit 1): CV = -Output after the clamp, "
+                         "so from error to CV the law is "
+                         + ("direct" if direct else "reverse") + " acting, and is converted "
+                         "so; the clamps and CV_Bias act before the inversion (not converted).")
+        ideal = Ideal(kp * pv_span / cv_span, ti, td, tf, direct)
         return DiscreteLaw(ideal, b=1.0, c=0.0 if bits["derivative_on_pv"] else 1.0,
                            dt=law_dt, derivative=derivative, words=native, flags=tuple(flags),
                            notes=tuple(notes))
