@@ -274,6 +274,11 @@ def test_replay_continues_from_block_state(tmp_path: Path) -> None:
     ("t,sp,pv\n0,1,2\n0,1,2\n", "does not increase"),
     ("dt,sp,pv\n0.1,1,2\n-0.1,1,2\n", "dt must be > 0"),
     ("t,sp,pv,pv.ST\n0,1,2,128\n1,1,2,300\n", "status byte"),
+    # a status without its value would run the block on a value the file does not give
+    ("t,sp,pv.ST\n0,1,128\n1,1,128\n", "no column 'pv' for its value"),
+    # a mode code out of range: what is allowed, not "not a number" (found by an audit)
+    ("t,sp,pv,mode\n0,1,2,3\n", "line 2, column 'mode': '3' is not one of MAN, AUTO, CAS "
+     "or their codes 0..2"),
 ])
 def test_api_errors_are_file_format_errors(tmp_path: Path, text: str, needle: str) -> None:
     path = tmp_path / "bad.csv"
@@ -435,3 +440,40 @@ def test_an_unclosed_quote_in_the_header_is_one_located_line(tmp_path: Path) -> 
     message = str(err.value)
     assert "\n" not in message
     assert f"{path}, line 1: column 2 ('sp,pv...') opens a quote" in message
+
+
+def test_a_scan_time_the_block_cannot_run_is_located_before_any_output(tmp_path: Path) -> None:
+    """A file's scan time that the block refuses (a dead time longer than its delay line at
+    1 ms) names the file, the data row and its time, and nothing is written: the message
+    named neither, after the output's header had gone out (found by an outside audit)."""
+    text = "t,u\n0,1\n0.1,1\n0.2,1\n0.3,1\n0.4,1\n0.5,1\n0.501,1\n0.6,1\n"
+    path = tmp_path / "short_dt.csv"
+    path.write_text(text, encoding="utf-8")
+    out = io.StringIO()
+    fopdt = create_block("process.fopdt", gain=1.0, time_constant=5.0, dead_time=2.0,
+                         delay_capacity=1000)
+    with pytest.raises(FileFormatError) as info:
+        replay(fopdt, path, out)
+    assert str(info.value).startswith(f"{path}, data row 7 (t = 0.501 s, a scan of 0.001 s)")
+    assert "delay_capacity" in str(info.value)
+    assert out.getvalue() == ""
+
+
+def test_an_error_after_rows_went_to_stdout_says_the_output_is_incomplete(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A stream cannot be taken back: a bad cell found after the first rows went to standard
+    output (a file of more than one chunk) says how many were written and that the output is
+    incomplete. Before, the rows written ended on a line that looked like a whole file's
+    last, and only the exit status told (found by an outside audit)."""
+    rows = ["t,sp,pv"] + [f"{i * 0.1:.1f},50,{40 + (i % 7)}" for i in range(100_000)]
+    rows[70_001] = rows[70_001].replace(",50,", ",bogus,")
+    path = tmp_path / "partial.csv"
+    path.write_text("\n".join(rows) + "\n", encoding="utf-8")
+    with pytest.raises(FileFormatError) as info:
+        replay(pid(), path, None)
+    written = capsys.readouterr().out.splitlines()
+    message = str(info.value)
+    assert message.startswith(f"{path}, line 70002, column 'sp': 'bogus' is not a number")
+    assert f"({len(written) - 1} rows were already written to standard output: that output " \
+           "is incomplete)" in message
+    assert len(written) > 1  # the case this is about: rows had gone out

@@ -152,12 +152,18 @@ class Port:
     status: bool = False
     choices: tuple[str, ...] = ()
 
+    @property
+    def expected(self) -> str:
+        """What a value of this port is, for an error message: a number, or one of the
+        enumerated port's names or their codes."""
+        return (f"one of {', '.join(self.choices)} or their codes 0..{len(self.choices) - 1}"
+                if self.choices else "a number")
+
     def parse(self, value: Any) -> float:
         """A float for this port; an enumerated port takes its names (any case) or codes, or a
         value that is not a number (NaN, ±inf: no value, which the block treats as a Bad input,
         as it does the same value with a status)."""
-        expected = (f"one of {', '.join(self.choices)} or their codes 0..{len(self.choices) - 1}"
-                    if self.choices else "a number")
+        expected = self.expected
         if isinstance(value, str):
             text = value.strip()
             if self.choices and text.upper() in self.choices:

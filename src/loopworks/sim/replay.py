@@ -46,7 +46,7 @@ import numpy as np
 
 from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import FloatArray, IntArray, jit_enabled, run_rows
-from loopworks.errors import FileFormatError, InputError
+from loopworks.errors import FileFormatError, InputError, LoopworksError
 
 #: Files of at least this many bytes are read in bulk and written by the compiled formatter.
 BULK_MIN_BYTES = 1 << 16
@@ -101,6 +101,13 @@ def _columns(block: Block, header: list[str], source: str) -> tuple[dict[int, tu
             raise FileFormatError(f"{source}, line 1: unknown column '{name}' for {block.kind}; "
                                   f"valid columns: {', '.join(valid)}"
                                   + _NOT_UTF8 * (_BAD_BYTE in name))
+    valued = {i for what, i in mapping.values() if what == "u"}
+    for pos, (what, i) in mapping.items():
+        if what == "s" and i not in valued:  # the block would run on a value never given
+            name = block.INPUTS[i].name
+            raise FileFormatError(f"{source}, line 1: column '{header[pos].strip()}' is the "
+                                  f"status of input '{name}', and the file has no column "
+                                  f"'{name}' for its value: give both")
     return mapping, t_col, dt_col
 
 
@@ -253,8 +260,6 @@ def _replay_chunks(block: Block, chunks: Iterator[_Chunk], lay: _Layout, clock: 
         sink = _Sink(out_fh, _binary_under(out_fh, opener, output), bulk)
         try:
             st_out = [p for p in block.OUTPUTS if p.status]
-            sink.header(["t", *(p.name for p in block.OUTPUTS),
-                         *(f"{p.name}.ST" for p in st_out)])
             st_idx = [block._out_index[p.name] for p in st_out]
             rows = 0
             t_first = t_last = math.nan
@@ -262,9 +267,24 @@ def _replay_chunks(block: Block, chunks: Iterator[_Chunk], lay: _Layout, clock: 
             # interpreted: loading compiled code (numba's start-up) would cost more than it saves
             jit = block.jit and not (first_chunk.n < INTERPRET_BELOW_ROWS
                                      and _is_last(first_chunk, chunk_rows))
-            for part in itertools.chain([first_chunk], chunks):
-                Y, YS = _run(block, part, clock, lay.source, first=rows == 0, jit=jit)
-                if rows == 0:
+            parts = itertools.chain([first_chunk], chunks)
+            while True:
+                try:
+                    part = next(parts, None)
+                    if part is None:
+                        break
+                    Y, YS = _run(block, part, clock, lay.source, first=rows == 0, jit=jit,
+                                 row0=rows)
+                except LoopworksError as exc:
+                    if rows and output is None:  # a stream cannot be taken back: say so
+                        raise type(exc)(f"{exc} ({rows} rows were already written to "
+                                        "standard output: that output is incomplete)"
+                                        ) from None
+                    raise
+                if rows == 0:  # the header once the first rows ran: an error before them
+                    # leaves the output empty
+                    sink.header(["t", *(p.name for p in block.OUTPUTS),
+                                 *(f"{p.name}.ST" for p in st_out)])
                     t_first = float(part.ts[0])
                 t_last = float(part.ts[-1])
                 rows += part.n
@@ -284,9 +304,10 @@ def _is_last(part: _Chunk, chunk_rows: int) -> bool:
 
 
 def _run(block: Block, part: _Chunk, clock: int | None, source: str,
-         first: bool, jit: bool) -> tuple[FloatArray, IntArray]:
+         first: bool, jit: bool, row0: int = 0) -> tuple[FloatArray, IntArray]:
     """Run one chunk of rows through ``block`` (compiled when ``jit``); its outputs, row by
-    row."""
+    row. ``row0``: the data rows before the chunk (a scan time the block cannot run at is
+    named by its data row and time)."""
     n = part.n
     U, US = _inputs(block, part, clock)
     dts = part.dts
@@ -296,7 +317,12 @@ def _run(block: Block, part: _Chunk, clock: int | None, source: str,
                                   "no scan time: add rows, or use a 'dt' column")
         dts[0] = dts[1]
     for step in dts[:1] if (dts == dts[0]).all() else np.unique(dts):  # in ascending order
-        block.check_dt(float(step))
+        try:
+            block.check_dt(float(step))
+        except LoopworksError as exc:  # located: the first row that runs at that scan time
+            i = int(np.flatnonzero(dts == step)[0])
+            raise FileFormatError(f"{source}, data row {row0 + i + 1} (t = {part.ts[i]:.15g} "
+                                  f"s, a scan of {step:.6g} s): {exc}") from None
     Y = np.empty((n, len(block.OUTPUTS)))
     YS = np.empty((n, len(block.OUTPUTS)), dtype=np.int64)
     Y[0] = block.y
@@ -370,10 +396,8 @@ def _parse_rows(numbered: list[tuple[int, list[str]]], lay: _Layout, clock: _Clo
                 try:
                     values[i][r] = block.INPUTS[i].parse(cell)
                 except ValueError:
-                    exp = "a number"
-                    if block.INPUTS[i].choices:
-                        exp += " or one of " + ", ".join(block.INPUTS[i].choices)
-                    raise _cell_error(source, line, header, pos, cell, exp) from None
+                    raise _cell_error(source, line, header, pos, cell,
+                                      block.INPUTS[i].expected) from None
             else:
                 try:
                     stats[i][r] = _status_byte(cell)
