@@ -324,9 +324,10 @@ def test_settings_beyond_double_precision_are_refused_with_the_values() -> None:
     with pytest.raises(ParameterError, match=r"'word7' = inf is out of range: allowed "
                                              r"0..32767 \(integer word\)"):
         convert("pid", {"k": 1.0, "td": 1e308}, "ge.pid_isa", sample_time=1.0)
-    with pytest.raises(ParameterError, match=r"beyond what the conversion can compute .*"
-                                             r"sample_time = 1e\+308"):
-        convert("deltav.pid", {"rate": 0.5}, "s5.pid", sample_time=1e308)
+    # a sample time of 1e308 s: 1/Td lies far above the Nyquist frequency π/Δ, where a
+    # discrete response is an alias, so no error is stated (it overflowed there before)
+    slow = convert("deltav.pid", {"rate": 0.5}, "s5.pid", sample_time=1e308)
+    assert not slow.exact and slow.response_errors == () and "Nyquist" in slow.note
     with pytest.raises(ParameterError, match=r"beyond what the conversion can compute .*"
                                              r"sample_time = 1e-320"):
         convert("e2.pid", {}, "e2.pid", sample_time=1e-320)
@@ -507,3 +508,12 @@ def test_what_the_response_errors_leave_out_is_named() -> None:
     timed = convert("pid", {"k": 2.0, "ti": 16.0}, "deltav.pid", sample_time=1.0)
     assert timed.unmodelled == () and timed.response_errors[0][1] > 0.0
     assert convert("pid", {"k": 2.0, "ti": 16.0}, "ge.pid_ind").unmodelled == ()
+
+
+def test_no_response_error_is_stated_above_the_nyquist_frequency() -> None:
+    """A discrete response at ω above π/Δ is an alias of a lower one: a pid with Td = 0.1 s
+    at Δ = 1 s had its error stated at ω = 1/Td = 10 rad/s (found by an outside audit).
+    Only ω = 1/Ti = 1/16 rad/s is stated."""
+    c = convert("pid", {"k": 2.0, "ti": 16.0, "td": 0.1, "tf": 0.0}, "deltav.pid",
+                sample_time=1.0)
+    assert not c.exact and [w for w, _ in c.response_errors] == [1.0 / 16.0]

@@ -270,8 +270,10 @@ def _compare(src: DiscreteLaw, tgt: DiscreteLaw) -> tuple[bool, list[str]]:
                   "band, a feedback path the linear law does not hold) are not in it, and "
                   "their effect is not bounded here." if src.flags or tgt.flags else "")
     why.append("Controller frequency-response error |C_t - C_s|/|C_s| "
-               f"({where}): " + ("; ".join(text) if text else "not computable in double "
-                                 "precision at these settings") + "." + unmodelled)
+               f"({where}): " + ("; ".join(text) if text else "not stated: neither "
+                                 "ω = 1/Ti nor ω = 1/Td lies below the Nyquist frequency π/Δ, "
+                                 "or the responses are not computable in double precision at "
+                                 "these settings") + "." + unmodelled)
     return False, why
 
 
@@ -281,13 +283,17 @@ def _response_errors(src: DiscreteLaw, tgt: DiscreteLaw, dt: float | None
     discrete at its own Δ, else at ``dt``); with neither, the P-only error (ω None)."""
     s = src.ideal
     found: list[tuple[str, float | None, float]] = []
+    steps = [x for x in (src.dt, tgt.dt, dt) if x is not None]
+    nyquist = math.pi / max(steps) if steps else math.inf
     for label, w in (("1/Ti", 1.0 / s.ti if s.ti < math.inf else 0.0),
                      ("1/Td", 1.0 / s.td if s.td > 0.0 else 0.0)):
-        if 0.0 < w < math.inf:  # (a subnormal Td: 1/Td overflows, no frequency to state)
+        # (a subnormal Td: 1/Td overflows, no frequency to state; above the Nyquist
+        # frequency π/Δ a discrete response is an alias of a lower one: none either)
+        if 0.0 < w < math.inf and w < nyquist:
             cs = _response(src, w, src.dt if src.dt is not None else dt)
             ct = _response(tgt, w, tgt.dt if tgt.dt is not None else dt)
             found.append((label, w, abs(ct - cs) / abs(cs)))
-    if not found:
+    if not found and s.ti == math.inf and s.td == 0.0:  # P only: the same at every ω
         cs, ct = _response(src, 1.0, None), _response(tgt, 1.0, None)
         found.append(("", None, abs(ct - cs) / abs(cs)))
     # a response of subnormal times (Δ, Ti of 1e-320 s) can be 0/0: no figure, not a NaN
