@@ -767,6 +767,29 @@ def test_replay_reads_a_pipe(tmp_path: Path) -> None:
                                             "1.0,0.5,0.5,0.0,0.0,128"]  # P = k·e, k = 1
 
 
+def test_replay_takes_a_dash_for_standard_input_and_output(tmp_path: Path) -> None:
+    """README, "Replay CSV": `-` reads standard input and `-o -` writes standard output (it
+    wrote a file named "-", and `-` as the input was "cannot read the input"); an `-o` name
+    of another format (`.parquet`) is refused (CSV text was written into it silently; found
+    by an outside audit)."""
+    runner = CliRunner()
+    text = "t,sp,pv\n0,1,0\n1,1,0.5\n"
+    done = runner.invoke(app, ["replay", "pid", "-", "-o", "-"], input=text)
+    assert done.exit_code == 0, done.output
+    assert done.stdout.splitlines()[1:] == ["0.0,1.0,1.0,0.0,0.0,128",
+                                            "1.0,0.5,0.5,0.0,0.0,128"]  # P = k·e, k = 1
+    assert not (Path.cwd() / "-").exists()
+    path = tmp_path / "in.csv"
+    path.write_text(text, encoding="utf-8")
+    refused = runner.invoke(app, ["replay", "pid", str(path), "-o", str(tmp_path / "o.parquet")])
+    assert refused.exit_code != 0 and "replay writes CSV text" in refused.output
+    assert not (tmp_path / "o.parquet").exists()
+    (tmp_path / "one.csv").write_text("sp,pv\n1,0\n", encoding="utf-8")
+    one = runner.invoke(app, ["replay", "pid", "--dt", "1", str(tmp_path / "one.csv"), "-o",
+                              str(tmp_path / "out.csv")])
+    assert one.exit_code == 0 and "replayed 1 row " in one.output, one.output
+
+
 def test_a_warning_is_one_line() -> None:
     """README: a cache that cannot be written gives one warning line; Python's format gave the
     file, line and source line too (found by a user)."""

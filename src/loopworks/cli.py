@@ -269,6 +269,11 @@ def replay(
     from loopworks.sim.replay import replay as run_replay
 
     cls = block_class(kind)
+    if output is not None and str(output) == "-":
+        output = None  # the usual spelling of standard output
+    if output is not None and output.suffix.lower() not in ("", ".csv", ".txt", ".dat"):
+        _fail(f"-o {output}: replay writes CSV text; name the output .csv (or leave -o out "
+              "for standard output)")
     if output is not None and output.exists() and input_csv.exists() \
             and output.resolve() == input_csv.resolve():
         _fail(f"-o {output}: is the input file: the replay would overwrite the record it "
@@ -304,7 +309,8 @@ def replay(
 
             summary = run_replay(block, input_csv, output, dt=dt, progress=tick)
     if output is not None:
-        typer.echo(f"replayed {summary.rows} rows (t = {summary.t_start:g}..{summary.t_end:g} s) "
+        rows = f"{summary.rows} row" + "s" * (summary.rows != 1)
+        typer.echo(f"replayed {rows} (t = {summary.t_start:g}..{summary.t_end:g} s) "
                    f"through {cls.kind}; wrote {output}", err=True)
 
 

@@ -477,3 +477,16 @@ def test_an_error_after_rows_went_to_stdout_says_the_output_is_incomplete(
     assert f"({len(written) - 1} rows were already written to standard output: that output " \
            "is incomplete)" in message
     assert len(written) > 1  # the case this is about: rows had gone out
+
+
+@pytest.mark.parametrize("rows", [12, 12_000])  # row by row, and in bulk (64 KiB and more)
+def test_a_dt_argument_puts_row_k_at_k_dt(tmp_path: Path, rows: int) -> None:
+    """README, "Replay CSV": with --dt row k is at t = k·dt, as a module's scans are. A
+    running sum wrote 0.7999999999999999 for the 9th row at 0.1 s and drifted further on
+    (3.900000000000002; found by an outside audit)."""
+    path = write_csv(tmp_path / "in.csv", ["sp", "pv"], [[1, 0.5]] * rows)
+    out = io.StringIO()
+    replay(pid(), path, out, dt=0.1)
+    ts = [line.split(",")[0] for line in out.getvalue().splitlines()[1:]]
+    assert ts == [repr(k * 0.1) for k in range(rows)]
+    assert ts[8] == "0.8"

@@ -175,9 +175,10 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
            progress: Callable[[int], None] | None = None) -> ReplaySummary:
     """Run the rows of ``input_path`` through ``block`` and write the outputs as CSV.
 
-    ``output`` is a path, an open text file, or None for standard output.
+    ``input_path`` ``"-"`` is standard input. ``output`` is a path, an open text file, or
+    None for standard output.
     """
-    source = str(input_path)
+    source = "<stdin>" if str(input_path) == "-" else str(input_path)
     if dt is not None and not 0.0 < dt < math.inf:
         raise InputError(f"--dt = {dt!r} s is not allowed: dt must be > 0 and finite")
     with _open_input(input_path, source) as raw:
@@ -206,6 +207,8 @@ def replay(block: Block, input_path: str | Path, output: str | Path | TextIO | N
 def _open_input(input_path: str | Path, source: str) -> BinaryIO:
     """The input file, opened for reading bytes; a pipe (``/dev/stdin``, a FIFO), which the
     reader cannot rewind, is read into memory first."""
+    if str(input_path) == "-":  # standard input: read whole, as any pipe
+        return io.BytesIO(sys.stdin.buffer.read())
     try:
         fh = open(input_path, "rb")  # noqa: SIM115 - the caller closes it
         if fh.seekable():
@@ -421,7 +424,10 @@ def _parse_rows(numbered: list[tuple[int, list[str]]], lay: _Layout, clock: _Clo
                                           "is not allowed: dt must be > 0")
             else:
                 step = float(lay.dt or 0.0)
-            clock.t_clock = clock.t_clock + step if clock.rows + r > 0 else 0.0
+            if lay.dt_col is None:  # --dt: row k at k·dt, as a module's scans (no drift)
+                clock.t_clock = (clock.rows + r) * step
+            else:
+                clock.t_clock = clock.t_clock + step if clock.rows + r > 0 else 0.0
             if not math.isfinite(clock.t_clock):
                 raise FileFormatError(f"{source}, line {line}: the accumulated time "
                                       "overflows: the dt values are too large")
@@ -647,8 +653,11 @@ def _bulk_times(n: int, columns: list[Any], lay: _Layout,
         steps = columns[lay.dt_col]
         if not (np.isfinite(steps) & (steps > 0.0)).all():
             return None
-    else:
+    else:  # --dt: row k at k·dt, as a module's scans (a running sum drifts: 0.7999999999999999)
         steps = np.full(n, float(lay.dt or 0.0))
+        with np.errstate(over="ignore"):
+            ts = (clock.rows + np.arange(n)) * steps
+        return (ts, steps) if np.isfinite(ts).all() else None
     acc = steps.copy()
     acc[0] = clock.t_clock + float(steps[0]) if clock.rows > 0 else 0.0
     with np.errstate(over="ignore"):
