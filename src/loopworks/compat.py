@@ -39,8 +39,9 @@ Where loopworks differs from simple-pid, on purpose (the generic pid's contract)
   map with derivative on error and a clock that stood still (dt = 1e-16) holds the output
   where simple-pid returns its 1e16-sized terms;
 * a sum that overflows is treated likewise instead of returning ±inf or NaN;
-* a ``time_fn`` that goes back gives dt = 1e-16, as one that stands still (simple-pid computes
-  with the negative dt);
+* a ``time_fn`` that goes back gives dt = 1e-16, as one that stands still, when there is no
+  ``sample_time`` (simple-pid computes with the negative dt; with a sample time both return
+  the last output);
 * the sums are the kernel's: results can differ from simple-pid's in the last bit or so
   (1e-15 relative; proportional on measurement 1e-15 of Kp·input).
 
@@ -77,6 +78,30 @@ def clamp_limits(value: float | None, limits: Limits) -> float | None:
     if lower is not None and value < lower:
         return lower
     return value
+
+
+#: the kernel's parameter names and this class's keywords, for the kernel's messages
+_KEYWORDS = {"tf": "derivative_filter", "tt": "tracking_time", "out_lo": "output_limits[0]",
+             "out_hi": "output_limits[1]", "antiwindup": "antiwindup"}
+
+
+def _ours(exc: ParameterError) -> ParameterError:
+    """The kernel's refusal in this class's words: its keywords for the kernel's names."""
+    text = str(exc)
+    for kernel, ours in _KEYWORDS.items():
+        text = text.replace(f"'{kernel}'", f"'{ours}'")
+    return ParameterError(text.replace("pid: ", "compat.PID: ", 1))
+
+
+def _kernel_limit(limit: float | None, side: float) -> float:
+    """An output limit as the kernel takes it: None, NaN (never compared true, so no limit
+    in simple-pid's clamp) and an infinite limit on its own side are no limit, the largest
+    float on that side (the kernel takes finite limits only: (0, inf) was refused where
+    simple-pid takes it; found by an outside audit)."""
+    if limit is None or math.isnan(float(limit)):
+        return side * _BIG
+    value = float(limit)
+    return side * _BIG if math.isinf(value) and value * side > 0 else value
 
 
 def _signs(kp: float, ki: float, kd: float) -> bool:
@@ -131,7 +156,10 @@ class PID:
             time_fn = time.monotonic
         self.time_fn = time_fn
         self._applied: tuple[Any, ...] | None = None
-        self._block = PIDBlock(jit=jit, **self._block_params())
+        try:
+            self._block = PIDBlock(jit=jit, **self._block_params())
+        except ParameterError as exc:
+            raise _ours(exc) from None
         self._applied = self._settings()
         self.output_limits = output_limits
         self.reset()
@@ -146,8 +174,7 @@ class PID:
 
     def _block_params(self) -> dict[str, Any]:
         direct = _signs(float(self.Kp), float(self.Ki), float(self.Kd))
-        lo = -_BIG if self._min_output is None else float(self._min_output)
-        hi = _BIG if self._max_output is None else float(self._max_output)
+        lo, hi = _kernel_limit(self._min_output, -1.0), _kernel_limit(self._max_output, 1.0)
         if lo == hi:  # simple-pid allows equal limits; the block needs lo < hi (clamped here)
             hi = math.nextafter(hi, math.inf)
         params: dict[str, Any] = {
@@ -162,10 +189,15 @@ class PID:
         return params
 
     def _apply(self) -> None:
-        """Give the block the attributes as they are now (a user may have set Kp, ...)."""
+        """Give the block the attributes as they are now (a user may have set Kp, ...); a
+        value the kernel refuses is named by this class's keyword (its message named the
+        kernel's: 'tf', 'tt', 'out_hi')."""
         settings = self._settings()
         if settings != self._applied:
-            self._block.set_params(**self._block_params())
+            try:
+                self._block.set_params(**self._block_params())
+            except ParameterError as exc:
+                raise _ours(exc) from None
             self._applied = settings
 
     # -- simple-pid's interface ----------------------------------------------------------
@@ -176,16 +208,19 @@ class PID:
         if not self.auto_mode:
             return self._last_output
         now = self.time_fn()
+        measured = dt is None
         if dt is None:
             assert self._last_time is not None
             dt = now - self._last_time
-            if not dt > 0.0:  # a clock that stood still or went back (simple-pid: if 0)
+            if dt == 0.0:  # a clock that stood still (simple-pid's 1e-16)
                 dt = 1e-16
         elif dt <= 0:
             raise ValueError(f"dt has negative value {dt}, must be positive")
         if (self.sample_time is not None and dt < self.sample_time
                 and self._last_output is not None):
-            return self._last_output
+            return self._last_output  # also a clock gone back, as simple-pid (dt < 0)
+        if measured and not dt > 0.0:  # gone back, no sample time (simple-pid: dt < 0)
+            dt = 1e-16
         error = self.setpoint - input_
         pv = float(input_)
         mapped = float(error if self.error_map is None else self.error_map(error))
@@ -243,10 +278,14 @@ class PID:
 
     @property
     def _integral(self) -> float:
-        """The integral term I (the kernel's state)."""
-        value = clamp_limits(float(self._block.x[X.i]), self.output_limits)
+        """The integral term I (the kernel's state; within the output limits, as simple-pid
+        keeps it, unless ``antiwindup = "none"``, where the kernel's integral is not)."""
+        raw = float(self._block.x[X.i])
+        if self.antiwindup == "none":  # not clipped to what it is not kept within
+            return raw
+        value = clamp_limits(raw, self.output_limits)
         assert value is not None
-        return value
+        return float(value)
 
     @_integral.setter
     def _integral(self, value: float | None) -> None:
@@ -297,8 +336,13 @@ class PID:
         min_output, max_output = limits
         if None not in limits and max_output < min_output:  # type: ignore[operator]
             raise ValueError("lower limit must be less than upper limit")
+        before = self._min_output, self._max_output
         self._min_output, self._max_output = min_output, max_output
-        self._apply()
+        try:
+            self._apply()
+        except ParameterError:  # refused: the controller keeps the limits it had
+            self._min_output, self._max_output = before
+            raise
         self._integral = clamp_limits(float(self._block.x[X.i]), self.output_limits)
         self._last_output = clamp_limits(self._last_output, self.output_limits)
 

@@ -225,3 +225,74 @@ def test_a_derivative_changed_between_calls_matches_simple_pid(change: str) -> N
             want = got
     assert got[0] == pytest.approx(want[0], rel=1e-12)
     assert got[1] == pytest.approx(want[1], rel=1e-12)
+
+
+class _Clock:
+    """A clock that moves only when told (both controllers read the same times)."""
+
+    def __init__(self) -> None:
+        self.t = 0.0
+
+    def __call__(self) -> float:
+        return self.t
+
+
+@pytest.mark.parametrize("limits", [(0.0, math.inf), (-math.inf, 1.5), (math.nan, 2.0),
+                                    (-math.inf, math.inf)])
+def test_infinite_or_nan_output_limits_are_no_limit_as_in_simple_pid(
+        limits: tuple[float, float]) -> None:
+    """simple-pid takes output_limits = (0, inf) (a NaN limit never clamps either); the
+    kernel needs finite limits and refused them, in the constructor and in the setter, and
+    a refused setter left the limits stored so every later call failed (found by an outside
+    audit). Outputs agree with simple-pid's call by call."""
+    ca, cb = _Clock(), _Clock()
+    a = simple_pid.PID(2.0, 1.0, 0.0, setpoint=1.0, sample_time=None, output_limits=limits,
+                       time_fn=ca)
+    b = PID(2.0, 1.0, 0.0, setpoint=1.0, sample_time=None, output_limits=limits, time_fn=cb)
+    for k, x in enumerate([0.0, 0.2, 0.5, 2.5, 3.0, 0.9]):
+        ca.t = cb.t = 0.1 * (k + 1)
+        assert b(x) == pytest.approx(a(x), rel=1e-12, abs=1e-15), (k, limits)
+
+
+def test_a_refused_limit_leaves_the_limits_as_they_were() -> None:
+    """A limit the kernel cannot take (equal ones beyond the largest float) is refused and
+    the controller keeps its limits and keeps working."""
+    pid = PID(1.0, 0.5, 0.0, setpoint=1.0, sample_time=None, output_limits=(-1.0, 1.0))
+    pid(0.0, dt=0.1)
+    with pytest.raises(ParameterError, match=r"compat\.PID"):
+        pid.output_limits = (math.inf, math.inf)
+    assert pid.output_limits == (-1.0, 1.0)
+    assert pid(0.0, dt=0.1) is not None
+
+
+def test_an_integral_not_kept_within_the_limits_is_shown_as_it_is() -> None:
+    """antiwindup = "none": the kernel's integral is not kept within the output limits;
+    components showed it clipped to them (as the int limit itself), 1 for an integral of 30
+    (found by an outside audit)."""
+    pid = PID(1.0, 10.0, 0.0, setpoint=10.0, sample_time=None, output_limits=(-1, 1),
+              antiwindup="none")
+    for _ in range(3):
+        pid(0.0, dt=0.1)
+    _, i_term, _ = pid.components
+    assert i_term == pytest.approx(30.0) and isinstance(i_term, float)  # 3 × Ki·e·dt = 3 × 10
+
+
+def test_refusals_name_this_classs_keywords() -> None:
+    """A value the kernel refuses is named by the keyword the user gave: 'tf', 'tt' were the
+    kernel's names (found by an outside audit)."""
+    with pytest.raises(ParameterError, match=r"compat.PID: parameter 'derivative_filter' = -1"):
+        PID(1.0, derivative_filter=-1)
+    with pytest.raises(ParameterError, match=r"'tracking_time' = 0"):
+        PID(1.0, 0.5, antiwindup="back_calculation", tracking_time=0)
+
+
+def test_a_clock_gone_back_with_a_sample_time_returns_the_last_output() -> None:
+    """simple-pid with a sample_time (even 0) returns the last output when its clock steps
+    back (dt < sample_time); this computed with dt = 1e-16 and gave a 1e14 derivative kick
+    (found by an outside audit). Without a sample time the documented difference stays."""
+    ca, cb = _Clock(), _Clock()
+    a = simple_pid.PID(1.0, 0.5, 0.1, setpoint=1.0, sample_time=0, time_fn=ca)
+    b = PID(1.0, 0.5, 0.1, setpoint=1.0, sample_time=0, time_fn=cb)
+    for t, x in [(0.1, 0.0), (0.2, 0.3), (0.19, 0.2), (0.3, 0.25)]:
+        ca.t = cb.t = t
+        assert b(x) == pytest.approx(a(x), rel=1e-12), t
