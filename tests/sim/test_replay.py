@@ -490,3 +490,16 @@ def test_a_dt_argument_puts_row_k_at_k_dt(tmp_path: Path, rows: int) -> None:
     ts = [line.split(",")[0] for line in out.getvalue().splitlines()[1:]]
     assert ts == [repr(k * 0.1) for k in range(rows)]
     assert ts[8] == "0.8"
+
+
+def test_the_first_row_at_a_refused_scan_time_is_the_one_named(tmp_path: Path) -> None:
+    """Of several scan times the block refuses, the file's first such row is named: the
+    smallest refused scan time was, wherever it lay (a process.tf at sample_time 0.5 s with
+    a 0.8 s interval on data row 4 and 0.3 s intervals later was named at a later row;
+    found by an outside audit)."""
+    t = [0.0, 0.5, 1.0, 1.8, 2.3, 2.6, 3.1, 3.4]  # intervals 0.5 0.5 0.8 0.5 0.3 0.5 0.3
+    path = write_csv(tmp_path / "tf.csv", ["t", "u"], [[x, 1.0] for x in t])
+    tf = create_block("process.tf", num=[1.0], den=[5.0, 1.0], sample_time=0.5)
+    with pytest.raises(FileFormatError) as info:
+        replay(tf, path, io.StringIO())
+    assert str(info.value).startswith(f"{path}, data row 4 (t = 1.8 s, a scan of 0.8 s)")

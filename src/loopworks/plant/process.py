@@ -106,11 +106,12 @@ back through the recorded durations until the new dt has filled the window (work
 
 ``delay_capacity`` is the number of past scans the line keeps (default 1000; memory: two
 floats per scan). It must cover the dead time: θ ≤ delay_capacity·dt. ``step()`` raises an
-InputError naming ``delay_capacity`` when a dt is too small for it. A module or replay runs
-the kernel directly: there a scan whose window reaches past the kept history (only once
-``delay_capacity`` scans have been recorded; until then the missing history is u0) is
-skipped: the plant and the line stay as they were and ``y`` keeps its value with status Bad:
-configuration error (4). ``process.tf`` knows its scan time, so it checks
+InputError naming ``delay_capacity`` when a dt is too small for it; a module refuses to run
+at such a dt, and a replay refuses a file that has one, naming its first such row. The
+kernel called directly (a plan, a live loop) skips a scan whose window reaches past the kept
+history (only once ``delay_capacity`` scans have been recorded; until then the missing
+history is u0): the plant and the line stay as they were and ``y`` keeps its value with
+status Bad: configuration error (4). ``process.tf`` knows its scan time, so it checks
 n (+1 when f > 0) ≤ ``delay_capacity`` at construction (ParameterError).
 
 Changing ``dead_time`` with ``set_params`` between scans is exact (the line holds the recorded
@@ -126,10 +127,11 @@ inside a kernel, and a module or replay calls the kernel directly. So ``process.
 scan time as the parameter ``sample_time`` (required; for ``domain = "z"`` it is the transfer
 function's own sample time) and runs only at that dt (relative tolerance 1e-6; such a scan is
 taken as exactly ``sample_time``): ``step()`` raises an InputError naming ``sample_time`` for
-another dt; in a module or replay such a scan is skipped with status Bad: configuration error
-(4). A z-domain dead time must be a whole number of samples (ParameterError naming
-``dead_time`` otherwise). fopdt, sopdt and ipdt compute their exact steps from each scan's dt
-and need no such parameter.
+another dt, a module refuses to run at one, and a replay refuses a file that has one, naming
+its first such row (data row and time); the kernel called directly at another dt skips the
+scan with status Bad: configuration error (4). A z-domain dead time must be a whole number
+of samples (ParameterError naming ``dead_time`` otherwise). fopdt, sopdt and ipdt compute
+their exact steps from each scan's dt and need no such parameter.
 
 ### Bad input
 

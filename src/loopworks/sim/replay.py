@@ -319,13 +319,16 @@ def _run(block: Block, part: _Chunk, clock: int | None, source: str,
             raise FileFormatError(f"{source}: a single row with a 't' column gives "
                                   "no scan time: add rows, or use a 'dt' column")
         dts[0] = dts[1]
-    for step in dts[:1] if (dts == dts[0]).all() else np.unique(dts):  # in ascending order
+    if (dts == dts[0]).all():
+        firsts = np.zeros(1, dtype=np.int64)
+    else:  # each scan time once, in the order the file first runs it
+        firsts = np.sort(np.unique(dts, return_index=True)[1])
+    for i in firsts:
         try:
-            block.check_dt(float(step))
-        except LoopworksError as exc:  # located: the first row that runs at that scan time
-            i = int(np.flatnonzero(dts == step)[0])
+            block.check_dt(float(dts[i]))
+        except LoopworksError as exc:  # located: the file's first row it refuses
             raise FileFormatError(f"{source}, data row {row0 + i + 1} (t = {part.ts[i]:.15g} "
-                                  f"s, a scan of {step:.6g} s): {exc}") from None
+                                  f"s, a scan of {dts[i]:.6g} s): {exc}") from None
     Y = np.empty((n, len(block.OUTPUTS)))
     YS = np.empty((n, len(block.OUTPUTS)), dtype=np.int64)
     Y[0] = block.y
