@@ -586,3 +586,25 @@ def test_a_record_that_does_not_oscillate_regularly_reports_no_period() -> None:
         assert evidence[key]["reason"].startswith("abstains: published for oscillating")
     assert evidence["horch"]["value"] is not None  # computed, not an index
     assert doc["indices"]["bicoherence"] is not None  # a method for any record
+
+
+def test_a_long_record_is_diagnosed_on_its_most_recent_samples(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """docs/diagnose.md: a record longer than MAX_SAMPLES is diagnosed on its most recent
+    MAX_SAMPLES, and the notes say so (a 1,000,000-sample file did not finish in ten minutes;
+    found by an outside audit). Here MAX_SAMPLES is made 3000 for a 5000-sample record: the
+    diagnosis is the one of its last 3000 samples, note aside."""
+    import loopworks.analysis.diagnosis as dg
+
+    t = np.arange(5000) * 1.0
+    tri = 2.0 * np.abs(((t / 100.0) % 1.0) * 2.0 - 1.0) - 1.0
+    pv = 50.0 + np.sign(np.gradient(tri)) + 0.02 * np.random.default_rng(2).standard_normal(5000)
+    op = 50.0 + 2.0 * tri
+    monkeypatch.setattr(dg, "MAX_SAMPLES", 3000)
+    whole = diagnose(_loop(op, pv), recommend=False)
+    assert whole.quality.n == 3000
+    assert whole.quality.notes[0].startswith("the record has 5000 samples; the diagnosis "
+                                             "reads its most recent 3000 (from t = 2000 s")
+    last = diagnose(_loop(op[2000:], pv[2000:]), recommend=False)
+    assert (whole.verdict, whole.score) == (last.verdict, last.score)
+    assert whole.indices == pytest.approx(last.indices, nan_ok=True)

@@ -173,7 +173,7 @@ def test_empty_and_nan_cells_are_kept_as_nan(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize(("text", "words"), [
     ("t,sp,pv,op\n0,1,2,3\n1,1,abc,3\n", ["line 3", "column 'pv'", "'abc' is not a number"]),
-    ("t,sp,PV,op\n0,1,2,3\n1,1,inf,3\n", ["line 3", "column 'PV'", "not a finite number"]),
+    ("t,sp,PV,op\n0,1,2,3\ninf,1,2,3\n", ["line 3", "column 't'", "not a time in seconds"]),
     ("t,sp,pv,op\n0,1,2,3\n\n1,1,2,x\n", ["line 4", "column 'op'", "'x'"]),
     ("t,sp,pv,op\n0,1,2,3\n1,1,2\n", ["line 3", "3 cells", "has 4"]),
     ("t,sp,pv,op\n0,1,2,3\n1,1,2,3\n0.5,1,2,3\n", ["line 4", "column 't'", "'0.5' is before "
@@ -187,6 +187,10 @@ def test_empty_and_nan_cells_are_kept_as_nan(tmp_path: Path) -> None:
     ("time,sp,pv,op\n2024-03-01 12:00:00,1,2,3\n2024-03-01 12:00:10Z,1,2,3\n",
      ["line 3", "UTC offset"]),
     ("t,sp,pv,op,mode\n0,1,2,3,1\n1,1,2,3,maybe\n", ["line 3", "column 'mode'", "'maybe'"]),
+    # a decimal comma (in a tab-separated file) is named as one (found by an outside audit)
+    ("t\tsp\tpv\top\n0\t50,0\t2\t3\n1\t50\t2\t3\n",
+     ["line 2", "column 'sp'", "'50,0' is not a number (a decimal comma: the file must use "
+      "decimal points)"]),
 ])
 def test_bad_cells_are_located(tmp_path: Path, text: str, words: list[str]) -> None:
     with pytest.raises(FileFormatError) as exc:
@@ -375,3 +379,26 @@ def test_a_simulate_csv_without_a_mapping_is_offered_its_block_ports(tmp_path: P
     with pytest.raises(FileFormatError, match=r"perhaps 'pid\.working_sp', 'pid\.sp' "
                                               r"\(--columns sp=pid\.working_sp\)"):
         read_csv(path)
+
+
+def test_an_infinite_value_is_a_bad_sample_not_a_refused_file(tmp_path: Path) -> None:
+    """docs/diagnose.md: `inf` or a number beyond the float range is a Bad value of its sample
+    (as one beyond ±1e12 is), which the quality gate counts; one such cell refused the whole
+    file, while the gate's rule names infinite values among those it tolerates (found by an
+    outside audit). A time must still be finite."""
+    from loopworks.analysis.loopdata import bad
+
+    path = write(tmp_path, "t,sp,pv,op\n0,1,2,3\n1,1,inf,3\n2,1,1e400,-inf\n3,1,2,3\n")
+    data = read_csv(path)
+    assert bad(data.pv).tolist() == [False, True, True, False]
+    assert bad(data.op).tolist() == [False, False, True, False]
+
+
+def test_a_column_a_mapping_gave_to_another_role_is_named(tmp_path: Path) -> None:
+    """--columns op=pv: the PV is then missing, and the message says its column was mapped to
+    the OP (it listed a column 'pv' while saying none was found; found by an outside
+    audit)."""
+    path = write(tmp_path, "t,sp,pv,op\n0,1,2,3\n1,1,2,3\n")
+    with pytest.raises(FileFormatError, match=r"no process variable column: looked for pv "
+                                              r"\(any letter case\) \('pv' is mapped to op\)"):
+        read_csv(path, {"op": "pv"})

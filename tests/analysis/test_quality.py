@@ -283,3 +283,17 @@ def test_a_pv_that_moves_while_op_holds_is_not_held() -> None:
     q = check_quality(LoopData(t=base.t, sp=base.sp, pv=base.pv, op=op, mode=base.mode,
                                source="synthetic"))
     assert q.held_fraction == 0.0
+
+
+def test_an_extreme_reached_once_is_not_a_saturated_op() -> None:
+    """Module docstring: saturated is the OP held at a limit; a strict ramp reaches its own
+    lowest and highest value once each, and a 15-sample ramp read 2 of 15 samples "at a
+    limit" (13 %, above the 10 % allowed; found by an outside audit). Held twice at its top,
+    it is at a limit."""
+    from loopworks.analysis.quality import _saturation_check
+
+    reasons: list[str] = []
+    assert _saturation_check(np.linspace(40.0, 54.0, 15), None, reasons) == 0.0
+    assert reasons == []
+    held = np.concatenate([np.linspace(40.0, 54.0, 13), [54.0, 54.0]])
+    assert _saturation_check(held, None, reasons) == pytest.approx(3 / 15)

@@ -599,3 +599,22 @@ def test_a_bad_setpoint_sample_is_no_setpoint_step() -> None:
     bad = metrics.loop_metrics(t, step, y, out)
     for name in ("step size", "rise time s", "settling time s (2 %)"):
         assert math.isnan(bad[name]), name
+
+
+def test_itse_weighs_squared_error_from_the_setpoint_change() -> None:
+    """Spec 4.1: ITSE = Σ t_k·e_k²·Ts, t from the set-point change (as ITAE). A step at
+    t = 10 s with e = 2 for the 5 scans from it (then 0), and e = 3 before it (not in the
+    sum): ITSE = 4·(0 + 1 + 2 + 3 + 4)·1 = 40, ITAE = 2·10 = 20. A Bad sample before the
+    change does not touch it; one after it makes it n/a."""
+    t = np.arange(20.0)
+    sp = np.where(t >= 10.0, 6.0, 5.0)
+    pv = np.where(t >= 15.0, 6.0, np.where(t >= 10.0, 4.0, 2.0))
+    out = np.zeros_like(t)
+    m = metrics.loop_metrics(t, sp, pv, out)
+    assert m["ITSE"] == pytest.approx(40.0) and m["ITAE"] == pytest.approx(20.0)
+    early = pv.copy()
+    early[3] = math.nan
+    assert metrics.loop_metrics(t, sp, early, out)["ITSE"] == pytest.approx(40.0)
+    late = pv.copy()
+    late[12] = math.nan
+    assert math.isnan(metrics.loop_metrics(t, sp, late, out)["ITSE"])

@@ -48,6 +48,7 @@ from __future__ import annotations
 import csv
 import math
 import os
+import re
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from datetime import datetime
@@ -294,9 +295,13 @@ def _locate(header: Sequence[str], mapping: Mapping[str, str], source: str,
                     f"{role}={near[0]})" if near else "")
             other = (", or give the sample period (sample_time, --sample-time SECONDS) of "
                      "a file whose rows are samples at a fixed period" if role == "t" else "")
+            # a column of this role's name that a mapping gave to another role
+            given = [f"{names[i]!r} is mapped to {r}" for r, i in found.items()
+                     if lower[i] in ALIASES[role]]
+            taken_by = f" ({', '.join(given)})" if given else ""
             raise FileFormatError(f"{source}, line {line}: no {MEANING[role]} column: looked "
-                                  f"for {looked} (any letter case){hint}; the columns are "
-                                  f"{present}; map one with columns={{'{role}': NAME}} "
+                                  f"for {looked} (any letter case){taken_by}{hint}; the columns "
+                                  f"are {present}; map one with columns={{'{role}': NAME}} "
                                   f"(--columns {role}=NAME){other}")
     return found
 
@@ -403,15 +408,15 @@ def _separator(f: TextIO) -> str:
 
 
 def _number(cell: str) -> float | None:
-    """The cell as a finite float, NaN if missing, None if it is not a number."""
+    """The cell as a float (±inf for an infinite value or one beyond the float range: a Bad
+    value, as one beyond ±1e12 is), NaN if missing, None if it is not a number."""
     text = cell.strip()
     if text.lower() in _MISSING:
         return math.nan
     try:
-        value = float(text)
+        return float(text)
     except ValueError:
         return None
-    return value if math.isfinite(value) else None
 
 
 def _values(cells: list[str], lines: npt.NDArray[np.int64], source: str, name: str,
@@ -429,8 +434,8 @@ def _values(cells: list[str], lines: npt.NDArray[np.int64], source: str, name: s
                     "rcas; man, oos, iman, lo, rout); a code of another numbering (DeltaV's "
                     "MODE, AUTO = 4) is not guessed: write its name" if role == "mode"
                     else "a number")
-            if cell.strip().lower() in ("inf", "+inf", "-inf", "infinity", "-infinity"):
-                what = "a finite number"
+            if role != "mode" and re.fullmatch(r"[+-]?\d+,\d+", cell.strip()):
+                what += " (a decimal comma: the file must use decimal points)"
             raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': {cell!r} is "
                                   f"not {what}")
         out[k] = value
@@ -446,7 +451,7 @@ def _times(cells: list[str], lines: npt.NDArray[np.int64], source: str,
         out = np.empty(len(cells))
         for k, cell in enumerate(cells):
             value = _number(cell)
-            if value is None or math.isnan(value):
+            if value is None or not math.isfinite(value):
                 raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': {cell!r} "
                                       f"is not a time in seconds (the first row gives seconds)")
             out[k] = value

@@ -349,8 +349,13 @@ def _saturation_check(op: FloatArray, limits: tuple[float, float] | None,
     else:  # OP in %: the valve's span, or held flat at its own extremes (an unnamed clamp)
         tol = SATURATION_TOLERANCE * 100.0
         same = SAME_VALUE * max(1.0, abs(low), abs(high))
-        low_side = (finite <= low + same) | (finite <= tol)
-        high_side = (finite >= high - same) | (finite >= 100.0 - tol)
+        low_side, high_side = finite <= low + same, finite >= high - same
+        # an extreme reached once is no value held there (a 15-sample ramp read 2 of 15
+        # samples "at a limit"; found by an outside audit)
+        low_side &= int(low_side.sum()) > 1
+        high_side &= int(high_side.sum()) > 1
+        low_side |= finite <= tol
+        high_side |= finite >= 100.0 - tol
         where = (f"{low:.6g} and {high:.6g}, its extremes over the record, held there, or "
                  f"within {_pct(SATURATION_TOLERANCE)} of 0 % or 100 %")
     at_low, at_high = int(low_side.sum()), int(high_side.sum())

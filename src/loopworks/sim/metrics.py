@@ -60,6 +60,8 @@ SIGNED = ("final error", "step size")
 
 _NONFINITE = "a sample in the window is NaN or infinite (a Bad value)"
 _INTEGRAL = "the run has fewer than 2 scans (no scan period), or " + _NONFINITE
+_FROM_T0 = ("the run has fewer than 2 scans (no scan period), or a sample from t₀ on is NaN "
+            "or infinite (a Bad value; the samples before t₀ are not in the sum)")
 
 #: every metric of ``loop_metrics``, in table order; the valve rows only for a loop with a valve
 METRICS: tuple[MetricInfo, ...] = (
@@ -70,8 +72,9 @@ METRICS: tuple[MetricInfo, ...] = (
                "Σ(t − t₀)·|e|·Ts from t₀ on, t₀ the setpoint step when the window holds "
                "exactly one setpoint change (spec 4.1: t from the set-point change), else the "
                "start of the window (regulatory, or a moving setpoint: a cascade secondary's)",
-               "the run has fewer than 2 scans (no scan period), or a sample from t₀ on is "
-               "NaN or infinite (a Bad value; the samples before t₀ are not in the sum)"),
+               _FROM_T0),
+    MetricInfo("ITSE", "PV units²·s²", "integral of time-weighted squared error "
+               "Σ(t − t₀)·e²·Ts from t₀ on, t₀ as for ITAE (spec 4.1)", _FROM_T0),
     MetricInfo("mean |e|", "PV units", "mean absolute error over the window", _NONFINITE),
     MetricInfo("step size", "PV units", "the last setpoint step in the window: SP after it "
                "minus PV at it (Δr)",
@@ -537,6 +540,7 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
             "IAE": _per_row(np.sum, ae) * ts,
             "ISE": _per_row(np.sum, e * e) * ts,
             "ITAE": _per_row(np.sum, np.where(since >= 0.0, since * ae, 0.0)) * ts,
+            "ITSE": _per_row(np.sum, np.where(since >= 0.0, since * e * e, 0.0)) * ts,
             "mean |e|": _per_row(np.mean, ae),
             "step size": size,
             "overshoot %": over,
