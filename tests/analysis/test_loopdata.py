@@ -187,6 +187,12 @@ def test_empty_and_nan_cells_are_kept_as_nan(tmp_path: Path) -> None:
     ("time,sp,pv,op\n2024-03-01 12:00:00,1,2,3\n2024-03-01 12:00:10Z,1,2,3\n",
      ["line 3", "UTC offset"]),
     ("t,sp,pv,op,mode\n0,1,2,3,1\n1,1,2,3,maybe\n", ["line 3", "column 'mode'", "'maybe'"]),
+    # times that are evidently not seconds (found by an outside audit): epoch milliseconds,
+    # a spreadsheet's day numbers (1 s apart)
+    ("t,sp,pv,op\n1770000000000,1,2,3\n1770000001000,1,2,3\n",
+     ["line 2", "column 't'", "epoch milliseconds? divide them by 1000"]),
+    ("time,sp,pv,op\n46082.0,1,2,3\n46082.0000115741,1,2,3\n46082.0000231481,1,2,3\n",
+     ["line 2", "column 'time'", "a spreadsheet's day numbers (1 s apart)?"]),
     # a decimal comma (in a tab-separated file) is named as one (found by an outside audit)
     ("t\tsp\tpv\top\n0\t50,0\t2\t3\n1\t50\t2\t3\n",
      ["line 2", "column 'sp'", "'50,0' is not a number (a decimal comma: the file must use "

@@ -455,6 +455,7 @@ def _times(cells: list[str], lines: npt.NDArray[np.int64], source: str,
                 raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': {cell!r} "
                                       f"is not a time in seconds (the first row gives seconds)")
             out[k] = value
+        _plausible_seconds(out, lines, source, name)
         return out
     start = _stamp(first)
     if start is None:
@@ -474,6 +475,33 @@ def _times(cells: list[str], lines: npt.NDArray[np.int64], source: str,
                                   f"{has} UTC offset; the first time stamp {first_has}")
         out[k] = (stamp - start).total_seconds()
     return out
+
+
+#: numeric times from here on, read as seconds, would be more than 3000 years: epoch
+#: milliseconds (1.7e12 in 2024) [ours]
+EPOCH_MS_FROM = 1e11
+#: numeric times in this range, a sample less than a millisecond apart: day numbers of a
+#: spreadsheet (45000 is 2023; one second is 1.16e-5 of a day) [ours: a loop recorded at
+#: 1 kHz whose times start 5.5 to 22 hours into a run is the case this refuses wrongly]
+DAY_NUMBERS = (2e4, 8e4)
+DAY_NUMBER_STEP = 1e-3
+
+
+def _plausible_seconds(t: FloatArray, lines: npt.NDArray[np.int64], source: str,
+                       name: str) -> None:
+    """FileFormatError when numeric times are evidently not seconds: epoch milliseconds, or a
+    spreadsheet's day numbers (found by an outside audit: read as seconds, a 1-s record of
+    day numbers gave a time constant of 0.0003 s, and epoch milliseconds one of 24637 s)."""
+    where = f"{source}, line {lines[0]}, column '{name}'"
+    if len(t) and abs(float(t[0])) >= EPOCH_MS_FROM:
+        raise FileFormatError(f"{where}: times from {t[0]:.6g}: read as seconds that is more "
+                              "than 3000 years; epoch milliseconds? divide them by 1000, or "
+                              "export ISO 8601 time stamps")
+    step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
+    if DAY_NUMBERS[0] <= float(t[0]) <= DAY_NUMBERS[1] and 0.0 < step < DAY_NUMBER_STEP:
+        raise FileFormatError(f"{where}: times from {t[0]:.6g}, {step:.3g} apart: a "
+                              f"spreadsheet's day numbers ({step * 86400.0:.3g} s apart)? "
+                              "diagnose reads seconds or ISO 8601 time stamps: convert them")
 
 
 def _stamp(text: str) -> datetime | None:
