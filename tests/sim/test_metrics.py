@@ -618,3 +618,21 @@ def test_itse_weighs_squared_error_from_the_setpoint_change() -> None:
     late = pv.copy()
     late[12] = math.nan
     assert math.isnan(metrics.loop_metrics(t, sp, late, out)["ITSE"])
+
+
+def test_a_ramped_setpoint_has_no_step_figures() -> None:
+    """Spec 4.1 defines the step figures for a set-point step from steady state. A setpoint
+    that also changed on the scan before its last change ramps (a DeltaV SP rate limit, a
+    cascade secondary's moving SP): its last increment read as a step (0.45 with a rise time
+    of 10 s for a 50 -> 60 ramp; found by an outside audit). A step after a ramp that ended
+    is a step again."""
+    t = np.arange(0.0, 400.0, 1.0)
+    ramp = np.clip(50.0 + 0.5 * (t - 10.0), 50.0, 60.0) * (t >= 10.0) + 50.0 * (t < 10.0)
+    pv = np.clip(50.0 + 0.5 * (t - 12.0), 50.0, 60.0) * (t >= 12.0) + 50.0 * (t < 12.0)
+    out = np.zeros_like(t)
+    m = metrics.loop_metrics(t, ramp, pv, out)
+    for name in ("step size", "overshoot %", "rise time s", "settling time s (2 %)"):
+        assert math.isnan(m[name]), name
+    later = np.where(t >= 200.0, 61.0, ramp)
+    y = np.where(t >= 200.0, 61.0 - np.exp(-(t - 200.0) / 5.0), pv)
+    assert metrics.loop_metrics(t, later, y, out)["step size"] == pytest.approx(1.0)

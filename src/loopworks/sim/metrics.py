@@ -79,9 +79,11 @@ METRICS: tuple[MetricInfo, ...] = (
     MetricInfo("step size", "PV units", "the last setpoint step in the window: SP after it "
                "minus PV at it (Δr)",
                "no setpoint change in the window (a regulatory window; a Bad setpoint "
-               "sample is no change), the change is on the window's last scan (no response "
-               "to measure), or a sample of SP or PV from the change on is NaN or infinite "
-               "(a Bad value; one before the change does not touch the response)"),
+               "sample is no change), the setpoint ramps (it also changed on the scan before "
+               "its last change: a rate limit, a cascade secondary's moving setpoint; no step "
+               "from steady state, spec 4.1), the change is on the window's last scan (no "
+               "response to measure), or a sample of SP or PV from the change on is NaN or "
+               "infinite (a Bad value; one before the change does not touch the response)"),
     MetricInfo("overshoot %", "% of the step", "how far the PV went beyond its final value "
                "y∞ (the mean of the last 5 % of the response), in % of |Δr|; 0 if never",
                "no step (step size n/a), or the response has not settled (see settling time)"),
@@ -534,6 +536,13 @@ def loop_metrics(t: np.ndarray, sp: np.ndarray, pv: np.ndarray, out: np.ndarray,
     if window is not None:  # a regulatory window (no setpoint change in it): no step figures
         for fig in (size, over, rise, settle, decay):
             fig[~has_change] = math.nan
+    # a setpoint that also changed on the scan before its last change ramps (a rate limit, a
+    # cascade secondary's moving SP): its last increment is no step from steady state (spec
+    # 4.1; a DeltaV SP ramp from 50 to 60 read as a step of 0.45 with a rise time of 10 s)
+    which = np.arange(len(start))
+    ramps = has_change & (start >= 1) & changed[which, np.maximum(start - 1, 0)]
+    for fig in (size, over, rise, settle, decay):
+        fig[ramps] = math.nan
     spread = n >= 2
     with np.errstate(over="ignore", invalid="ignore"):
         result: dict[str, np.ndarray] = {
