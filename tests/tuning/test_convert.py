@@ -517,3 +517,14 @@ def test_no_response_error_is_stated_above_the_nyquist_frequency() -> None:
     c = convert("pid", {"k": 2.0, "ti": 16.0, "td": 0.1, "tf": 0.0}, "deltav.pid",
                 sample_time=1.0)
     assert not c.exact and [w for w, _ in c.response_errors] == [1.0 / 16.0]
+
+
+def test_a_target_that_cannot_hold_the_settings_names_what_was_given() -> None:
+    """A target word that overflows is named, and so is what the user gave and the settings
+    it stands for: the message named only 'word6' = 40000, a value the user never wrote
+    (found by an outside audit)."""
+    with pytest.raises(ParameterError) as info:
+        convert("pid", {"k": 400, "c": 1}, "ge.pid_ind", sample_time=0.5)
+    text = str(info.value)
+    assert "'word6' = 40000 is out of range: allowed 0..32767" in text
+    assert "(converting pid with k = 400, c = 1: Kc = 400 %/%, Ti = inf s, Td = 0 s;" in text

@@ -467,7 +467,15 @@ def convert(from_kind: str, params: Mapping[str, Any], to_kind: str, *,
             kept = None
         if kept is not None and kept.exact:
             return kept
-    return _from_law(to_kind, law, dt, ctx, strict=True)
+    try:
+        return _from_law(to_kind, law, dt, ctx, strict=True)
+    except ParameterError as exc:  # the target's word or value, named with what was given
+        given = ", ".join(f"{k} = {v!r}" for k, v in params.items())
+        ideal = law.ideal
+        raise ParameterError(
+            f"{exc} (converting {_controller(from_kind).kind} with {given}: Kc = "
+            f"{ideal.kc:.6g} %/%, Ti = {ideal.ti:.6g} s, Td = {ideal.td:.6g} s; these do not "
+            f"fit the target)") from None
 
 
 def _own_settings(cls: type[Controller], law: DiscreteLaw, dt: float | None,
