@@ -209,7 +209,7 @@ def test_a_range_gives_the_decimals_it_stands_for() -> None:
 
 
 @pytest.mark.parametrize(("vary", "message"), [
-    (["pid.k=uniform(-1,2)"], "uniform(-1, 2) reaches a: pid.k = -1.0"),
+    (["pid.k=uniform(-1,2)"], "uniform(-1.0, 2.0) reaches a: pid.k = -1.0"),
     (["pid.k=uniform(0,2)"], None),  # k in (0, inf): the end 0 is never drawn
     (["pid.k=choice(1,2,-3)"], "choice() value: pid.k = -3"),
 ])
@@ -706,3 +706,70 @@ def test_sweep_figures_sort_the_grid_and_share_one_colour_scale(
     assert [t.get_text() for t in heat.axes[0].get_xticklabels()] == ["1", "3"]
     assert images[0].get_array()[0, 0] == 2.0  # x = 1, y = 1: the corner, sorted
     assert any(line.get_label() == "best" for line in heat.axes[0].lines)
+
+
+S5_LOOP = """\
+[simulation]
+dt = 1.0
+duration = 200.0
+
+[blocks.s5]
+kind = "s5.pid"
+k = 500
+ti = 100
+w = 500.0
+velocity = false
+
+[blocks.process]
+kind = "process.first_order"
+gain = 1.0
+time_constant = 20.0
+
+[wires]
+"process.u" = "s5.y"
+"s5.x" = "process.y"
+
+[[events]]
+t = 100.0
+set = "s5.w"
+value = 600.0
+"""
+
+
+def test_a_swept_velocity_scores_each_instances_output_as_it_is(tmp_path: Path) -> None:
+    """docs/metrics.md: a velocity output (S5 velocity = true) is scored on the position its
+    increments build. A sweep of s5.velocity scored every instance as the scenario file
+    had it (the output travel of the velocity instance read 40.9 where simulate gives 769.2;
+    found by an outside audit). Each row now equals ``loopworks simulate`` of its point."""
+    path = tmp_path / "s5.toml"
+    path.write_text(S5_LOOP, encoding="utf-8")
+    result = sweep(path, {"s5.velocity": "true,false"}, workers=1)
+    travel = []
+    for i in range(2):
+        row = {k: col[i] for k, col in result.columns.items()}
+        text = S5_LOOP.replace("velocity = false", f"velocity = {row['s5.velocity']}")
+        one = tmp_path / f"point{i}.toml"
+        one.write_text(text.replace("[simulation]\n", f"[simulation]\nseed = {row['seed']}\n"),
+                       encoding="utf-8")
+        done = CliRunner().invoke(app, ["simulate", str(one), "-o", str(tmp_path / f"r{i}"),
+                                        "-q"])
+        assert done.exit_code == 0, done.output
+        report = json.loads((tmp_path / f"r{i}" / "metrics.json").read_text())
+        expected = report[row["variant"]]
+        for name in ("output travel", "output reversals", "IAE"):
+            assert row[name] == pytest.approx(expected[name], rel=1e-9, nan_ok=True), name
+        travel.append(row["output travel"])
+    assert travel[0] != pytest.approx(travel[1], rel=0.05)  # the runs differ: a real check
+
+
+def test_a_whole_number_parameter_refuses_a_continuous_distribution(tmp_path: Path) -> None:
+    """docs/sweeps.md: uniform, loguniform and normal draw fractions, and an S5 word is a
+    whole number: the sweep is refused before anything runs, saying what to give instead
+    (it was refused as "s5.k = 400.0000002 must be an integer"; found by an outside audit)."""
+    path = tmp_path / "s5.toml"
+    path.write_text(S5_LOOP, encoding="utf-8")
+    for spec in ("uniform(400,600)", "loguniform(400,600)", "normal(500,50)"):
+        with pytest.raises(InputError, match=r"--vary s5.k: .*draws fractional values, and "
+                                             r"s5.k is a whole number .*: give a list"):
+            sweep(path, {"s5.k": spec}, samples=4, workers=1)
+    assert len(sweep(path, {"s5.k": "400,600"}, workers=1)) == 2

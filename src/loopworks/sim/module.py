@@ -417,13 +417,25 @@ class Module:
         return [f"{name}.{port.name}" for name in self.order
                 for port in (*self.blocks[name].INPUTS, *self.blocks[name].OUTPUTS)]
 
-    def incremental_outputs(self) -> frozenset[str]:
+    def incremental_outputs(self, changes: Mapping[str, Any] | None = None) -> frozenset[str]:
         """The controllers whose output is an increment per scan (``Controller.incremental``:
-        S5's velocity algorithm), by name."""
+        S5's velocity algorithm), by name; with ``changes`` (a batch instance's,
+        ``"block.parameter"`` = value), those of that instance (a swept ``s5.velocity``: its
+        output travel was read as the template's)."""
         from loopworks.blocks.controller import Controller
+        from loopworks.blocks.params import validate
 
-        return frozenset(n for n, b in self.blocks.items() if isinstance(b, Controller)
-                         and type(b).incremental(b.params) is not None)
+        out = set()
+        for n, b in self.blocks.items():
+            if not isinstance(b, Controller):
+                continue
+            mine = {k.rpartition(".")[2].lower(): v for k, v in (changes or {}).items()
+                    if k.rpartition(".")[0] == n
+                    and k.rpartition(".")[2].lower() not in b._in_index}
+            params = validate(b.kind, type(b).PARAMS, {**b.given, **mine}) if mine else b.params
+            if type(b).incremental(params) is not None:
+                out.add(n)
+        return frozenset(out)
 
     def out_spans(self, instances: Sequence[Mapping[str, Any]] = ()
                   ) -> dict[str, float | np.ndarray]:

@@ -336,13 +336,20 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
             except InstanceError as exc:
                 raise _refused(jobs[chunk[exc.index]], exc) from None
             R, RS = batch.run(sc.duration, sc.dt)
-            values = {name: R[:, j] for j, name in enumerate(record)}
-            status = {name: RS[:, j] for j, name in enumerate(record)}
-            # each instance's output span (a swept OUT_SCALE changes it)
-            info["out_spans"] = template.out_spans([jobs[k].changes for k in chunk])
-            for k, row in zip(chunk, _metrics(SimResult(t, values, status, **info),
-                                              sc.metrics_window), strict=True):
-                rows[k] = row
+            # the instances whose controllers' outputs are increments alike (a swept S5
+            # velocity) are scored together, each with its output span (a swept OUT_SCALE)
+            kinds: dict[frozenset[str], list[int]] = {}
+            for i, k in enumerate(chunk):
+                kinds.setdefault(template.incremental_outputs(jobs[k].changes), []).append(i)
+            for incremental, at_ in kinds.items():
+                sel = np.asarray(at_)
+                values = {name: R[sel, j] for j, name in enumerate(record)}
+                status = {name: RS[sel, j] for j, name in enumerate(record)}
+                info["incremental"] = incremental
+                info["out_spans"] = template.out_spans([jobs[chunk[i]].changes for i in at_])
+                for i, row in zip(at_, _metrics(SimResult(t, values, status, **info),
+                                                sc.metrics_window), strict=True):
+                    rows[chunk[i]] = row
     return rows
 
 
@@ -457,6 +464,7 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
         variants = [variant]
     for axis in axes:
         _check_axis(sc, axis, variants)
+        _check_whole(sc, axis, variants)
         for value, inside, what in _support(axis):
             try:  # just inside an end: an end on a bound the parameter excludes is fine
                 _check_value(sc, axis.name, value if inside is None else inside, variants,
@@ -601,6 +609,24 @@ def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:
                                  + ": an input takes a wire or a constant, not both")
 
 
+def _check_whole(sc: Any, axis: Axis, variants: list[str]) -> None:
+    """InputError when a continuous distribution is drawn for a whole-number parameter (an S5
+    word): its draws are fractions (uniform(400, 600) on s5.k was refused as "s5.k =
+    400.0000002 must be an integer"; found by an outside audit)."""
+    if axis.distribution not in ("uniform", "loguniform", "normal"):
+        return
+    from loopworks.catalog import block_class
+    from loopworks.sim.scenario import split_ref
+
+    block, fname = split_ref(axis.name)
+    cls = block_class(str(sc.tables[variants[0]][block]["kind"]))
+    spec = next((p for p in cls.PARAMS if p.name == fname), None)
+    if spec is not None and spec.type == "int":
+        raise InputError(f"--vary {axis.name}: {axis.distribution}() draws fractional values, "
+                         f"and {axis.name} is a whole number ({spec.range_text()}): give a "
+                         "list, a:b:n with whole steps, or choice(v1, v2, ...)")
+
+
 def _support(axis: Axis) -> list[tuple[Value, Value | None, str]]:
     """The values a sampled axis can draw that decide whether all its draws are allowed:
     (value, a value just inside it or None, where it comes from). A uniform's or a
@@ -613,7 +639,7 @@ def _support(axis: Axis) -> list[tuple[Value, Value | None, str]]:
         return [(v, None, f"{axis.distribution}() value") for v in axis.args]
     if axis.distribution in ("uniform", "loguniform"):
         a, b = (float(v) for v in axis.args)
-        spec = f"{axis.distribution}({a:g}, {b:g})"
+        spec = f"{axis.distribution}({a!r}, {b!r})"  # as given: 1.0000001 is not 1
         return [(a, axis.at(1e-9), f"{spec} reaches a"),
                 (b, axis.at(1.0 - 1e-9), f"{spec} reaches b")]
     return []
