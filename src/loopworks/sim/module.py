@@ -429,6 +429,8 @@ class Module:
         for n, b in self.blocks.items():
             if not isinstance(b, Controller):
                 continue
+            if type(b).incremental.__func__ is Controller.incremental.__func__:  # type: ignore[attr-defined]
+                continue  # a kind whose output is never an increment (no validation per row)
             mine = {k.rpartition(".")[2].lower(): v for k, v in (changes or {}).items()
                     if k.rpartition(".")[0] == n
                     and k.rpartition(".")[2].lower() not in b._in_index}
