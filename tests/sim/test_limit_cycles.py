@@ -21,13 +21,15 @@ import pytest
 
 from loopworks import Module, create_block
 from loopworks.sim.module import Event
+from loopworks.sim.result import SimResult
 
 #: the reference simulation's order (module docstring)
 ORDER = ["pid", "process", "valve"]
 
 
-def limit_cycle(process: dict[str, object], kc: float, ti: float, s: float,
-                j: float, order: list[str] | None = ORDER) -> tuple[float, float, float]:
+def run_loop(process: dict[str, object], kc: float, ti: float, s: float, j: float,
+             order: list[str] | None = ORDER) -> SimResult:
+    """The module docstring's loop, run 4000 s at 0.05 s."""
     m = Module({"pid": create_block("pid", k=kc, ti=ti, bias=50.0, out_lo=-1e6, out_hi=1e6),
                 "valve": create_block("valve.choudhury", s=s, j=j, y0=50.0),
                 "process": create_block(**process)},  # type: ignore[arg-type]
@@ -35,7 +37,12 @@ def limit_cycle(process: dict[str, object], kc: float, ti: float, s: float,
                       "pid.pv": "process.y"},
                inputs={"pid": {"sp": 50.0}}, events=[Event(10.0, "pid.sp", 51.0)],
                order=order)
-    r = m.run(4000.0, 0.05)
+    return m.run(4000.0, 0.05)
+
+
+def limit_cycle(process: dict[str, object], kc: float, ti: float, s: float,
+                j: float, order: list[str] | None = ORDER) -> tuple[float, float, float]:
+    r = run_loop(process, kc, ti, s, j, order)
     half = r.t >= 2000.0
     pv, op, t = r["process.y"][half], r["pid.out"][half], r.t[half]
     up = np.flatnonzero((pv[:-1] < pv.mean()) & (pv[1:] >= pv.mean()))
@@ -84,15 +91,7 @@ def test_pure_deadband_does_not_cycle_in_a_self_regulating_loop() -> None:
 def test_pure_deadband_settles_where_the_table_says() -> None:
     """spec 5.1 row 2: with S = 3, J = 0 the loop settles with PV on SP (51), the OP at 52.5
     and the valve at 51.0 = OP - fd (the valve stuck S/2 = 1.5 behind the OP)."""
-    m = Module({"pid": create_block("pid", k=1.0, ti=10.0, bias=50.0, out_lo=-1e6,
-                                    out_hi=1e6),
-                "valve": create_block("valve.choudhury", s=3.0, j=0.0, y0=50.0),
-                "process": create_block(**FOPDT)},  # type: ignore[arg-type]
-               wires={"valve.op": "pid.out", "process.u": "valve.position",
-                      "pid.pv": "process.y"},
-               inputs={"pid": {"sp": 50.0}}, events=[Event(10.0, "pid.sp", 51.0)],
-               order=ORDER)
-    r = m.run(4000.0, 0.05)
+    r = run_loop(FOPDT, 1.0, 10.0, 3.0, 0.0)
     assert float(r["process.y"][-1]) == pytest.approx(51.0, abs=1e-3)
     assert float(r["pid.out"][-1]) == pytest.approx(52.5, abs=1e-3)
     assert float(r["valve.position"][-1]) == pytest.approx(51.0, abs=1e-3)
