@@ -274,6 +274,9 @@ def test_replay_continues_from_block_state(tmp_path: Path) -> None:
     ("t,sp,pv\n0,1,2\n0,1,2\n", "does not increase"),
     ("dt,sp,pv\n0.1,1,2\n-0.1,1,2\n", "dt must be > 0"),
     ("t,sp,pv,pv.ST\n0,1,2,128\n1,1,2,300\n", "status byte"),
+    # a quote never closed: named where it opens (it was "line 4: 2 cells"; an audit)
+    ("t,sp,pv\n0,1,2\n1,\"1,2\n2,1,2\n", "line 3, column 'sp': a quote (\") opens there and "
+     "is never closed (the cell runs on to line 4)"),
     # a status without its value would run the block on a value the file does not give
     ("t,sp,pv.ST\n0,1,128\n1,1,128\n", "no column 'pv' for its value"),
     # a mode code out of range: what is allowed, not "not a number" (found by an audit)

@@ -394,6 +394,15 @@ def _parse_rows(numbered: list[tuple[int, list[str]]], lay: _Layout, clock: _Clo
     ts = np.empty(n)
     for r, (line, row) in enumerate(numbered):
         if len(row) != len(header):
+            opened = next((pos for pos, cell in enumerate(row) if "\n" in cell or "\r" in cell),
+                          None)
+            if opened is not None:  # a quote that never closed ran on over the lines after
+                cell = row[opened]  # it holds every line end from its line on
+                start = line - cell.count("\n") + cell.endswith(("\n", "\r"))
+                col = header[opened].strip() if opened < len(header) else f"#{opened + 1}"
+                raise FileFormatError(f"{source}, line {start}, column '{col}': a quote (\") "
+                                      f"opens there and is never closed (the cell runs on to "
+                                      f"line {line}): expected one value per cell")
             raise FileFormatError(f"{source}, line {line}: {len(row)} cells, expected "
                                   f"{len(header)} (one per header column)")
         for pos, (what, i) in lay.mapping.items():
