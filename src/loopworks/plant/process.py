@@ -209,6 +209,7 @@ the input starts at t = -0.5 s, reaches the integrator 1 s later, and the level 
 
 from __future__ import annotations
 
+import functools
 import math
 import re
 from collections.abc import Mapping
@@ -950,34 +951,14 @@ class TransferFunction(_LineProcess):
                     g0: list[float]) -> tuple[float, float]:
         """Fill C' = CΦ, Φ, Γ1, Γ0 (module docstring); return (E1, E0) = (CΓ1, CΓ0 + D).
         For the z domain: C' = C, Φ = A, Γ1 = 0, Γ0 = B, E1 = 0, E0 = D."""
-        import numpy as np
-        from scipy import signal
-
-        a, b, c, d = signal.tf2ss(num, den)
-        order = a.shape[0]
+        cp, phi_d, gam1, gam0, e1, e0 = _discrete_matrices(
+            tuple(num), tuple(den), ts, f, self.params["domain"] == "z")
+        order = len(cp)
         nmax = int(self.params["max_order"])
-        if self.params["domain"] == "z":
-            phi_d, gam1, gam0, cp = a, np.zeros((order, 1)), b, c
-            e1, e0 = 0.0, float(d[0, 0])
-        else:
-            phi_d, gam_full = signal.cont2discrete((a, b, c, d), ts, method="zoh")[:2]
-            if f == 0.0:
-                gam0 = gam_full
-                gam1 = np.zeros((order, 1))
-            else:
-                phi0, gam0 = signal.cont2discrete((a, b, c, d), (1.0 - f) * ts,
-                                                  method="zoh")[:2]
-                gam_f = signal.cont2discrete((a, b, c, d), f * ts, method="zoh")[1]
-                gam1 = phi0 @ gam_f
-            cp = c @ phi_d
-            e1 = float((c @ gam1)[0, 0])
-            e0 = float((c @ gam0)[0, 0] + d[0, 0])
         for i in range(order):
-            cprime[i] = float(cp[0, i])
-            g1[i] = float(gam1[i, 0])
-            g0[i] = float(gam0[i, 0])
+            cprime[i], g1[i], g0[i] = cp[i], gam1[i], gam0[i]
             for j in range(order):
-                phi_m[i * nmax + j] = float(phi_d[i, j])
+                phi_m[i * nmax + j] = phi_d[i][j]
         return e1, e0
 
     def initial_state(self) -> FloatArray:
@@ -998,3 +979,38 @@ class TransferFunction(_LineProcess):
                 "runs at "
                 f"sample_time = {ts:g} s (give sample_time = {fmt_value(dt)} to discretise it for "
                 "that scan time)")
+
+
+@functools.lru_cache(maxsize=256)
+def _discrete_matrices(num: tuple[float, ...], den: tuple[float, ...], ts: float, f: float,
+                       z_domain: bool) -> tuple[tuple[float, ...], tuple[tuple[float, ...], ...],
+                                                tuple[float, ...], tuple[float, ...], float,
+                                                float]:
+    """(C', Φ, Γ1, Γ0, E1, E0) of ``process.tf`` (module docstring) from its controllable
+    canonical state-space form: for the s domain the zero-order-hold discretisation at ``ts``
+    with the fractional delay ``f`` (of a sample) split between Γ1 and Γ0; for the z domain
+    C' = C, Φ = A, Γ1 = 0, Γ0 = B, E1 = 0, E0 = D. A pure function of its arguments, cached:
+    a sweep or a test builds the same transfer function many times, and scipy's matrix
+    exponential is most of a block's construction."""
+    from scipy import signal
+
+    a, b, c, d = signal.tf2ss(list(num), list(den))
+    order = a.shape[0]
+    if z_domain:
+        phi_d, gam1, gam0, cp = a, np.zeros((order, 1)), b, c
+        e1, e0 = 0.0, float(d[0, 0])
+    else:
+        phi_d, gam_full = signal.cont2discrete((a, b, c, d), ts, method="zoh")[:2]
+        if f == 0.0:
+            gam0 = gam_full
+            gam1 = np.zeros((order, 1))
+        else:
+            phi0, gam0 = signal.cont2discrete((a, b, c, d), (1.0 - f) * ts,
+                                              method="zoh")[:2]
+            gam_f = signal.cont2discrete((a, b, c, d), f * ts, method="zoh")[1]
+            gam1 = phi0 @ gam_f
+        cp = c @ phi_d
+        e1 = float((c @ gam1)[0, 0])
+        e0 = float((c @ gam0)[0, 0] + d[0, 0])
+    return (tuple(float(v) for v in cp[0]), tuple(tuple(float(v) for v in row) for row in phi_d),
+            tuple(float(v) for v in gam1[:, 0]), tuple(float(v) for v in gam0[:, 0]), e1, e0)
