@@ -4,6 +4,7 @@ stated rule, the CLI and its JSON."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import json
 import math
 from pathlib import Path
@@ -21,6 +22,7 @@ from loopworks.analysis.diagnosis import (
     NO_R2_GAIN,
     REPRODUCE_FACTOR,
     WEIGHTS,
+    Diagnosis,
     Evidence,
     _valve_fit_vote,
     diagnose,
@@ -144,6 +146,7 @@ def test_the_command_line_refuses_bad_input(tmp_path: Path) -> None:
 
 
 # -- loops whose truth is known (loopworks' own blocks, analysis.synthetic) --------------------
+@functools.cache
 def _spec_loop(valve: str, s: float, j: float, position: bool = False,
                **kw: float) -> LoopData:
     """The spec 5.1 loop (FOPDT K 1, T 10 s, L 2 s; PI Kc 1, Ti 10 s) with a little noise,
@@ -158,8 +161,15 @@ def _spec_loop(valve: str, s: float, j: float, position: bool = False,
     return data if position else dataclasses.replace(data, position=None)
 
 
+@functools.cache
+def _spec_diagnosis() -> Diagnosis:
+    """The spec sticky loop's diagnosis without a recommendation (several tests compare
+    with it; computed once per test process)."""
+    return diagnose(_spec_loop("choudhury", 3.0, 1.0), recommend=False)
+
+
 def test_the_spec_sticky_loop_is_found_and_measured() -> None:
-    d = diagnose(_spec_loop("choudhury", 3.0, 1.0), recommend=False)
+    d = _spec_diagnosis()
     assert d.verdict == "stiction", d.reason
     assert d.stiction is not None
     assert d.stiction["s"] == pytest.approx(3.0, rel=0.3)  # the issue's S within 30 %
@@ -177,7 +187,7 @@ def test_an_op_in_counts_is_refused_or_read_in_percent_of_its_span() -> None:
     counts = dataclasses.replace(data, op=data.op * 320.0)
     with pytest.raises(InputError, match=r"the OP runs .* outside 0\.\.100: .*--op-range LO:HI"):
         diagnose(counts, recommend=False)
-    in_pct = diagnose(data, recommend=False)
+    in_pct = _spec_diagnosis()
     in_counts = diagnose(counts, recommend=False, op_range=(0.0, 32000.0))
     assert in_counts.verdict == in_pct.verdict == "stiction"
     assert in_counts.stiction is not None and in_pct.stiction is not None
@@ -200,7 +210,7 @@ def test_op_and_pv_every_ts_without_setpoint_or_time_are_diagnosed(tmp_path: Pat
     the S of its full record; the output says how the SP was taken."""
     data = _spec_loop("choudhury", 3.0, 1.0)
     assert np.ptp(data.sp) == 0.0  # the SP step is in the warm-up, before the record
-    full = diagnose(data, recommend=False)
+    full = _spec_diagnosis()
     assert full.verdict == "stiction" and full.stiction is not None
     assert full.stiction["s"] == pytest.approx(3.0, rel=0.3)
     path = tmp_path / "isdb.csv"
@@ -232,7 +242,7 @@ def test_an_op_recorded_as_a_fraction_is_refused_unless_its_range_is_given() -> 
     assert fraction.op.min() >= 0.0 and fraction.op.max() <= 1.0
     with pytest.raises(InputError, match=r"within 0\.\.1: .*--op-range 0:1 .*--op-range 0:100"):
         diagnose(fraction, recommend=False)
-    in_pct = diagnose(data, recommend=False)
+    in_pct = _spec_diagnosis()
     read = diagnose(fraction, recommend=False, op_range=(0.0, 1.0))
     assert read.verdict == in_pct.verdict == "stiction"
     assert read.stiction is not None and in_pct.stiction is not None
