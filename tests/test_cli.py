@@ -637,12 +637,17 @@ def test_compile_fills_the_cache_so_later_commands_compile_nothing(tmp_path: Pat
 
 HELPERS_USED = """
 import numpy as np
+from loopworks.analysis import valve_fit
 from loopworks.sim import floatfmt, metrics
 ro = np.array([1.5, -2.25, 3.0]); ro.flags.writeable = False  # a pyarrow column's kind
 assert floatfmt.float_text(ro) == ["1.5", "-2.25", "3.0"]
 assert floatfmt.float_text(np.array([0.1])) == ["0.1"]
 assert metrics.reversals(ro, 0.0) == 1 and metrics.reversals(np.array([0.0, 1.0, 0.0])) == 1
-for disp in (floatfmt._format_rows, metrics._reversals_loop()):
+x = np.arange(40.0) % 7; y = np.roll(x, 2)  # every d, one d, two taps, read-only, a = 1
+for args in ((0.5, 5, 1.0, None, 1), (0.5, 5, 1.0, 2, 1), (1.0, 5, 1.0, None, 2)):
+    valve_fit._sse_all_d(x, y, args[0], args[1], args[2], only=args[3], taps=args[4])
+valve_fit._sse_all_d(ro, ro, 0.5, 1, 1.0)
+for disp in (floatfmt._format_rows, metrics._reversals_loop(), valve_fit._regress_fn()):
     # on disk (numba's cache=True: a later process loads it), one signature for every call
     print(type(disp._cache).__name__ != "NullCache", len(disp.signatures))
 """
@@ -662,7 +667,7 @@ def test_compile_without_kinds_also_compiles_the_helpers_once(
                           text=True, timeout=300)
     assert used.returncode == 0, used.stderr
     lines = used.stdout.splitlines()
-    assert len(lines) == 2
+    assert len(lines) == 3
     for line in lines:
         cached, signatures = line.split()
         assert (cached, signatures) == ("True", "1"), used.stdout

@@ -803,17 +803,20 @@ def compile_kinds(
 
 def _compile_helpers() -> None:
     """Compile (or load) the package's own cached compiled functions that are not kernels:
-    the CSV formatter of ``simulate`` and ``replay`` (8 s to compile) and the reversal count
-    of the metrics, each for the one signature it is called with (their arguments go through
-    :func:`loopworks.sim.arrays.compiled_arg`). numba caches them beside the installed
-    package (or in ``NUMBA_CACHE_DIR``)."""
+    the CSV formatter of ``simulate`` and ``replay`` (8 s to compile), the reversal count
+    of the metrics and the valve fit's regression of ``diagnose`` (1.5 s), each for the one
+    signature it is called with (their arguments go through
+    :func:`loopworks.sim.arrays.compiled_arg`, or are converted by their Python wrapper).
+    numba caches them beside the installed package (or in ``NUMBA_CACHE_DIR``)."""
     import numpy as np
 
+    from loopworks.analysis.valve_fit import _sse_all_d
     from loopworks.sim.floatfmt import float_text
     from loopworks.sim.metrics import reversals
 
     float_text(np.zeros(1))
     reversals(np.zeros(2))
+    _sse_all_d(np.zeros(4), np.ones(4), 0.5, 1, 4.0)
 
 
 users_app = typer.Typer(

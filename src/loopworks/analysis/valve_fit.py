@@ -68,6 +68,7 @@ misfit and lowers R².
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -80,6 +81,7 @@ from scipy.signal import lfilter
 
 from loopworks.analysis import LOOP_TYPES as _LOOP_TYPES
 from loopworks.analysis.loopdata import LoopData
+from loopworks.sim.arrays import compiled_arg
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -263,70 +265,193 @@ def _high_pass(x: FloatArray, width: int) -> FloatArray:
 
 
 
+def _x_corr_y(x: FloatArray, y: FloatArray, dmax: int, taps: int = 1) -> FloatArray:
+    """X(s) = Σ_i xp[s + i]·y[i], s = 0..pad, pad = dmax + taps - 1, where xp is x with pad
+    copies of x[0] before it (the valve at rest before the record): what :func:`_sse_all_d`
+    needs from x and y at every a (so a caller fitting many a computes it once)."""
+    xp = np.concatenate([np.full(dmax + taps - 1, x[0]), x])
+    return np.asarray(np.correlate(xp, y, "valid"), dtype=np.float64)
+
+
 def _sse_all_d(x: FloatArray, y: FloatArray, a: float, dmax: int, yy: float,
-               only: int | None = None,
-               taps: int = 1) -> tuple[FloatArray, FloatArray, FloatArray]:
+               only: int | None = None, taps: int = 1,
+               xy: FloatArray | None = None) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Output-error SSE, gain b and extra lag of ŷ = b₀·r_d (+ b₁·r_{d+1}) + c' + e0·p for every
     dead time d = 0..dmax (or the one d ``only``) at this a (a = 1: integrating). x is centred;
-    ``yy`` = y·y. ``taps`` = 2 adds the second delayed regressor r_{d+1}: a dead time between
-    d and d + 1 samples (a fractional delay under the zero-order hold: Åström & Wittenmark,
-    *Computer-Controlled Systems*, 3rd ed. 1997, sec. 2.3), the gain is b = b₀ + b₁ and the
-    extra lag b₁/b (a fraction of a sample); with one tap the lag is 0."""
+    ``yy`` = y·y; ``xy`` is :func:`_x_corr_y` of x and y, when the caller has it. ``taps`` = 2
+    adds the second delayed regressor r_{d+1}: a dead time between d and d + 1 samples (a
+    fractional delay under the zero-order hold: Åström & Wittenmark, *Computer-Controlled
+    Systems*, 3rd ed. 1997, sec. 2.3), the gain is b = b₀ + b₁ and the extra lag b₁/b (a
+    fraction of a sample); with one tap the lag is 0. The arithmetic is :func:`_regress`,
+    compiled unless ``LOOPWORKS_JIT=0``."""
+    count = dmax + 1 if only is None else 1
+    sse, b, lag = np.empty(count), np.empty(count), np.empty(count)
+    if only is None and xy is None:
+        xy = _x_corr_y(x, y, dmax, taps)
+    _regress_fn()(compiled_arg(x), compiled_arg(y), float(a), int(dmax), float(yy),
+                  -1 if only is None else int(only), int(taps),
+                  np.zeros(1) if xy is None else compiled_arg(xy), sse, b, lag)
+    return sse, b, lag
+
+
+def _regress(x: FloatArray, y: FloatArray, a: float, dmax: int, yy: float, only: int,
+             taps: int, xy: FloatArray, sse: FloatArray, b: FloatArray,
+             lag: FloatArray) -> None:
+    """:func:`_sse_all_d` into ``sse``, ``b``, ``lag`` (one entry per d; ``only`` = -1: every
+    d = 0..dmax, else that d; ``xy``: X of :func:`_x_corr_y`, read only for every d).
+
+    The regressors r_k (k = 0..pad, pad = dmax + taps - 1) are f[pad - k : pad - k + n] with
+    f_j = a·f_{j-1} + xp_j (xp: x at rest before the record; a = 1 a running sum, a = 0 xp
+    itself), and p_i = a^i (i when a = 1, the impulse at 0 when a = 0), the initial state's
+    free response. Per d the normal equations G·θ = h of the columns (the taps, a constant,
+    p) need Σr_k, Σr_k², Σr_k·p, Σr_k·y and, with two taps, Σr_d·r_{d+1}: the first two and
+    the last as differences of running sums; in shift s = pad - k, Σr·y and Σr·p follow
+    f's own recursion, R(s) = a·R(s - 1) + Σ_i xp_{s+i}·q_i (R(0) by its dot product), and
+    for p = a^i the drive Q(s) = Σ_i xp_{s+i}·a^i runs backwards, Q(s) = xp_s + a·Q(s + 1) -
+    a^n·xp_{s+n} [ours]. G is scaled to a unit diagonal with a 1e-10 ridge (so a constant r
+    or p is harmless), solved by Gaussian elimination with partial pivoting; SSE = y·y - θ·h.
+    """
     n = len(y)
     pad = dmax + taps - 1
-    xp = np.concatenate([np.full(pad, x[0]), x])  # at rest before the record
-    if a == 1.0:
-        f = np.cumsum(xp)
-        p = np.arange(n, dtype=np.float64)
-    elif a == 0.0:
-        f = xp
-        p = np.zeros(n)
-        p[0] = 1.0
-    else:
-        f = lfilter([1.0], [1.0, -a], xp)
-        p = a ** np.arange(n, dtype=np.float64)
-    # r_k (k = 0..pad) is f[pad - k : pad - k + n]: its products with 1, p, y and itself for
-    # every k at once, as sliding sums and correlations, in k order
-    if only is None:
-        c1 = np.concatenate([[0.0], np.cumsum(f)])
-        c2 = np.concatenate([[0.0], np.cumsum(f * f)])
-        r1 = (c1[n:] - c1[:-n])[::-1]
-        rr = (c2[n:] - c2[:-n])[::-1]
-        rp = np.correlate(f, p, "valid")[::-1]
-        ry = np.correlate(f, y, "valid")[::-1]
-        ds = np.arange(dmax + 1)
-    else:  # the one d: its taps' products directly
-        r1, rr, rp, ry = (np.zeros(pad + 1) for _ in range(4))
+    big = n + pad
+    f = np.empty(big)
+    c1 = np.zeros(big + 1)
+    c2 = np.zeros(big + 1)
+    cg = np.zeros(big)  # cg[j] = Σ_{i<j} f[i + 1]·f[i]
+    prev = 0.0
+    for j in range(big):
+        v = x[0] if j < pad else x[j - pad]
+        prev = a * prev + v
+        f[j] = prev
+        c1[j + 1] = c1[j] + prev
+        c2[j + 1] = c2[j] + prev * prev
+        if j > 0:
+            cg[j] = cg[j - 1] + prev * f[j - 1]
+    p = np.empty(n)
+    power = 1.0
+    for i in range(n):
+        p[i] = float(i) if a == 1.0 else power
+        power *= a  # a = 0: the impulse
+    sp, pp, sy, py = 0.0, 0.0, 0.0, 0.0
+    for i in range(n):
+        sp += p[i]
+        pp += p[i] * p[i]
+        sy += y[i]
+        py += p[i] * y[i]
+    ry = np.zeros(pad + 1)  # by k
+    rp = np.zeros(pad + 1)
+    if only >= 0:
         for k in range(only, only + taps):
-            r = f[pad - k:pad - k + n]
-            r1[k], rr[k], rp[k], ry[k] = r.sum(), r @ r, r @ p, r @ y
-        ds = np.array([only])
-    m = taps + 2  # columns: the taps, the constant, the initial state
-    G = np.zeros((len(ds), m, m))
-    h = np.empty((len(ds), m))
-    for i in range(taps):
-        G[:, i, i] = rr[ds + i]
-        G[:, i, taps] = G[:, taps, i] = r1[ds + i]
-        G[:, i, taps + 1] = G[:, taps + 1, i] = rp[ds + i]
-        h[:, i] = ry[ds + i]
-    if taps == 2:
-        # r_d · r_{d+1} = Σ_i f[s + i]·f[s - 1 + i], s = pad - d: a sliding sum of f[k]·f[k-1]
-        cg = np.concatenate([[0.0], np.cumsum(f[1:] * f[:-1])])
-        starts = pad - ds - 1
-        G[:, 0, 1] = G[:, 1, 0] = cg[starts + n] - cg[starts]
-    G[:, taps, taps] = n
-    G[:, taps, taps + 1] = G[:, taps + 1, taps] = p.sum()
-    G[:, taps + 1, taps + 1] = p @ p
-    h[:, taps] = y.sum()
-    h[:, taps + 1] = p @ y
-    # scale to unit diagonal, with a tiny ridge, so that a constant r or p is harmless
-    sc = 1.0 / np.sqrt(np.maximum(np.einsum("kii->ki", G), 1e-300))
-    Gs = G * sc[:, :, None] * sc[:, None, :] + 1e-10 * np.eye(m)
-    theta = np.linalg.solve(Gs, (h * sc)[:, :, None])[:, :, 0] * sc
-    sse = np.maximum(yy - np.einsum("ij,ij->i", theta, h), 0.0)
-    b = theta[:, :taps].sum(axis=1)
-    lag = (theta[:, 1] / np.where(b != 0.0, b, 1.0) if taps == 2 else np.zeros(len(ds)))
-    return sse, b, lag
+            s = pad - k
+            acc_y, acc_p = 0.0, 0.0
+            for i in range(n):
+                acc_y += f[s + i] * y[i]
+                acc_p += f[s + i] * p[i]
+            ry[k], rp[k] = acc_y, acc_p
+    else:
+        r_y, r_p = 0.0, 0.0
+        for i in range(n):
+            r_y += f[i] * y[i]
+        if a == 1.0:
+            for s in range(pad + 1):
+                acc = 0.0
+                for i in range(n):
+                    acc += f[s + i] * p[i]
+                rp[pad - s] = acc
+        elif a == 0.0:
+            for s in range(pad + 1):
+                rp[pad - s] = f[s]
+        else:
+            q = np.empty(pad + 1)
+            acc = 0.0
+            for i in range(n):
+                acc += x[i] * p[i]  # xp[pad + i] = x[i]
+            q[pad] = acc
+            an = power  # a^n
+            for s in range(pad - 1, -1, -1):
+                xs = x[0] if s < pad else x[s - pad]
+                xsn = x[0] if s + n < pad else x[s + n - pad]
+                q[s] = xs + a * q[s + 1] - an * xsn
+            for i in range(n):
+                r_p += f[i] * p[i]
+            rp[pad] = r_p
+            for s in range(1, pad + 1):
+                r_p = a * r_p + q[s]
+                rp[pad - s] = r_p
+        ry[pad] = r_y
+        for s in range(1, pad + 1):
+            r_y = a * r_y + xy[s]
+            ry[pad - s] = r_y
+    m = taps + 2
+    G = np.empty((m, m))
+    h = np.empty(m)
+    sc = np.empty(m)
+    count = len(sse)
+    for idx in range(count):
+        d = idx if only < 0 else only
+        G[:, :] = 0.0
+        for t in range(taps):
+            k = d + t
+            s = pad - k
+            G[t, t] = c2[s + n] - c2[s]
+            G[t, taps] = G[taps, t] = c1[s + n] - c1[s]
+            G[t, taps + 1] = G[taps + 1, t] = rp[k]
+            h[t] = ry[k]
+        if taps == 2:
+            start = pad - d - 1  # r_d·r_{d+1} = Σ_i f[start + 1 + i]·f[start + i]
+            G[0, 1] = G[1, 0] = cg[start + n] - cg[start]
+        G[taps, taps] = n
+        G[taps, taps + 1] = G[taps + 1, taps] = sp
+        G[taps + 1, taps + 1] = pp
+        h[taps] = sy
+        h[taps + 1] = py
+        for i in range(m):
+            sc[i] = 1.0 / math.sqrt(max(G[i, i], 1e-300))
+        A = np.empty((m, m + 1))
+        for i in range(m):
+            for j in range(m):
+                A[i, j] = G[i, j] * sc[i] * sc[j] + (1e-10 if i == j else 0.0)
+            A[i, m] = h[i] * sc[i]
+        for col in range(m):  # Gaussian elimination, partial pivoting
+            piv = col
+            for r in range(col + 1, m):
+                if abs(A[r, col]) > abs(A[piv, col]):
+                    piv = r
+            if piv != col:
+                for j in range(m + 1):
+                    A[col, j], A[piv, j] = A[piv, j], A[col, j]
+            for r in range(col + 1, m):
+                factor = A[r, col] / A[col, col]
+                for j in range(col, m + 1):
+                    A[r, j] -= factor * A[col, j]
+        theta = np.empty(m)
+        for i in range(m - 1, -1, -1):
+            acc = A[i, m]
+            for j in range(i + 1, m):
+                acc -= A[i, j] * theta[j]
+            theta[i] = acc / A[i, i]
+        fit = 0.0
+        for i in range(m):
+            theta[i] *= sc[i]
+            fit += theta[i] * h[i]
+        sse[idx] = max(yy - fit, 0.0)
+        gain = 0.0
+        for t in range(taps):
+            gain += theta[t]
+        b[idx] = gain
+        lag[idx] = theta[1] / (gain if gain != 0.0 else 1.0) if taps == 2 else 0.0
+
+
+@functools.cache
+def _regress_fn() -> Callable[..., None]:
+    """:func:`_regress`, compiled (cached on disk) unless ``LOOPWORKS_JIT=0``."""
+    from loopworks.blocks.kernel import jit_enabled
+
+    if not jit_enabled():
+        return _regress
+    import numba
+
+    return numba.njit(cache=True, nogil=True)(_regress)
 
 
 def _admissible(sse: FloatArray, b: FloatArray, sign: float) -> FloatArray:
@@ -349,8 +474,9 @@ def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int,
     (``taps``: :func:`_sse_all_d`)."""
     xc = x - x.mean()
     yy = float(y @ y)
+    xy = _x_corr_y(xc, y, dmax, taps)
     if integrating:
-        sse, b, lag = _sse_all_d(xc, y, 1.0, dmax, yy, taps=taps)
+        sse, b, lag = _sse_all_d(xc, y, 1.0, dmax, yy, taps=taps, xy=xy)
         sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
         return _Process(float(sse[d]), 1.0, float(b[d]), d, float(lag[d]))
@@ -359,7 +485,7 @@ def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int,
     best = _Process(math.inf, 0.0, 0.0, 0)
     best_i = -1
     for i, a in enumerate([0.0, *np.exp(-1.0 / taus)]):
-        sse, b, lag = _sse_all_d(xc, y, float(a), dmax, yy, taps=taps)
+        sse, b, lag = _sse_all_d(xc, y, float(a), dmax, yy, taps=taps, xy=xy)
         sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
         if sse[d] < best.sse:
@@ -380,7 +506,7 @@ def _fit_process(x: FloatArray, y: FloatArray, integrating: bool, dmax: int,
         res = minimize_scalar(cost, bounds=(lo, hi), args=(best.d,), method="bounded",
                               options={"xatol": 0.005})
         a = math.exp(-math.exp(-float(res.x)))
-        sse, b, lag = _sse_all_d(xc, y, a, dmax, yy, taps=taps)
+        sse, b, lag = _sse_all_d(xc, y, a, dmax, yy, taps=taps, xy=xy)
         sse = _admissible(sse, b, sign)
         d = int(np.argmin(sse))
         if not sse[d] < best.sse:
