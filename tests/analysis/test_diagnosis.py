@@ -258,6 +258,48 @@ def test_the_op_range_option_is_checked() -> None:
     assert run.exit_code == 2 and "--op-range 0-100: expected LO:HI" in run.output
 
 
+def _servo_loop(seed: int, s: float) -> LoopData:
+    """A PI loop (Kc 0.8, Ti 15 s) on a first-order process (K 1, T 20 s, Euler at 1 s) whose
+    SP steps 5 up and down every 400 s, with a walking load at the process input and PV noise
+    0.05; the valve a plain deadband of S (it moves only when the OP is S away, and then to
+    S/2 behind it: J = 0), or linear when S = 0. Written here, apart from loopworks' models."""
+    rng = np.random.default_rng(seed)
+    n = 2000
+    pv, integral, pos, load = 50.0, 50.0, 50.0, 0.0  # at rest at SP
+    rec = np.zeros((n, 3))
+    for k in range(n):
+        sp = 50.0 + (5.0 if (k // 400) % 2 else 0.0)
+        load += rng.normal(0.0, 0.04)
+        meas = pv + rng.normal(0.0, 0.05)
+        e = sp - meas
+        integral += 0.8 / 15.0 * e
+        op = min(max(0.8 * e + integral, 0.0), 100.0)
+        if s == 0.0:
+            pos = op
+        elif abs(op - pos) > s:
+            pos = op - math.copysign(s / 2.0, op - pos)
+        pv += (-pv + pos + load) / 20.0
+        rec[k] = (sp, meas, op)
+    return LoopData(np.arange(n, dtype=float), rec[:, 0], rec[:, 1], rec[:, 2],
+                    source="servo")
+
+
+def test_setpoint_steps_up_and_down_are_no_stick_band() -> None:
+    """A clean loop whose SP steps up and down was called sticky at score 1 from the valve fit
+    alone (a stick band's offset flips at each step and stands in for the walking load: S
+    0.3-1 %, explaining 22-33 % of the linear valve's residual, seven seeds of eight); its
+    stretches with the SP held do not show the band, so the valve fit abstains. A valve with a
+    3 % band shows it in its held stretches too, and is still found."""
+    for seed in (1, 4):
+        d = diagnose(_servo_loop(seed, 0.0), recommend=False)
+        vote = next(e for e in d.evidence if e.key == "valve_fit")
+        assert d.verdict != "stiction" and vote.vote == "undetermined", vote.reason
+        assert "with it held" in vote.reason and "abstains" in vote.reason
+    sticky = diagnose(_servo_loop(0, 3.0), recommend=False)
+    assert sticky.verdict == "stiction", sticky.reason
+    assert sticky.stiction is not None and sticky.stiction["s"] == pytest.approx(3.0, rel=0.3)
+
+
 def test_a_clean_loop_and_an_external_oscillation_are_not_called_sticky() -> None:
     clean = diagnose(_spec_loop("linear", 0.0, 0.0, walk_std=0.05), recommend=False)
     assert clean.verdict != "stiction", clean.reason

@@ -12,8 +12,10 @@ from loopworks.analysis.loopdata import LoopData, read_csv
 from loopworks.analysis.quality import (
     MIN_SAMPLES,
     check_quality,
+    held_sp_stretches,
     longest_run,
     pv_quantum,
+    sp_reversals,
     unique_fraction,
 )
 
@@ -297,3 +299,17 @@ def test_an_extreme_reached_once_is_not_a_saturated_op() -> None:
     assert reasons == []
     held = np.concatenate([np.linspace(40.0, 54.0, 13), [54.0, 54.0]])
     assert _saturation_check(held, None, reasons) == pytest.approx(3 / 15)
+
+
+def test_setpoint_reversals_and_held_stretches() -> None:
+    """SP moves count as in the gate (above 1 % of the PV's span); a reversal is a move the
+    other way than the one before; the held stretches lie between moves, longest first."""
+    pv = np.linspace(0.0, 100.0, 12)  # span 100: moves above 1 count
+    sp = np.array([5, 5, 5, 9, 9, 9, 9, 9.5, 2, 2, 2, 2.0])  # up 4, up 0.5 (no), down 7.5
+    data = LoopData(np.arange(12.0), sp, pv, np.zeros(12))
+    assert sp_reversals(data) == 1
+    assert held_sp_stretches(data) == [slice(3, 8), slice(8, 12), slice(0, 3)]
+    one_way = LoopData(np.arange(12.0), np.array([5.0] * 4 + [3.0] * 4 + [1.0] * 4), pv,
+                       np.zeros(12))
+    assert sp_reversals(one_way) == 0  # steps down twice: no reversal
+    assert held_sp_stretches(one_way) == [slice(0, 4), slice(4, 8), slice(8, 12)]

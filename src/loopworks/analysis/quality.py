@@ -66,6 +66,7 @@ Every rule is checked on every record; a record that fails lists every reason.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -386,14 +387,37 @@ def _manual_check(mode: FloatArray | None, reasons: list[str], notes: list[str])
     return fraction
 
 
-def _sp_check(sp: FloatArray, pv: FloatArray, notes: list[str]) -> int:
-    """The number of SP moves larger than :data:`SP_MOVE_FRACTION` of the PV's span; a note
-    when there are any."""
+def _sp_moves(sp: FloatArray, pv: FloatArray) -> tuple[npt.NDArray[np.bool_], float]:
+    """Which sample-to-sample SP moves count as setpoint changes (larger than
+    :data:`SP_MOVE_FRACTION` of the PV's span; a NaN is no move), and that tolerance."""
     finite = pv[np.isfinite(pv)]
     span = float(np.ptp(finite)) if len(finite) else 0.0
     tol = SP_MOVE_FRACTION * span
-    moves = np.abs(np.diff(sp))
-    count = int((moves > tol).sum())  # a NaN is no move
+    return np.abs(np.diff(sp)) > tol, tol
+
+
+def sp_reversals(data: LoopData) -> int:
+    """How many times the setpoint changes (:func:`_sp_moves`) reverse direction: 0 for a
+    record whose SP only steps or ramps one way."""
+    moved, _ = _sp_moves(data.sp, data.pv)
+    signs = np.sign(np.diff(data.sp)[moved])
+    return int((signs[1:] != signs[:-1]).sum())
+
+
+def held_sp_stretches(data: LoopData) -> list[slice]:
+    """The stretches of the record between consecutive setpoint changes (:func:`_sp_moves`),
+    longest first (in record order among equals)."""
+    moved, _ = _sp_moves(data.sp, data.pv)
+    edges = [0, *(int(k) + 1 for k in np.flatnonzero(moved)), len(data)]
+    spans = [slice(a, b) for a, b in itertools.pairwise(edges) if b > a]
+    return sorted(spans, key=lambda s: -(s.stop - s.start))
+
+
+def _sp_check(sp: FloatArray, pv: FloatArray, notes: list[str]) -> int:
+    """The number of SP moves larger than :data:`SP_MOVE_FRACTION` of the PV's span; a note
+    when there are any."""
+    moved, tol = _sp_moves(sp, pv)
+    count = int(moved.sum())
     if count:
         size = (f"by more than {tol:.3g} ({_pct(SP_MOVE_FRACTION)} of the PV's span)" if tol > 0
                 else "(the PV does not move, so any SP move counts)")
