@@ -576,6 +576,26 @@ def test_simulate_file_writes_the_report_directory(tmp_path: Path) -> None:
     assert 'src="base.png"' in page and "IAE" in page
 
 
+def test_simulate_json_prints_the_metrics_json_and_writes_no_report_unless_asked(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """`simulate --json`: standard output is one JSON object, the report's metrics.json; no
+    report directory unless -o is given (then the same file is written too)."""
+    import json
+
+    monkeypatch.chdir(tmp_path)
+    scenario = tmp_path / "loop.toml"
+    scenario.write_text(SCENARIO, encoding="utf-8")
+    alone = CliRunner().invoke(app, ["simulate", str(scenario), "--json", "-q"])
+    assert alone.exit_code == 0, alone.output
+    assert list(tmp_path.iterdir()) == [scenario]  # no loopworks-report/
+    printed = json.loads(alone.stdout)
+    assert list(printed) == ["base"] and printed["base"]["IAE"] > 0.0
+    both = CliRunner().invoke(app, ["simulate", str(scenario), "--json", "-q", "-o", "rep"])
+    assert both.exit_code == 0, both.output
+    assert json.loads(both.stdout) == printed
+    assert (tmp_path / "rep" / "metrics.json").read_text() == both.stdout
+
+
 @pytest.mark.parametrize(("edit", "needle"), [
     pytest.param(("[simulation]", "[simulation"), "invalid TOML", id="syntax"),
     pytest.param(("k = 1.0", "kk = 1.0"), "kk", id="unknown-parameter"),

@@ -72,10 +72,13 @@ def _user_errors(fn: F) -> F:
 def simulate(
     scenario: Annotated[Path | None, typer.Argument(
         help="scenario TOML file; omit to run the built-in scenario")] = None,
-    output: Annotated[Path, typer.Option(
-        "--output", "-o", help="report directory: plots, metrics.json, report.html")] = Path(
-        "loopworks-report"),
+    output: Annotated[Path | None, typer.Option(
+        "--output", "-o", help="report directory: plots, metrics.json, report.html "
+        "[default: loopworks-report; with --json: none unless given]")] = None,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="no progress bar")] = False,
+    as_json: Annotated[bool, typer.Option(
+        "--json", help="print the metrics as metrics.json has them (one JSON object) instead "
+        "of the table; the report is written only with -o")] = False,
 ) -> None:
     """Run a scenario (each [compare] variant), print the metrics, write a report directory."""
     from rich.console import Console
@@ -83,15 +86,18 @@ def simulate(
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
     from rich.table import Table
 
-    from loopworks.sim.report import write_report
+    from loopworks.sim.report import json_text, write_report
     from loopworks.sim.result import SimResult
     from loopworks.sim.scenario import load_scenario, run_autotune
 
-    _check_report_directory(output)
+    if output is None and not as_json:
+        output = Path("loopworks-report")
+    if output is not None:
+        _check_report_directory(output)
     sc = load_scenario(scenario)
     for warning in sc.warnings:
         typer.echo(f"warning: {warning}", err=True)
-    console = Console()
+    console = Console(stderr=as_json)  # with --json, standard output is the JSON alone
     title = sc.title or sc.source
     if sc.autotune_test is not None:  # the [autotune] relay test: an explicit step
         test = sc.autotune_test
@@ -131,6 +137,8 @@ def simulate(
     from loopworks.sim.module import scan_count
 
     run_s = scan_count(sc.duration, sc.dt) * sc.dt  # what ran: a duration off the grid rounds
+    if as_json:
+        typer.echo(json_text(metrics), nl=False)
     table = Table(title=escape(f"{title}: {run_s:g} s in scans of {sc.dt:g} s{scored}"))
     table.add_column("metric")
     for key in metrics:
@@ -139,11 +147,13 @@ def simulate(
     for name in dict.fromkeys(k for m in metrics.values() for k in m):
         table.add_row(name, *("n/a" if math.isnan(m.get(name, math.nan))
                               else f"{m[name]:.4g}" for m in metrics.values()))
-    if metrics:
+    if metrics and not as_json:
         console.print(table)
-    else:
+    elif not metrics:
         console.print(f"{title}: no controller to score (a block with sp and pv inputs and an "
                       "out output)", markup=False)
+    if output is None:
+        return
     try:
         write_report(output, title, sc.text, results, metrics, sc.autotune, sc.metrics_window)
     except OSError as exc:

@@ -160,10 +160,9 @@ def _simulate_metrics(tmp: Path, text: str, values: dict[str, float], seed: int,
         assert f"{param} = {value!r}" in lines
     path = tmp / f"run_{seed}.toml"
     path.write_text(lines, encoding="utf-8")
-    out = tmp / f"report_{seed}"
-    result = CliRunner().invoke(app, ["simulate", str(path), "-o", str(out), "-q"])
+    result = CliRunner().invoke(app, ["simulate", str(path), "--json", "-q"])
     assert result.exit_code == 0, result.output
-    return dict(json.loads((out / "metrics.json").read_text())[variant])
+    return dict(json.loads(result.stdout)[variant])
 
 
 def test_a_grid_equals_separate_simulate_runs(scenario: Path, tmp_path: Path) -> None:
