@@ -5,6 +5,7 @@ sequences that include NaN, ±inf, ±1e308, subnormals and status bytes of every
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -33,8 +34,11 @@ SIZE_LIMITS = {"delay_capacity": 400, "max_order": 6, "max_substeps": 400, "max_
 FIXED = {"expression", "num", "den", "sample_time", "substep"}
 
 
+@functools.cache
 def param_value(prm: Param) -> st.SearchStrategy[Any]:
-    """A value of ``prm`` inside its documented range (finite, moderate magnitudes)."""
+    """A value of ``prm`` inside its documented range (finite, moderate magnitudes); one
+    strategy object per parameter (Hypothesis works out a new strategy's properties on its
+    first draw, a tenth of a property test's time when one was made per draw)."""
     if prm.type == "choice":
         return st.sampled_from(prm.choices)
     if prm.type == "bool":
@@ -54,14 +58,22 @@ def param_value(prm: Param) -> st.SearchStrategy[Any]:
     return st.one_of(inner, st.sampled_from(edges)) if edges else inner
 
 
+@functools.cache
+def _kind_strategies(kind: str) -> tuple[st.SearchStrategy[Any], st.SearchStrategy[Any] | None]:
+    """A variant of ``kind``, and up to three of its free parameters (None: it has none)."""
+    free = [p for p in block_class(kind).PARAMS if p.type != "text" and p.name not in FIXED]
+    chosen = (st.lists(st.sampled_from(free), max_size=3, unique_by=lambda p: p.name)
+              if free else None)
+    return st.sampled_from(VARIANTS[kind]), chosen
+
+
 @st.composite
 def blocks(draw: st.DrawFn, kind: str) -> tuple[str, dict[str, Any]]:
     """(kind, params): a variant of ``kind`` with up to three parameters redrawn."""
-    params = dict(draw(st.sampled_from(VARIANTS[kind])))
-    cls = block_class(kind)
-    free = [p for p in cls.PARAMS if p.type != "text" and p.name not in FIXED]
-    if free:
-        for prm in draw(st.lists(st.sampled_from(free), max_size=3, unique_by=lambda p: p.name)):
+    variant, chosen = _kind_strategies(kind)
+    params = dict(draw(variant))
+    if chosen is not None:
+        for prm in draw(chosen):
             params[prm.name] = draw(param_value(prm))
     try:
         loopworks.create_block(kind, jit=False, **params)
@@ -134,6 +146,15 @@ def input_rows(block: Block, n: int, seed: int, special: float, bad: float) -> l
     return rows
 
 
+SEEDS = st.integers(0, 2**32 - 1)
+BOOLEANS = st.booleans()
+
+
+@functools.cache
+def _scan_counts(lo: int, hi: int) -> st.SearchStrategy[int]:
+    return st.integers(lo, hi)
+
+
 @st.composite
 def cases(draw: st.DrawFn, kind: str, *, special: float = 0.12, bad: float = 0.15,
           scans: tuple[int, int] = (4, 40)) -> Case:
@@ -141,10 +162,10 @@ def cases(draw: st.DrawFn, kind: str, *, special: float = 0.12, bad: float = 0.1
     kind, params = draw(blocks(kind))
     block = loopworks.create_block(kind, jit=False, **params)
     dt0 = scan_time(block, params)
-    n = draw(st.integers(*scans))
-    seed = draw(st.integers(0, 2**32 - 1))
+    n = draw(_scan_counts(*scans))
+    seed = draw(SEEDS)
     rng = np.random.default_rng(seed + 1)
-    jitter = draw(st.booleans()) and "sample_time" not in params
+    jitter = draw(BOOLEANS) and "sample_time" not in params
     dts = []
     for _ in range(n):
         dt = dt0 * float(rng.uniform(0.8, 1.25)) if jitter else dt0

@@ -62,6 +62,8 @@ def check_sound(block: Block, scan: int, case: Case) -> None:
             assert port.status and status & 0xC0 == 0, (
                 f"{block.kind} scan {scan}: output {port.name} = {value} with status {status} "
                 f"(params {case.params}, inputs {case.inputs[scan]})")
+    if np.isfinite(block.x).all():
+        return
     for name, value in zip(layout.names(block.STATES, block.params), block.x, strict=True):
         assert math.isfinite(value), (
             f"{block.kind} scan {scan}: state {name} = {value} (params {case.params}, "
@@ -102,13 +104,18 @@ def test_sound_within_limits_repeatable_and_resumable(kind: str, data: st.DataOb
     assert same(whole, head + tail), f"{kind}: resumed at scan {half} differs ({case.params})"
 
 
+BURST_LENGTHS = st.integers(1, 5)
+BURST_VALUES = st.sampled_from([math.nan, math.inf, -math.inf, 1e308])
+BURST_STATUSES = st.sampled_from([0, 0x0C, 0x18, 128])
+
+
 @pytest.mark.parametrize("kind", KINDS)
 @given(data=st.data())
 def test_recovers_after_a_bad_burst(kind: str, data: st.DataObject) -> None:
     """Good inputs, a burst of NaN / inf / Bad status, then the same good inputs as before the
     burst for long enough: every output that is usable without the burst is usable again."""
     case = data.draw(cases(kind, special=0.0, bad=0.0, scans=(6, 20)))
-    burst_len = data.draw(st.integers(1, 5))
+    burst_len = data.draw(BURST_LENGTHS)
     burst = []
     ports = case.make().INPUTS  # an instance's: deltav.calc's come from its expression
     for _ in range(burst_len):
@@ -117,8 +124,8 @@ def test_recovers_after_a_bad_burst(kind: str, data: st.DataObject) -> None:
             if port.choices or port.name == "clock":
                 row[port.name] = case.inputs[-1][port.name]
             else:
-                value = data.draw(st.sampled_from([math.nan, math.inf, -math.inf, 1e308]))
-                status = data.draw(st.sampled_from([0, 0x0C, 0x18, 128]))
+                value = data.draw(BURST_VALUES)
+                status = data.draw(BURST_STATUSES)
                 row[port.name] = (value, status)
         burst.append(row)
     tail = 60
