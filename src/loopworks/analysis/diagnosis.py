@@ -39,7 +39,7 @@ The rules, in order:
    the fit explains less than the linear valve, :func:`_fit_vote`) it abstains. On a record
    whose setpoint moves up and down, its stiction vote stands only when more of the long
    stretches with the SP held vote stiction than against it (:func:`_held_sp_vote`), else it
-   abstains.
+   abstains (a cascade slave's SP, which never holds long enough to fit, is not checked).
 
    When the record has the valve position (a digital positioner's travel feedback), the
    valve is also measured on it (:mod:`loopworks.analysis.valve_travel`: OP → position, no
@@ -91,6 +91,7 @@ from loopworks.analysis.quality import (
 )
 from loopworks.analysis.seized import CONFIDENCE as SEIZED_CONFIDENCE
 from loopworks.analysis.seized import Seized, seized_valve
+from loopworks.analysis.valve_fit import MIN_SAMPLES as MIN_FIT_SAMPLES
 from loopworks.analysis.valve_fit import (
     ControllerFit,
     ValveFit,
@@ -303,8 +304,10 @@ def _held_sp_vote(data: LoopData, loop_type: LoopType, sign: float,
     longest (:func:`loopworks.analysis.quality.held_sp_stretches`, at most
     :data:`HELD_STRETCHES`), and the vote stands when more of them vote stiction than vote
     against it, and at least :data:`HELD_VOTES` do (or all, when fewer are long enough);
-    else it abstains. A setpoint step reverses the OP by far more than its noise does, and a
-    stick band's offset, which flips sign at each such reversal, can stand in for the slow
+    else it abstains. When the SP never holds for the fit's fewest samples (a cascade
+    slave's SP moves nearly every sample), the check cannot be made and the vote stands.
+    A setpoint step reverses the OP by far more than its noise does, and a stick band's
+    offset, which flips sign at each such reversal, can stand in for the slow
     load a linear valve leaves unexplained; setpoint moves that all go one way flip it at
     most once, and are left alone [ours: a clean PI loop with a walking load and
     five setpoint steps of 400 samples fitted S = 0.3-1 % explaining 22-33 % of the linear
@@ -313,6 +316,11 @@ def _held_sp_vote(data: LoopData, loop_type: LoopType, sign: float,
     S = 3 % in all eight]."""
     stretches = held_sp_stretches(data)
     longest = stretches[0].stop - stretches[0].start
+    if longest < MIN_FIT_SAMPLES:
+        return replace(vote, reason=(
+            f"{vote.reason}; the SP moves up and down and never holds for "
+            f"{MIN_FIT_SAMPLES} samples (a cascade slave's), so the stick band is not checked "
+            "with it held"))
     votes: list[str] = []
     for span in stretches[:HELD_STRETCHES]:
         n = span.stop - span.start
