@@ -199,6 +199,22 @@ def test_monte_carlo_is_reproducible_and_processes_agree(scenario: Path) -> None
     assert [one.columns["pid.k"][i] for i in base] == [one.columns["pid.k"][i] for i in fast]
 
 
+def test_a_column_has_its_parameters_type_however_its_values_were_typed(
+        scenario: Path) -> None:
+    """`pid.k=1,2` made an int64 column and `pid.k=1.0,2` a float64 one, so two sweeps of
+    one parameter had two Parquet schemas (found by an outside audit): a float parameter's
+    values are floats, a numeric input's too."""
+    import pyarrow as pa
+
+    types = set()
+    for spec in ("1,2", "1.0,2", "choice(1,2)"):
+        result = sweep(scenario, [f"pid.k={spec}"], samples=2, seed=1, variant="base",
+                       workers=1)
+        assert {type(v) for v in result.columns["pid.k"]} == {float}, spec
+        types.add(result.to_arrow().schema.field("pid.k").type)
+    assert types == {pa.float64()}
+
+
 def test_a_range_gives_the_decimals_it_stands_for() -> None:
     """1:2:11 is 1.0, 1.1, ..., 2.0 (linspace gave 1.7000000000000002, shown so in the
     results); n may be written 3.0 (it was refused)."""
@@ -772,3 +788,7 @@ def test_a_whole_number_parameter_refuses_a_continuous_distribution(tmp_path: Pa
                                              r"s5.k is a whole number .*: give a list"):
             sweep(path, {"s5.k": spec}, samples=4, workers=1)
     assert len(sweep(path, {"s5.k": "400,600"}, workers=1)) == 2
+    # a whole float typed for a whole-number parameter is its integer, in the table too
+    typed = sweep(path, {"s5.k": "400.0,600"}, workers=1)
+    assert typed.columns["s5.k"] == [400, 600]
+    assert {type(v) for v in typed.columns["s5.k"]} == {int}

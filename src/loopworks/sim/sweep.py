@@ -462,9 +462,10 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
             raise InputError(f"--variant '{variant}': no such variant; variants: "
                              + ", ".join(variants))
         variants = [variant]
-    for axis in axes:
+    for k, axis in enumerate(axes):
         _check_axis(sc, axis, variants)
         _check_whole(sc, axis, variants)
+        axis = axes[k] = _typed(sc, axis, variants)
         for value, inside, what in _support(axis):
             try:  # just inside an end: an end on a bound the parameter excludes is fine
                 _check_value(sc, axis.name, value if inside is None else inside, variants,
@@ -625,6 +626,36 @@ def _check_whole(sc: Any, axis: Axis, variants: list[str]) -> None:
         raise InputError(f"--vary {axis.name}: {axis.distribution}() draws fractional values, "
                          f"and {axis.name} is a whole number ({spec.range_text()}): give a "
                          "list, a:b:n with whole steps, or choice(v1, v2, ...)")
+
+
+def _typed(sc: Any, axis: Axis, variants: list[str]) -> Axis:
+    """The axis with its listed numbers of the type the parameter declares, so a column's
+    type follows the parameter and not how its values were typed (``1,2`` made an int64
+    column and ``1.0,2`` a float64 one, and two sweeps of one parameter had two Parquet
+    schemas; found by an outside audit): a float parameter's or a numeric input's whole
+    numbers become floats, an int parameter's whole floats ints. A value of another type
+    is left for the checks to refuse."""
+    from loopworks.catalog import block_class
+    from loopworks.sim.scenario import split_ref
+
+    block, fname = split_ref(axis.name)
+    cls = block_class(str(sc.tables[variants[0]][block]["kind"]))
+    spec = next((p for p in cls.PARAMS if p.name == fname), None)
+    port = next((p for p in cls.INPUTS if p.name == fname), None)
+    kind = spec.type if spec is not None else ("" if port is None or port.choices else "float")
+
+    def cast(v: Value) -> Value:
+        if isinstance(v, bool) or not isinstance(v, int | float):
+            return v
+        if kind == "float":
+            return float(v)
+        if kind == "int" and float(v).is_integer():
+            return int(v)
+        return v
+
+    return replace(axis, values=tuple(cast(v) for v in axis.values),
+                   args=tuple(cast(v) for v in axis.args) if axis.distribution == "choice"
+                   else axis.args)
 
 
 def _support(axis: Axis) -> list[tuple[Value, Value | None, str]]:
