@@ -6,12 +6,14 @@ batch (the near-limit anchor, written here) and against a plain Python loop over
 
 Loops: (1) pid + process.fopdt (K = 1, T = 20 s, dead time 2 s, PI Kc = 2, Ti = 10 s, a unit
 setpoint, dt = 0.1 s), ``--instances`` instances of ``--scans`` scans, the controller gain
-drawn uniform(1, 3) per instance; (2) the built-in scenario (7 blocks, two variants, its own
-one-hour run), ``--builtin-instances`` Monte Carlo instances of the valve's resolution (its
-slip jump). Each figure is instances per second (the sweep's: ``SweepResult.seconds``, the
-instances' run with its worker processes, not the ``[autotune]`` relay tests, one per point,
-before it: the Python loop runs none either); the ratios are the figures (absolute times on
-shared machines are noise).
+drawn uniform(1, 3) per instance, with the batch that calls each kind's cached kernel
+(``plan="compiled"``) and with every kernel inlined (``plan="fused"``, compiled once per
+module shape, which ``"auto"`` takes once it is cached); (2) the built-in scenario (7 blocks,
+two variants, its own one-hour run), ``--builtin-instances`` Monte Carlo instances of the
+valve's resolution (its slip jump). Each figure is instances per second (the sweep's:
+``SweepResult.seconds``, the instances' run with its worker processes, not the ``[autotune]``
+relay tests, one per point, before it: the Python loop runs none either); the ratios are the
+figures (absolute times on shared machines are noise).
 """
 
 from __future__ import annotations
@@ -125,8 +127,14 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "loop.toml"
         path.write_text(LOOP.format(duration=scans * DT), encoding="utf-8")
-        loopworks.sweep(path, ["pid.k=uniform(1,3)"], samples=2, workers=1)  # warm the cache
-        result = loopworks.sweep(path, ["pid.k=uniform(1,3)"], samples=n)
+        loopworks.sweep(path, ["pid.k=uniform(1,3)"], samples=2, workers=1,
+                        plan="compiled")  # warm the cache
+        result = loopworks.sweep(path, ["pid.k=uniform(1,3)"], samples=n, plan="compiled")
+        start = time.perf_counter()  # compiled once per machine (a load when cached)
+        loopworks.sweep(path, ["pid.k=uniform(1,3)"], samples=2, workers=1, plan="fused")
+        fuse_first = time.perf_counter() - start
+        fused = loopworks.sweep(path, ["pid.k=uniform(1,3)"], samples=n, plan="fused")
+        ours_fused = len(fused) / fused.seconds
         before, rss = sweep_memory(path, n)
         ours = len(result) / result.seconds  # the instances' run (workers included)
         sc = load_scenario(path)
@@ -139,8 +147,11 @@ def main() -> None:
         python_loop = m / (time.perf_counter() - start)
     print(f"pid + fopdt, {n} instances x {scans} scans")
     print(f"  numba prange batch (anchor)      {anchor:12.0f} instances/s")
-    print(f"  loopworks.sweep                  {ours:12.0f} instances/s  ratio {ours / anchor:.4f}"
+    print(f"  loopworks.sweep, plan='compiled' {ours:12.0f} instances/s  ratio {ours / anchor:.4f}"
           " (target >= 0.3, goal 0.5)")
+    print(f"  loopworks.sweep, plan='fused'    {ours_fused:12.0f} instances/s  ratio "
+          f"{ours_fused / anchor:.4f} (its first use took {fuse_first:.1f} s: compiled, or "
+          "loaded from the cache)")
     print(f"  Python loop over Module.run      {python_loop:12.0f} instances/s  sweep / loop "
           f"{ours / python_loop:.2f}")
 

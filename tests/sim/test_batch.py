@@ -222,3 +222,76 @@ def test_every_instance_is_checked_at_the_scan_time() -> None:
     with pytest.raises(InputError, match=r"instance 0 \(base; process\.dead_time = 600\.0\):"
                                          r" .*delay_capacity"):
         run_jobs(sc.text, sc.source, jobs)
+
+
+FUSED_LOOP = """
+[simulation]
+dt = 0.5
+duration = 100.0
+
+[blocks.pi]
+kind = "pid"
+k = 1.5
+ti = 15.0
+sp = 40.0
+
+[blocks.process]
+kind = "process.fopdt"
+gain = 2.0
+time_constant = 10.0
+dead_time = 1.0
+
+[blocks.sensor]
+kind = "sensor.transmitter"
+noise_std = 0.05
+seed = 3
+
+[wires]
+"process.u" = "pi.out"
+"sensor.y" = "process.y"
+"pi.pv" = "sensor.pv"
+
+[[events]]
+t = 40.0
+set = "pi.k"
+value = 0.7
+"""
+
+
+def test_the_fused_batch_gives_the_batchs_numbers(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``plan="fused"`` (every kernel inlined into the batch: ``batch_fused``) gives the
+    compiled batch's numbers bit for bit, events and seeded noise included; ``"auto"`` takes
+    it when the sweep is long enough (``PLAN_FUSE_BLOCK_SCANS``) or it is cached, else the
+    batch; another plan is refused."""
+    import loopworks.blocks.plan as plan_mod
+    import loopworks.sim.module as module_mod
+
+    sc = parse_scenario(FUSED_LOOP)
+    batch = Batch(sc.template("base"), ["pi.out", "sensor.pv", "process.y"])
+    instances = [{"pi.k": k, "process.time_constant": tau}
+                 for k, tau in ((0.8, 8.0), (1.5, 10.0), (2.5, 14.0))]
+    taken: list[str] = []
+    entry = plan_mod.entry
+    monkeypatch.setattr("loopworks.sim.batch.entry",
+                        lambda slots, what, sig: taken.append(what) or entry(slots, what, sig))
+    results = {}
+    for plan in ("compiled", "fused"):
+        batch.load(instances, [4, 5, 6])
+        results[plan] = batch.run(sc.duration, sc.dt, plan)
+    assert taken == ["batch", "batch_fused"]
+    np.testing.assert_array_equal(results["fused"][0], results["compiled"][0])
+    np.testing.assert_array_equal(results["fused"][1], results["compiled"][1])
+    _compare(sc, "base", instances[:1], [4])  # and both are one module's run
+    # "auto": fused when cached, or when the block-scans (3 × 200 scans × 3 blocks, or the
+    # whole sweep's ``total`` instances) reach the threshold
+    for cached, threshold, total, expected in ((False, 1801, None, "batch"),
+                                               (False, 1800, None, "batch_fused"),
+                                               (False, 1801, 4, "batch_fused"),
+                                               (True, 10**12, None, "batch_fused")):
+        monkeypatch.setattr(plan_mod, "is_cached", lambda *a, c=cached, **k: c)
+        monkeypatch.setattr(module_mod, "PLAN_FUSE_BLOCK_SCANS", threshold)
+        batch.load(instances, [4, 5, 6])
+        batch.run(sc.duration, sc.dt, total=total)
+        assert taken[-1] == expected, (cached, threshold, total)
+    with pytest.raises(InputError, match="plan = 'inline' is not allowed"):
+        batch.run(sc.duration, sc.dt, "inline")

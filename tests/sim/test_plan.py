@@ -600,3 +600,47 @@ def test_is_cached_finds_machine_code_under_numba_cache_dir(monkeypatch: pytest.
     assert on_disk, "numba wrote no index under NUMBA_CACHE_DIR"
     assert not (tmp_path / "lw" / "plans" / "__pycache__").exists() or not any(
         (tmp_path / "lw" / "plans" / "__pycache__").glob(f"{name}.step-*.nbi"))
+
+
+STALE = """
+import sys
+import numpy as np
+from loopworks.blocks import plan
+from tests.sim.test_plan import doubling_kernel
+if sys.argv[1] == "old":  # the kind entries under the names of a source since edited
+    made = plan._name
+    plan._name = lambda slots, what, usual=None: (
+        (lambda n, t, i: (n + "old" if what == "call" else n, t, i))(*made(slots, what, usual)))
+slots = plan.layout([(doubling_kernel, 0, 1, 3, 1, True), (doubling_kernel, 0, 1, 3, 1, True)])
+scans = plan.entry(slots, "scans", plan.SCANS_SIGNATURE)
+F, S = np.zeros(slots[-1].f1), np.zeros(slots[-1].s1, dtype=np.int64)
+F[slots[0].u0] = 1.5
+T, RF, RS = np.zeros(3), np.zeros((1, 3)), np.zeros((1, 3), dtype=np.uint8)
+scans(F, S, 0.1, 0.0, 0, 3, T, RF, RS, np.array([slots[0].y0]), np.array([slots[0].ys0]), 0)
+print(RF[0].tolist(), F[slots[1].x0])
+"""
+
+
+def test_machine_code_naming_a_plan_module_no_process_makes_is_compiled_again(
+        tmp_path: Path) -> None:
+    """A module plan is cached under a name from the sources as one process read them, and
+    its machine code names the kind entries it links to. A file edited while a long run
+    went on gave its later plans new names and its kind entries the old ones (the files were
+    read again for each name); every later process then failed to load that plan
+    (ModuleNotFoundError: No module named 'lw_plan_...'), whatever it ran, until the cache was
+    deleted (found in this project's own benchmark run). The stale machine code is compiled
+    again instead (and a process reads each source once)."""
+    env = {**os.environ, "LOOPWORKS_CACHE_DIR": str(tmp_path / "cache"),
+           "PYTHONPATH": str(Path(__file__).resolve().parents[2])}
+
+    def run(which: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-c", STALE, which], capture_output=True,
+                              text=True, env=env, timeout=600)
+
+    old = run("old")
+    assert old.returncode == 0, old.stderr
+    assert old.stdout.split()[:3] == ["[3.0,", "3.0,", "3.0]"]
+    for _ in range(2):  # compiled again, then loaded
+        new = run("new")
+        assert new.returncode == 0, new.stderr[-2000:]
+        assert new.stdout == old.stdout

@@ -549,6 +549,12 @@ def test_a_seed_that_is_not_a_whole_number_is_refused(scenario: Path) -> None:
         sweep(scenario, ["pid.k=1,2"], seed=1.5, workers=1)  # type: ignore[arg-type]
 
 
+def test_a_plan_that_is_not_one_is_refused_before_the_run(scenario: Path) -> None:
+    with pytest.raises(InputError, match=r"plan = 'inlined' is not allowed: expected auto, "
+                                         r"compiled or fused"):
+        sweep(scenario, ["pid.k=1,2"], plan="inlined", workers=1)
+
+
 def short_default(tmp_path: Path, duration: float, window: tuple[float, float]
                   ) -> tuple[Path, str]:
     """examples/default.toml (the built-in scenario, with [autotune]) run for ``duration`` s

@@ -24,6 +24,7 @@ every name before it has the same index in every instance.
 
 from __future__ import annotations
 
+import functools
 from collections import namedtuple
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -108,12 +109,27 @@ def names(entries: Sequence[Entry], params: Mapping[str, Any] | None = None) -> 
     return tuple(out)
 
 
+@functools.lru_cache(maxsize=256)
+def _names_of(entries: tuple[Entry, ...]) -> tuple[str, ...]:
+    return tuple(_name(e) for e in entries)
+
+
+def _declared(entries: Sequence[Entry]) -> tuple[str, ...]:
+    """The entries' names (a kind's layout is a tuple: its names are worked out once)."""
+    if isinstance(entries, tuple):
+        try:
+            return _names_of(entries)
+        except TypeError:  # an entry that cannot be hashed
+            pass
+    return tuple(_name(e) for e in entries)
+
+
 def pack(entries: Sequence[Entry], values: Mapping[str, Any], what: str,
          params: Mapping[str, Any] | None = None) -> np.ndarray:
     """``values`` (name to a float, or to a sequence for an Array) in the layout's order, as
     one float64 array. A missing, unknown or wrongly sized entry is a ValueError naming it,
     ``what`` naming the values ("pid: coefficients()", "pid: saved state")."""
-    declared = [_name(e) for e in entries]
+    declared = _declared(entries)
     if len(values) != len(declared) or not all(n in values for n in declared):
         missing = [n for n in declared if n not in values]
         extra = [n for n in values if n not in declared]

@@ -218,9 +218,8 @@ def _feed(obj: Any, digest: Any, seen: set[int]) -> None:
             _feed(cell.cell_contents, digest, seen)
     elif isinstance(obj, types.ModuleType):
         digest.update(f"module {obj.__name__}".encode())
-        path = _origin(obj.__name__) if obj.__name__.startswith("loopworks") else None
-        if path is not None:
-            digest.update(path.read_bytes())
+        if obj.__name__.startswith("loopworks"):
+            digest.update(_source(obj.__name__))
     elif isinstance(obj, bool | int | float | complex | str | bytes | type(None)):
         digest.update(f"{type(obj).__name__} {obj!r}".encode())
     elif isinstance(obj, tuple | list | frozenset):
@@ -233,6 +232,18 @@ def _feed(obj: Any, digest: Any, seen: set[int]) -> None:
         digest.update(f"{type(obj).__qualname__} "
                       f"{getattr(obj, '__module__', '')}.{getattr(obj, '__qualname__', '')}"
                       .encode())
+
+
+@cache
+def _source(module: str) -> bytes:
+    """A loopworks module's source as this process first read it (b"" when not found): once
+    per process, so every plan name the process makes comes from one reading of each file.
+    Read again for each hash, a file edited while a long run was going gave the plans made
+    after the edit new names while the kind entries they link to kept the old ones: the
+    machine code cached under the new name then named a module no later process makes
+    (ModuleNotFoundError on every load; :func:`entry` now also recovers from that)."""
+    path = _origin(module)
+    return path.read_bytes() if path is not None else b""
 
 
 def _origin(module: str) -> Path | None:
@@ -259,9 +270,7 @@ def _kernels_hash(kernels: tuple[Any, ...]) -> str:
 
     digest = hashlib.sha256()
     for name in ("loopworks.blocks.kernel", "loopworks.blocks.address", __name__):
-        path = _origin(name)
-        if path is not None:
-            digest.update(path.read_bytes())
+        digest.update(_source(name))
     seen: set[int] = set()
     for kernel in kernels:
         _feed(kernel, digest, seen)
@@ -388,7 +397,7 @@ def source(slots: Sequence[Slot], entries: Sequence[str],
         kernels.setdefault((slot.kernel, slot.full), f"G{len(kernels)}")
     refs = {k: _reference(k) for k, _ in kernels}
     injected = [k if refs[k] is None else None for k, _ in kernels]
-    lines = _header(kernels, refs, linked=not {"call", "fused"} & set(entries))
+    lines = _header(kernels, refs, linked=not {"call", "fused", "batch_fused"} & set(entries))
     deco = "@numba.njit(cache=CACHE, nogil=True)"
     # ``fused``: the same scans with every kernel inlined (compiled with the plan, once per
     # module shape), for long runs; ``scans`` reaches each kernel's own cached entry. In a
@@ -403,9 +412,10 @@ def source(slots: Sequence[Slot], entries: Sequence[str],
                   "        T[at + k] = t"]
         lines += _scan(slots, kernels, " " * 8)
         lines += inside
-    if "batch" in entries:
+    # ``batch_fused``: the batch with every kernel inlined (as ``fused`` is to ``scans``)
+    for what in [w for w in ("batch", "batch_fused") if w in entries]:
         lines += ["", "", "@numba.njit(cache=CACHE, nogil=True, parallel=True)",
-                  "def batch(F0, S0, dt, k0, m, R, IR, RS, IS, at):",
+                  f"def {what}(F0, S0, dt, k0, m, R, IR, RS, IS, at):",
                   "    nf = F0.shape[1]",
                   "    ns = S0.shape[1]",
                   "    fa = F0.ctypes.data",
@@ -549,9 +559,9 @@ def _machine_code_dir(path: Path) -> Path:
 
 
 def entry(slots: Sequence[Slot], what: str, signature: str, usual: Record | None = None) -> Any:
-    """The compiled entry point ``what`` ("scans", "fused", "step", "rows" or "batch") of a plan
-    laid out as ``slots``, loaded from the cache or compiled (once per process, once per
-    machine)."""
+    """The compiled entry point ``what`` ("scans", "fused", "step", "rows", "batch" or
+    "batch_fused") of a plan laid out as ``slots``, loaded from the cache or compiled (once
+    per process, once per machine)."""
     name, text, injected = _name(slots, what, usual)
     mod = _loaded.get(name)
     if mod is None:
@@ -561,21 +571,40 @@ def entry(slots: Sequence[Slot], what: str, signature: str, usual: Record | None
         global _announced
         # a kernel's own entry, a batch (parallel) and a fused plan take long to compile; the
         # glue of the other plans (step, rows, scans) takes well under a second: not announced
-        if (announce is not None and not _announced and what in ("call", "batch", "fused")
+        if (announce is not None and not _announced
+                and what in ("call", "batch", "fused", "batch_fused")
                 and not is_cached(slots, what, usual)):
             _announced = True  # one line per process, before the first compilation
             kinds = ", ".join(sorted({_kind(slot.kernel) for slot in slots}))
-            thing = kinds if what == "call" else f"the {what} plan of this module ({kinds})"
+            thing = (kinds if what == "call" else
+                     f"the {what.replace('_', ' ')} plan of this module ({kinds})")
             where = (f"once for this machine (cached in {cache_dir()}; later runs load it)"
                      if getattr(mod, "CACHE", False) else
                      "in memory (the cache cannot be written: every run compiles it)")
             announce(f"compiling {thing} {where}: this can take a minute")
         if getattr(mod, "CACHE", False):
             with _compile_lock(cache_dir() / "plans" / f"{name}.{what}.lock"):
-                disp.compile(signature)  # loads what another process compiled meanwhile
+                try:
+                    disp.compile(signature)  # loads what another process compiled meanwhile
+                except ModuleNotFoundError as exc:
+                    if not str(exc.name or "").startswith("lw_plan_"):
+                        raise
+                    # machine code that names a plan module no process makes any more (its
+                    # source changed while the process that compiled it ran): compiled again
+                    _forget(cache_dir() / "plans" / f"{name}.py", name, what)
+                    disp.compile(signature)
         else:
             disp.compile(signature)
     return disp
+
+
+def _forget(path: Path, name: str, what: str) -> None:
+    """Remove the cached machine code of entry ``what`` of plan ``name`` (numba's index and
+    data files), so the next compilation writes it anew."""
+    directory = _machine_code_dir(path)
+    for pattern in (f"{name}.{what}-*.nbi", f"{name}.{what}-*.nbc"):
+        for file in directory.glob(pattern):
+            file.unlink(missing_ok=True)
 
 
 @contextmanager

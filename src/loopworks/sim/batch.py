@@ -172,20 +172,37 @@ class Batch:
             self.F[row] = m._F
             self.S[row] = m._S
 
-    def run(self, duration: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def run(self, duration: float, dt: float, plan: str = "auto",
+            total: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Run every row ``duration`` s in scans of ``dt`` (scan k at t = k·dt, as
         :meth:`Module.run`); returns (R, RS) with R[i, j] the record of signal ``record[j]``
         of instance i and RS[i, j] its statuses (uint8, as :class:`SimResult` keeps them: a
-        Bad-status sample counts as no measurement in the metrics, as in a single run)."""
+        Bad-status sample counts as no measurement in the metrics, as in a single run).
+
+        ``plan``: ``"fused"`` runs the batch with every kernel inlined (``batch_fused``,
+        compiled once per module shape and cached, as :meth:`Module.run`'s ``fused``), as
+        ``"auto"`` does when it is cached already or when the sweep's block-scans (``total``
+        instances, default these rows, × scans × blocks) reach ``PLAN_FUSE_BLOCK_SCANS``;
+        ``"compiled"`` the batch that calls each kind's cached kernel. All give the same
+        numbers."""
+        from loopworks.blocks.plan import is_cached
+        from loopworks.sim.module import PLAN_FUSE_BLOCK_SCANS
+
+        if plan not in ("auto", "compiled", "fused"):
+            raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or "
+                             "fused")
         m = self.module
         n = scan_count(duration, dt)
+        work = (self.F.shape[0] if total is None else total) * n * len(m.blocks)
+        fuse = plan == "fused" or (plan == "auto" and (
+            work >= PLAN_FUSE_BLOCK_SCANS or is_cached(m._slots, "batch_fused")))
         m._next_event = 0
         m.check_dt(dt)  # the template's instance, and after each parameter event
         R = np.empty((self.F.shape[0], len(self.record), n))
         RS = np.empty((self.F.shape[0], len(self.record), n), dtype=np.uint8)
         if self.F.shape[0] == 0:
             return R, RS
-        batch = entry(m._slots, "batch", BATCH_SIGNATURE)
+        batch = entry(m._slots, "batch_fused" if fuse else "batch", BATCH_SIGNATURE)
         m.t, m.k, m._next_event = 0.0, 0, 0
         done = 0
         while done < n:

@@ -24,9 +24,10 @@ CHUNK_SECONDS = 0.1  # the least work a chunk carries, s (Dask's overhead is ~1 
 
 
 def run_on_cluster(address: str, text: str, source: str, jobs: Sequence[Job],
-                   progress: Callable[[int, int], None] | None = None
-                   ) -> list[dict[str, float]]:
-    """Every job's metrics, in job order, computed on the Dask scheduler at ``address``."""
+                   progress: Callable[[int, int], None] | None = None,
+                   plan: str = "auto") -> list[dict[str, float]]:
+    """Every job's metrics, in job order, computed on the Dask scheduler at ``address``
+    (``plan``: the batches' plan, :func:`loopworks.sim.sweep.run_jobs`)."""
     check_address(address)
     from distributed import Client, as_completed
 
@@ -40,13 +41,15 @@ def run_on_cluster(address: str, text: str, source: str, jobs: Sequence[Job],
     except OSError as exc:
         raise InputError(f"--scheduler {address}: cannot reach the scheduler: {exc}") from None
     with client:  # connected first: a wrong address is an error before any work
-        run_jobs(text, source, jobs[:1])  # warm-up here: builds and compiles (or loads) the plan
+        # warm-up here: builds and compiles (or loads) the plan
+        run_jobs(text, source, jobs[:1], plan, total)
         start = time.perf_counter()
-        first = run_jobs(text, source, jobs[:1])
+        first = run_jobs(text, source, jobs[:1], plan, total)
         per = max(time.perf_counter() - start, 1e-6)
         size = max(1, math.ceil(CHUNK_SECONDS / per))
         chunks = [list(jobs[i:i + size]) for i in range(1, total, size)]
-        futures = [client.submit(run_jobs, text, source, chunk, pure=False) for chunk in chunks]
+        futures = [client.submit(run_jobs, text, source, chunk, plan, total, pure=False)
+                   for chunk in chunks]
         index = {f.key: k for k, f in enumerate(futures)}
         results: list[list[dict[str, float]] | None] = [None] * len(chunks)
         done = 1

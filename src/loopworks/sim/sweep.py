@@ -250,8 +250,12 @@ def _metrics(result: SimResult, window: tuple[float, float] | None) -> list[dict
     for loop in loops:
         for name, value in result.metrics(loop, window=window).items():
             columns[name if len(loops) == 1 else f"{loop}: {name}"] = np.atleast_1d(value)
-    count = len(next(iter(columns.values()))) if columns else 0
-    return [{name: float(col[i]) for name, col in columns.items()} for i in range(count)]
+    if not columns:
+        return []
+    names = list(columns)
+    values = zip(*(np.asarray(col, dtype=np.float64).tolist() for col in columns.values()),
+                 strict=True)
+    return [dict(zip(names, row, strict=True)) for row in values]
 
 
 def metric_columns(sc: Any) -> list[str]:
@@ -288,11 +292,14 @@ def _refused(job: Job, exc: LoopworksError) -> InputError:
     return InputError(f"instance {job.point} ({job.variant}; {values}): {exc}")
 
 
-def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, float]]:
+def run_jobs(text: str, source: str, jobs: Sequence[Job], plan: str = "auto",
+             total: int | None = None) -> list[dict[str, float]]:
     """The metrics of each job's instance (``{"loop: metric" or "metric": value}``), in job
     order: the instances of one variant (and one value of each parameter that sizes a block's
     state) run as one batch (:mod:`loopworks.sim.batch`), in chunks whose record fits in
-    ``CHUNK_BYTES``; interpreted (``LOOPWORKS_JIT=0``), one module per instance."""
+    ``CHUNK_BYTES``; interpreted (``LOOPWORKS_JIT=0``), one module per instance. ``plan``
+    and ``total`` (the sweep's instances, of which these jobs are a part) choose the batch's
+    plan (:meth:`loopworks.sim.batch.Batch.run`)."""
     from loopworks.sim.batch import InstanceError, fixed_names
 
     sc = _scenario(text, source)
@@ -335,14 +342,16 @@ def run_jobs(text: str, source: str, jobs: Sequence[Job]) -> list[dict[str, floa
                            dt=sc.dt)
             except InstanceError as exc:
                 raise _refused(jobs[chunk[exc.index]], exc) from None
-            R, RS = batch.run(sc.duration, sc.dt)
+            R, RS = batch.run(sc.duration, sc.dt, plan,
+                              len(jobs) if total is None else total)
             # the instances whose controllers' outputs are increments alike (a swept S5
             # velocity) are scored together, each with its output span (a swept OUT_SCALE)
             kinds: dict[frozenset[str], list[int]] = {}
             for i, k in enumerate(chunk):
                 kinds.setdefault(template.incremental_outputs(jobs[k].changes), []).append(i)
             for incremental, at_ in kinds.items():
-                sel = np.asarray(at_)
+                # every instance alike (the usual case): views, not copies of the record
+                sel = slice(None) if len(at_) == len(chunk) else np.asarray(at_)
                 values = {name: R[sel, j] for j, name in enumerate(record)}
                 status = {name: RS[sel, j] for j, name in enumerate(record)}
                 info["incremental"] = incremental
@@ -422,7 +431,8 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
           workers: int | None = None, scheduler: str | None = None,
           progress: Callable[[int, int], None] | None = None,
           trajectories: Sequence[int] = (),
-          relay_progress: Callable[[int, int], None] | None = None) -> SweepResult:
+          relay_progress: Callable[[int, int], None] | None = None,
+          plan: str = "auto") -> SweepResult:
     """Sweep ``scenario`` (a TOML path; None: the built-in one) over ``vary`` (``{name: spec}``
     or ``["name=spec", ...]``, module docstring): ``samples`` Latin-hypercube samples of the
     distributions, ``seed`` (default: the scenario's ``[simulation] seed``, else 0), every
@@ -431,8 +441,11 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     ``progress(done, total)`` is called as instances finish, ``relay_progress(done, total)``
     as the points' ``[autotune]`` relay tests do (before them). ``trajectories``: points whose
     full runs (every signal, in every swept variant) the result keeps in ``.trajectories``
-    (the rest keep only their metrics). Every name and value is checked
-    before anything runs."""
+    (the rest keep only their metrics). ``plan``: the batches' compiled plan, ``"auto"``,
+    ``"compiled"`` or ``"fused"`` (:meth:`loopworks.sim.batch.Batch.run`: ``"fused"``
+    inlines every kernel, compiled once per module shape and cached, and runs the scans in
+    about half the time; ``"auto"`` takes it when it is cached or the sweep is long enough
+    to pay for compiling it). Every name and value is checked before anything runs."""
     from loopworks.sim.scenario import load_scenario, split_ref
 
     texts = ([f"{k}=" + (",".join(map(str, v)) if isinstance(v, list | tuple) else str(v))
@@ -440,6 +453,8 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
              else [vary] if isinstance(vary, str) else list(vary))  # one "NAME=SPEC" too
     if not texts:
         raise InputError("nothing to vary: give at least one --vary NAME=SPEC")
+    if plan not in ("auto", "compiled", "fused"):
+        raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or fused")
     axes = [parse_vary(t) for t in texts]
     axes = [replace(a, name=".".join(split_ref(a.name))) for a in axes]  # the column name
     names = [a.name for a in axes]
@@ -493,7 +508,7 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     runnable = [k for k, job in enumerate(jobs) if job.point not in untuned]
     start = time.perf_counter()
     ran = _execute(sc.text, sc.source, [jobs[k] for k in runnable], workers, scheduler,
-                   progress)
+                   progress, plan)
     seconds = time.perf_counter() - start
     metrics: list[dict[str, float]] = [{} for _ in jobs]  # n/a where the relay test failed
     for k, row in zip(runnable, ran, strict=True):
@@ -709,15 +724,15 @@ def _share_cores(threads: int) -> None:
 
 
 def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
-             scheduler: str | None, progress: Callable[[int, int], None] | None
-             ) -> list[dict[str, float]]:
+             scheduler: str | None, progress: Callable[[int, int], None] | None,
+             plan: str = "auto") -> list[dict[str, float]]:
     """Every job's metrics, in job order: in this process (one worker), in ``workers``
     processes, or on a Dask scheduler."""
     total = len(jobs)
     if scheduler is not None:
         from loopworks.sim.cluster import run_on_cluster
 
-        return run_on_cluster(scheduler, text, source, jobs, progress)
+        return run_on_cluster(scheduler, text, source, jobs, progress, plan)
     n = 1 if workers is None else workers  # one process: the batch runs on every core
     if n < 1:
         raise InputError(f"--workers {n}: expected a whole number >= 1")
@@ -725,7 +740,7 @@ def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
     if n == 1 or total <= 1:
         out: list[dict[str, float]] = []
         for chunk in _chunks(jobs, max(8 * cores, total // 100)):
-            out.extend(run_jobs(text, source, chunk))
+            out.extend(run_jobs(text, source, chunk, plan, total))
             if progress is not None:
                 progress(len(out), total)
         return out
@@ -735,7 +750,7 @@ def _execute(text: str, source: str, jobs: Sequence[Job], workers: int | None,
     done = 0
     with ProcessPoolExecutor(n, mp_context=get_context("spawn"), initializer=_share_cores,
                              initargs=(max(1, cores // n),)) as pool:
-        futures = {pool.submit(run_jobs, text, source, chunk): k
+        futures = {pool.submit(run_jobs, text, source, chunk, plan, total): k
                    for k, chunk in enumerate(chunks)}
         try:
             for future in as_completed(futures):
