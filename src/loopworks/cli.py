@@ -697,10 +697,14 @@ def diagnose(
     if op_range is not None:
         lo_text, _, hi_text = op_range.partition(":")
         try:
-            span = (float(lo_text), float(hi_text))
+            lo, hi = float(lo_text), float(hi_text)
         except ValueError:
             _fail(f"--op-range {op_range}: expected LO:HI, two numbers (the OP's units at 0 % "
                   "and 100 %), e.g. 0:32000")
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo != hi):
+            _fail(f"--op-range {op_range}: expected two different finite numbers (the OP's "
+                  "units at 0 % and 100 % of the valve's span), e.g. 0:32000")
+        span = (lo, hi)
     if sample_time is not None and not (math.isfinite(sample_time) and sample_time > 0):
         _fail(f"--sample-time {sample_time:g}: expected a number of seconds > 0 (the period "
               "of the rows of a file without a time column)")

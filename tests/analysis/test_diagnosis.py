@@ -256,6 +256,13 @@ def test_an_op_recorded_as_a_fraction_is_refused_unless_its_range_is_given() -> 
 def test_the_op_range_option_is_checked() -> None:
     run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--op-range", "0-100"])
     assert run.exit_code == 2 and "--op-range 0-100: expected LO:HI" in run.output
+    # an empty span is the option's error, not the Python argument's (found by an outside
+    # audit: "op_range = (0.0, 0.0)")
+    for span in ("0:0", "0:inf"):
+        run = CliRunner().invoke(app, ["diagnose", str(PLANT / "plant01.csv"), "--op-range",
+                                       span])
+        assert run.exit_code == 2 and f"--op-range {span}: expected two different finite" \
+            in run.output and "op_range =" not in run.output
 
 
 def _servo_loop(seed: int, s: float, cascade: bool = False) -> LoopData:
@@ -670,3 +677,11 @@ def test_a_long_record_is_diagnosed_on_its_most_recent_samples(
     last = diagnose(_loop(op[2000:], pv[2000:]), recommend=False)
     assert (whole.verdict, whole.score) == (last.verdict, last.score)
     assert whole.indices == pytest.approx(last.indices, nan_ok=True)
+
+
+def test_a_share_that_rounds_to_zero_has_no_sign() -> None:
+    """"explains -0.0 % of what a linear valve leaves" (found by an outside audit)."""
+    from loopworks.analysis.diagnosis import _share
+
+    assert _share(-4e-5) == _share(4e-5) == "0.0%"
+    assert _share(-0.012) == "-1.2%" and _share(0.25) == "25.0%"

@@ -150,6 +150,47 @@ def test_irregular_sampling_zero_order_hold_hand_computed(tmp_path: Path) -> Non
         assert words in data.resampled
 
 
+def test_seconds_from_midnight_in_the_day_number_range_are_seconds(tmp_path: Path) -> None:
+    # 45352 s is 12:35:52; every 0.5 s or every 1 ms (a fast logger) is read as seconds:
+    # 0.5 day is a whole 43200 s, but a round number of milliseconds as seconds
+    for step in ("0.5", "0.001", "10"):
+        rows = "".join(f"{45352 + k * float(step)!r},1,2,3\n" for k in range(4))
+        data = read_csv(write(tmp_path, "t,sp,pv,op\n" + rows))
+        assert data.dt == pytest.approx(float(step))
+
+
+def test_epoch_seconds_every_tenth_of_a_second_are_regular(tmp_path: Path) -> None:
+    """Epoch seconds (1.7e9) keep 0.1-s steps to 2.4e-7 s only, so their intervals differ
+    from the median by 2e-6 of it: the record was taken as irregular and resampled, shifting
+    every sample after the second by one and dropping the last (found by an outside audit).
+    It is kept as it is, as the same rows with times from 0 are."""
+    rows = [(k * 0.1, 50.0, 40.0 + (k % 7), 30.0 + (k % 5)) for k in range(751)]
+    epoch = "".join(f"{1700000000.0 + k / 10:.1f},{sp},{pv},{op}\n" for k, (_, sp, pv, op)
+                    in enumerate(rows))
+    relative = "".join(f"{t:.1f},{sp},{pv},{op}\n" for t, sp, pv, op in rows)
+    a = read_csv(write(tmp_path, "t,sp,pv,op\n" + epoch, "epoch.csv"))
+    b = read_csv(write(tmp_path, "t,sp,pv,op\n" + relative, "relative.csv"))
+    assert a.resampled == b.resampled == ""
+    assert a.pv.tolist() == b.pv.tolist() == [pv for _, _, pv, _ in rows]
+    assert a.dt == pytest.approx(0.1, rel=1e-5)
+
+
+def test_a_stray_row_far_after_the_record_is_a_located_error(tmp_path: Path) -> None:
+    """One row months after a 2-hour record made a resampling grid of 3e8 samples (out of
+    memory), or of a million samples that diagnose cut to their last 20,000, all copies of
+    one held row (found by an outside audit): the gap is named instead."""
+    rows = "".join(f"{k * 10},1,{2 + k % 3},3\n" for k in range(751))
+    path = write(tmp_path, "t,sp,pv,op\n" + rows + "1e7,1,2,3\n")
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(path)
+    for words in ("plant.csv, line 753, column 't'", "from line 752",
+                  "752 samples would become 1000001", "Split the file at the gap"):
+        assert words in str(exc.value)
+    # a gap within the record is resampled and held, as before
+    held = read_csv(write(tmp_path, "t,sp,pv,op\n" + rows + "7600,1,2,3\n", "gap.csv"))
+    assert len(held) == 761 and "held over 9 grid samples" in held.resampled
+
+
 def test_jittered_sampling_hand_computed(tmp_path: Path) -> None:
     # intervals 2.1, 1.8, 2.1, 2.2: median 2.1; grid 0, 2.1, 4.2, 6.3 (8.4 is past 8.2);
     # 4.2 holds t = 3.9 (value 3), 6.3 holds t = 6.0 (value 4)
@@ -193,6 +234,10 @@ def test_empty_and_nan_cells_are_kept_as_nan(tmp_path: Path) -> None:
      ["line 2", "column 't'", "epoch milliseconds? divide them by 1000"]),
     ("time,sp,pv,op\n46082.0,1,2,3\n46082.0000115741,1,2,3\n46082.0000231481,1,2,3\n",
      ["line 2", "column 'time'", "a spreadsheet's day numbers (1 s apart)?"]),
+    # day numbers every 5 minutes (0.00347 of a day: a whole 300 s, and no round number of
+    # milliseconds as seconds) were read as seconds 3.5 ms apart (found by an outside audit)
+    ("time,sp,pv,op\n45352.0,1,2,3\n45352.00347222222,1,2,3\n45352.00694444444,1,2,3\n",
+     ["line 2", "column 'time'", "a spreadsheet's day numbers (300 s apart)?"]),
     # a decimal comma (in a tab-separated file) is named as one (found by an outside audit)
     ("t\tsp\tpv\top\n0\t50,0\t2\t3\n1\t50\t2\t3\n",
      ["line 2", "column 'sp'", "'50,0' is not a number (a decimal comma: the file must use "
@@ -278,6 +323,20 @@ def test_empty_and_short_files(tmp_path: Path, text: str, words: list[str]) -> N
     assert "plant.csv" in str(exc.value)
     for word in words:
         assert word in str(exc.value)
+
+
+def test_a_byte_that_is_not_utf8_is_located_in_the_file(tmp_path: Path) -> None:
+    """The reader decodes in blocks, and its error counted the bad byte from the block: one
+    Latin-1 byte on line 602 was "byte 2189" (found by an outside audit). The file's line and
+    offset are named."""
+    rows = "".join(f"{k},1,2,3,{'x' * 40}\n" for k in range(800)).encode()
+    at = rows.index(b"600,1,2,3,") + 12
+    path = tmp_path / "latin1.csv"
+    path.write_bytes(b"t,sp,pv,op,tag\n" + rows[:at] + b"\xe9" + rows[at + 1:])
+    with pytest.raises(FileFormatError) as exc:
+        read_csv(path)
+    assert (f"latin1.csv, line 602 (byte {at + 15} of the file): not UTF-8 text"
+            in str(exc.value))
 
 
 def test_unreadable_file(tmp_path: Path) -> None:

@@ -313,3 +313,36 @@ def test_setpoint_reversals_and_held_stretches() -> None:
                        np.zeros(12))
     assert sp_reversals(one_way) == 0  # steps down twice: no reversal
     assert held_sp_stretches(one_way) == [slice(0, 4), slice(4, 8), slice(8, 12)]
+
+
+def test_a_record_without_setpoint_in_manual_says_why_without_a_nan(tmp_path: Path) -> None:
+    """No SP column and no PV sample in automatic: the note printed "the SP is taken as
+    constant at the PV's mean, nan" and the first reason blamed a Bad SP the file does not
+    have (found by an outside audit). The gate names manual mode and the missing SP; an SP
+    taken from the PV counts as Bad only where the PV is."""
+    rows = "".join(f"{k},{40 + k % 3},{30 + k % 5},0\n" for k in range(200))
+    path = tmp_path / "manual.csv"
+    path.write_text("t,pv,op,mode\n" + rows)
+    q = check_quality(read_csv(path, sp_optional=True))
+    text = "\n".join(q.reasons + q.notes)
+    assert not q.passed and "nan" not in text.lower()
+    assert any("manual" in r for r in q.reasons)
+    assert any("no setpoint column, and no finite PV sample in automatic" in r
+               for r in q.reasons)
+    assert not any("Bad SP" in r for r in q.reasons)
+    # a PV Bad in 1 % of samples, in automatic: "Bad PV or OP", PV 2, no SP count
+    rows = "".join(f"{k},{'nan' if k in (5, 9) else 40 + k % 3},{30 + k % 5},1\n"
+                   for k in range(200))
+    path.write_text("t,pv,op,mode\n" + rows)
+    q = check_quality(read_csv(path, sp_optional=True))
+    assert any("2 of 200 samples (1 %) have a Bad PV or OP (NaN, infinite or beyond ±1e12; "
+               "PV 2, OP 0)" in n for n in q.notes), q.notes
+
+
+def test_one_setpoint_move_reads_once() -> None:
+    sp = np.full(1000, 50.0)
+    sp[500:] = 52.0
+    q = check_quality(loop(sp=sp))
+    assert any(n.startswith("the SP moves once by more than") for n in q.notes), q.notes
+    sp[700:] = 50.0
+    assert any(n.startswith("the SP moves 2 times") for n in check_quality(loop(sp=sp)).notes)

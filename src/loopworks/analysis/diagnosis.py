@@ -53,13 +53,15 @@ The rules, in order:
    quadratic phase coupling, and on records of a few thousand samples its noise level is
    above the 0.001 threshold (:mod:`loopworks.analysis.bicoherence`).
 4. **Verdict**: the score is Σ wᵢ·vᵢ (v = +1 stiction, −1 no stiction, 0 undetermined) over
-   the applicable methods and W = Σ wᵢ. ``stiction`` when the score ≥ :data:`DECIDE` and
+   the methods run and W = Σ wᵢ over the same methods, those that abstain (or do not apply
+   to the record) included. ``stiction`` when the score ≥ :data:`DECIDE` and
    either two methods vote stiction or the valve fit or the valve travel does
    (:data:`SUFFICIENT`: the methods that need no cycle); ``no_stiction`` when the score
    ≤ −:data:`DECIDE`;
    otherwise ``undetermined``. Confidence = |score| / W, in [0, 1]: the weighted share of the
-   applicable evidence that agrees with the verdict, net of the evidence against it (0 for
-   ``undetermined``).
+   battery that agrees with the verdict, net of the evidence against it (0 for
+   ``undetermined``): a verdict one method carries while the others abstain is given with
+   the confidence of one of several.
 5. **How sticky and what to do** (a ``stiction`` verdict whose valve fit is good): S and J
    with resolution = J and deadband = S − J (spec 1.7), the process and the fit's R²; with
    the PI identified from the same data (:func:`~loopworks.analysis.valve_fit.fit_controller`),
@@ -213,7 +215,7 @@ class Diagnosis:
         return {e.key: e.value if e.applies else math.nan for e in self.evidence}
 
     def to_json(self) -> dict[str, Any]:
-        """The JSON object of ``loopworks diagnose --json`` (docs/diagnose-json.md)."""
+        """The JSON object of ``loopworks diagnose --json`` (docs/diagnose.md, "JSON")."""
         osc = self.oscillation
         from loopworks.sim.report import json_safe
 
@@ -286,8 +288,8 @@ def _valve_fit_vote(fit: ValveFit) -> Evidence:
     if not fit.ok:
         return Evidence("valve_fit", name, "undetermined", WEIGHTS["valve_fit"], math.nan,
                         fit.reason)
-    why = (f"{fit.reason} The valve's stiction explains {gain:.1%} of what a linear valve "
-           "leaves unexplained")
+    why = (f"{fit.reason} The valve's stiction explains {_share(gain)} of what a linear "
+           "valve leaves unexplained")
     if fit.s > MAX_S:
         return Evidence("valve_fit", name, "undetermined", WEIGHTS["valve_fit"], fit.s,
                         f"{why}; S above {MAX_S:g} % is not a valve a loop runs with, more "
@@ -363,6 +365,13 @@ def _fit_vote(s: float, gain: float) -> Verdict:
     return "undetermined"
 
 
+def _share(gain: float) -> str:
+    """A share of what a linear valve leaves unexplained, for a sentence ("0.0 %" for a
+    gain that rounds to zero either side, not "-0.0 %")."""
+    text = f"{gain:.1%}"
+    return "0.0%" if text == "-0.0%" else text
+
+
 def _valve_travel_vote(fit: TravelFit) -> Evidence:
     """The recorded valve position's vote (module docstring, rule 3), by the valve fit's
     thresholds (:data:`MIN_S`, :data:`MIN_R2_GAIN`, :data:`NO_R2_GAIN`) on the position."""
@@ -371,8 +380,8 @@ def _valve_travel_vote(fit: TravelFit) -> Evidence:
     if not fit.ok:
         return Evidence("valve_travel", name, "undetermined", weight, math.nan, fit.reason)
     gain = (fit.r2 - fit.r2_linear) / max(1.0 - fit.r2_linear, 1e-12)
-    why = (f"{fit.reason} The valve's stiction explains {gain:.1%} of what a linear valve "
-           "leaves unexplained")
+    why = (f"{fit.reason} The valve's stiction explains {_share(gain)} of what a linear "
+           "valve leaves unexplained")
     return Evidence("valve_travel", name, _fit_vote(fit.s, gain), weight, fit.s, why)
 
 

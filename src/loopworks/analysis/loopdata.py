@@ -33,7 +33,9 @@ reads a historian export with the csv module and numpy (no pandas):
   time is the last sample at or before it (zero-order hold: a historian stores a value when it
   changes and holds it until the next). :attr:`LoopData.resampled` says so with the numbers.
   Intervals within a relative :data:`REGULAR_TOLERANCE` of the median (floating-point noise in
-  the text) count as regular: the samples are kept as they are;
+  the text), or within the rounding of the times themselves (epoch seconds), count as
+  regular: the samples are kept as they are. A gap that would make the grid more than
+  :data:`MAX_GRID_GROWTH` times as long as the rows read is an error naming its line;
 * an empty or ``nan`` cell in sp, pv, op, position or mode is kept as NaN (a Bad value); the
   quality gate (:mod:`loopworks.analysis.quality`) counts them. Any other cell that is not a
   finite number is an error naming the file, the line (1-based, the header is line 1) and the
@@ -178,7 +180,7 @@ def _check_uniform(t: FloatArray) -> None:
         raise InputError(f"LoopData.t: t[{k + 1}] = {t[k + 1]:g} s does not follow "
                          f"t[{k}] = {t[k]:g} s: the times must increase")
     step = float(t[-1] - t[0]) / (len(t) - 1)
-    if np.abs(d - step).max() > REGULAR_TOLERANCE * step:
+    if np.abs(d - step).max() > _tolerance(t, step):
         raise InputError(f"LoopData.t: intervals from {d.min():g} to {d.max():g} s: the times "
                          f"must be uniform (read_csv resamples irregular files)")
 
@@ -352,9 +354,9 @@ def read_csv(path: str | os.PathLike[str], columns: Mapping[str, str] | None = N
     note = ""
     if sample_time is None:
         t = _times(cells["t"], lines, source, names["t"])
-        t, values, dropped = _ordered(t, values, lines, source, names["t"], cells["t"],
-                                      duplicates)
-        t, values, note = _uniform(t, values)
+        t, values, dropped, rows_kept = _ordered(t, values, lines, source, names["t"],
+                                                 cells["t"], duplicates)
+        t, values, note = _uniform(t, values, lines[rows_kept], source, names["t"])
         if dropped:
             kept = (f"{dropped} row{'s' * (dropped != 1)} with a repeated time stamp dropped "
                     f"(the later row at each time kept, as a historian's hold would)")
@@ -393,10 +395,24 @@ def _rows(source: str) -> Iterator[tuple[int, list[str]]]:
                     raise FileFormatError(f"{source}, line {reader.line_num}: {exc}") from None
                 if any(c.strip() for c in row):
                     yield reader.line_num, row
-    except UnicodeDecodeError as exc:
-        raise FileFormatError(f"{source}: not UTF-8 text (byte {exc.start})") from None
+    except UnicodeDecodeError:
+        raise FileFormatError(f"{source}, {_bad_utf8(source)}: not UTF-8 text (save it as "
+                              f"UTF-8 CSV)") from None
     except OSError as exc:
         raise FileFormatError(f"{source}: cannot read the file: {exc.strerror}") from None
+
+
+def _bad_utf8(source: str) -> str:
+    """Where the first byte that is not UTF-8 is in the file: its line (1-based) and offset
+    (the reader decodes in blocks, so its own error counts from the block, not the file)."""
+    with open(source, "rb") as f:
+        raw = f.read()
+    try:
+        raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        return f"line {line} (byte {exc.start} of the file)"
+    return "at a byte the reader could not decode"  # pragma: no cover - it found one
 
 
 def _separator(f: TextIO) -> str:
@@ -480,11 +496,28 @@ def _times(cells: list[str], lines: npt.NDArray[np.int64], source: str,
 #: numeric times from here on, read as seconds, would be more than 3000 years: epoch
 #: milliseconds (1.7e12 in 2024) [ours]
 EPOCH_MS_FROM = 1e11
-#: numeric times in this range, a sample less than a millisecond apart: day numbers of a
-#: spreadsheet (45000 is 2023; one second is 1.16e-5 of a day) [ours: a loop recorded at
-#: 1 kHz whose times start 5.5 to 22 hours into a run is the case this refuses wrongly]
+#: numeric times in this range, a sample less than a millisecond apart or apart by a whole
+#: number of seconds written in days (300 s: 0.00347222), and no round number of
+#: milliseconds as seconds: day numbers of a spreadsheet (45000 is 2023; one second is
+#: 1.16e-5 of a day) [ours: seconds from midnight (5.5 to 22 hours) every 0.5 s or 1 ms are
+#: seconds, a round number of milliseconds; day numbers every 86.4 s (0.001) are the case
+#: this reads wrongly]
 DAY_NUMBERS = (2e4, 8e4)
 DAY_NUMBER_STEP = 1e-3
+
+
+def _day_step(step: float) -> bool:
+    """True when ``step`` (the median interval of numeric times in the day-number range)
+    reads as a spreadsheet's days: no whole number of milliseconds read as seconds, and
+    either under :data:`DAY_NUMBER_STEP` or a whole number of seconds in days (to 1 ms, or
+    1e-4 of it for days written with few decimals)."""
+    if not 0.0 < step < 1.0:
+        return False
+    if abs(step * 1000.0 - round(step * 1000.0)) < 1e-6:  # 0.5, 0.001: seconds
+        return False
+    seconds = step * 86400.0
+    return step < DAY_NUMBER_STEP or (
+        round(seconds) >= 1 and abs(seconds - round(seconds)) <= max(1e-3, 1e-4 * seconds))
 
 
 def _plausible_seconds(t: FloatArray, lines: npt.NDArray[np.int64], source: str,
@@ -498,7 +531,7 @@ def _plausible_seconds(t: FloatArray, lines: npt.NDArray[np.int64], source: str,
                               "than 3000 years; epoch milliseconds? divide them by 1000, or "
                               "export ISO 8601 time stamps")
     step = float(np.median(np.diff(t))) if len(t) > 1 else 0.0
-    if DAY_NUMBERS[0] <= float(t[0]) <= DAY_NUMBERS[1] and 0.0 < step < DAY_NUMBER_STEP:
+    if DAY_NUMBERS[0] <= float(t[0]) <= DAY_NUMBERS[1] and _day_step(step):
         raise FileFormatError(f"{where}: times from {t[0]:.6g}, {step:.3g} apart: a "
                               f"spreadsheet's day numbers ({step * 86400.0:.3g} s apart)? "
                               "diagnose reads seconds or ISO 8601 time stamps: convert them")
@@ -517,9 +550,9 @@ def _stamp(text: str) -> datetime | None:
 def _ordered(t: FloatArray, values: dict[str, FloatArray], lines: npt.NDArray[np.int64],
              source: str, name: str, cells: list[str],
              duplicates: Literal["error", "last"]) -> tuple[FloatArray, dict[str, FloatArray],
-                                                            int]:
+                                                            int, npt.NDArray[np.bool_]]:
     """Refuse time going back (and a repeated time, unless ``duplicates == "last"``: then keep
-    the later row at each time); the rows kept and how many were dropped."""
+    the later row at each time); the rows kept, how many were dropped, and which."""
     d = np.diff(t)
     back = np.flatnonzero(d < 0)
     if len(back):
@@ -529,7 +562,7 @@ def _ordered(t: FloatArray, values: dict[str, FloatArray], lines: npt.NDArray[np
                               f"{cells[k - 1].strip()!r}: time must increase")
     same = np.flatnonzero(d == 0)
     if not len(same):
-        return t, values, 0
+        return t, values, 0, np.ones(len(t), dtype=bool)
     if duplicates != "last":
         k = int(same[0]) + 1
         raise FileFormatError(f"{source}, line {lines[k]}, column '{name}': "
@@ -540,31 +573,66 @@ def _ordered(t: FloatArray, values: dict[str, FloatArray], lines: npt.NDArray[np
     if int(keep.sum()) < 2:
         raise FileFormatError(f"{source}: every row has the same time stamp: at least 2 "
                               f"times are needed")
-    return t[keep], {role: v[keep] for role, v in values.items()}, len(same)
+    return t[keep], {role: v[keep] for role, v in values.items()}, len(same), keep
 
 
-def _uniform(t: FloatArray, values: dict[str, FloatArray]) -> tuple[FloatArray,
-                                                                   dict[str, FloatArray], str]:
+#: the most samples resampling may make per sample read: a grid longer than this is
+#: refused, naming the gap that would make it (one stray row months after a 2-hour record
+#: made a grid of 3e8 samples, out of memory, or, 116 days later, a million samples of
+#: which diagnose read the last 20,000, all one held row; found by an outside audit) [ours]
+MAX_GRID_GROWTH = 10
+
+
+def _tolerance(t: FloatArray, period: float) -> float:
+    """How far an interval may be from ``period`` and still be regular: a relative
+    :data:`REGULAR_TOLERANCE`, and no less than the rounding of the times themselves (epoch
+    seconds of 1.7e9 are stored to 2.4e-7 s, so their 0.1-s intervals differ by 2e-6 of it)."""
+    scale = max(abs(float(t[0])), abs(float(t[-1])))
+    return max(REGULAR_TOLERANCE * period, 8.0 * float(np.finfo(np.float64).eps) * scale)
+
+
+def _t(x: float, t: FloatArray, period: float) -> str:
+    """A time of ``t`` in a sentence, with the digits that resolve ``period``."""
+    scale = max(abs(float(t[0])), abs(float(t[-1])), period)
+    digits = max(6, math.ceil(math.log10(scale / period)) + 3) if period > 0 else 6
+    return f"{x:.{digits}g}"
+
+
+def _uniform(t: FloatArray, values: dict[str, FloatArray], lines: npt.NDArray[np.int64],
+             source: str, name: str) -> tuple[FloatArray, dict[str, FloatArray], str]:
     """Regular times made exactly uniform (t0 + k * median interval); irregular ones resampled
-    onto that grid by zero-order hold, with the sentence that says so."""
+    onto that grid by zero-order hold, with the sentence that says so (``lines``: each time's
+    line in the file, for the error when the grid would be too long)."""
     d = np.diff(t)
     period = float(np.median(d))
-    off = np.abs(d - period) > REGULAR_TOLERANCE * period
+    tol = _tolerance(t, period)
+    off = np.abs(d - period) > tol
     if not off.any():
         return t[0] + period * np.arange(len(t)), values, ""
-    m = math.floor((t[-1] - t[0]) / period + REGULAR_TOLERANCE) + 1
-    grid = t[0] + period * np.arange(m)
-    idx = np.searchsorted(t, grid + REGULAR_TOLERANCE * period, side="right") - 1
     gap = int(np.argmax(d))
+    m = math.floor((t[-1] - t[0] + tol) / period) + 1
+    if m > MAX_GRID_GROWTH * len(t):
+        raise FileFormatError(
+            f"{source}, line {lines[gap + 1]}, column '{name}': the time jumps by "
+            f"{d[gap]:.6g} s ({d[gap] / period:.3g} median intervals of {period:g} s) from "
+            f"line {lines[gap]}; resampled onto the median interval the {len(t)} samples "
+            f"would become {m}: more than {MAX_GRID_GROWTH} times as many. Split the file at "
+            f"the gap, or remove stray rows")
+    grid = t[0] + period * np.arange(m)
+    idx = np.searchsorted(t, grid + tol, side="right") - 1
     held = round(d[gap] / period) - 1
+
+    def at(x: float) -> str:
+        return _t(x, t, period)
+
     note = (f"irregular sampling ({int(off.sum())} of {len(d)} intervals differ from the "
             f"median {period:g} s; they range from {d.min():g} to {d.max():g} s): resampled "
-            f"onto a uniform {period:g}-s grid (the median interval) from {t[0]:g} to "
-            f"{grid[-1]:g} s, {len(t)} samples to {m}, each grid time taking the last sample "
-            f"at or before it (zero-order hold, as historians store values); the longest "
-            f"interval, {d[gap]:g} s from t = {t[gap]:g} to {t[gap + 1]:g} s, is held over "
-            f"{held} grid sample{'' if held == 1 else 's'} (a frozen stretch there is the "
-            f"gap).")
+            f"onto a uniform {period:g}-s grid (the median interval) from {at(t[0])} to "
+            f"{at(grid[-1])} s, {len(t)} samples to {m}, each grid time taking the last "
+            f"sample at or before it (zero-order hold, as historians store values); the "
+            f"longest interval, {d[gap]:g} s from t = {at(t[gap])} to {at(t[gap + 1])} s, is "
+            f"held over {held} grid sample{'' if held == 1 else 's'} (a frozen stretch there "
+            f"is the gap).")
     return grid, {role: v[idx] for role, v in values.items()}, note
 
 

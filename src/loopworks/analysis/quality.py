@@ -169,6 +169,10 @@ def check_quality(data: LoopData, *,
     manual = _manual_check(data.mode, reasons, notes)
     if data.sp_recorded:
         sp_changes = _sp_check(data.sp, data.pv, notes)
+    elif not np.isfinite(data.sp).all():  # no finite PV in automatic to take the mean of
+        sp_changes = 0
+        reasons.append("the record has no setpoint column, and no finite PV sample in "
+                       "automatic to take the SP from (the PV's mean)")
     else:
         sp_changes = 0
         notes.append(f"the record has no setpoint column: the SP is taken as constant at the "
@@ -189,13 +193,16 @@ def _pct(x: float) -> str:
 def _nan_check(data: LoopData, reasons: list[str], notes: list[str]) -> float:
     """The fraction of samples with a Bad SP, PV or OP (NaN, infinite or beyond ±1e12:
     :func:`~loopworks.analysis.loopdata.bad`); a failure above the limit."""
-    flags = [(name, bad(a)) for name, a in (("SP", data.sp), ("PV", data.pv), ("OP", data.op))]
-    count = int((flags[0][1] | flags[1][1] | flags[2][1]).sum())
+    # an SP the reader took from the PV (no setpoint column) is Bad only where the PV is
+    signals = (("SP", data.sp), ("PV", data.pv), ("OP", data.op))
+    flags = [(name, bad(a)) for name, a in signals if data.sp_recorded or name != "SP"]
+    count = int(np.logical_or.reduce([b for _, b in flags]).sum())
     fraction = count / len(data)
     if not count:
         return 0.0
     each = ", ".join(f"{name} {int(b.sum())}" for name, b in flags)
-    text = (f"{count} of {len(data)} samples ({_pct(fraction)}) have a Bad SP, PV or OP (NaN, "
+    which = "SP, PV or OP" if data.sp_recorded else "PV or OP"
+    text = (f"{count} of {len(data)} samples ({_pct(fraction)}) have a Bad {which} (NaN, "
             f"infinite or beyond ±1e12; {each})")
     if fraction > MAX_NAN_FRACTION:
         reasons.append(f"{text}: at most {_pct(MAX_NAN_FRACTION)} is allowed")
@@ -421,6 +428,7 @@ def _sp_check(sp: FloatArray, pv: FloatArray, notes: list[str]) -> int:
     if count:
         size = (f"by more than {tol:.3g} ({_pct(SP_MOVE_FRACTION)} of the PV's span)" if tol > 0
                 else "(the PV does not move, so any SP move counts)")
-        notes.append(f"the SP moves {count} times {size}: a servo record or a cascade slave; "
+        times = "once" if count == 1 else f"{count} times"
+        notes.append(f"the SP moves {times} {size}: a servo record or a cascade slave; "
                      f"the stiction tests work on the control error SP - PV")
     return count
