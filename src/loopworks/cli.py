@@ -9,6 +9,7 @@ from __future__ import annotations
 import functools
 import math
 import os
+import shlex
 import sys
 import tomllib
 from collections.abc import Callable
@@ -617,13 +618,12 @@ def sweep(
         written.add(output / f"trajectory_{v}_{point}.csv")
         run.to_csv(output / f"trajectory_{v}_{point}.csv")
     sweep_report.remove_stale_trajectories(output, written)
-    command = "loopworks sweep " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else \
-        "loopworks sweep"
+    command = _sweep_command(sys.argv)
     title = f"sweep of {scenario if scenario is not None else 'the built-in scenario'}"
     sweep_report.write_summary(result, output, title, command, metric)
     chosen = sweep_report._metric(result, metric)
     rows = sweep_report.summary_table(result, chosen)
-    finite = any(math.isfinite(x) for row in rows for x in row[1:])
+    finite = any(math.isfinite(x) for row in rows for x in row[1:5])
     failed = sum(e is not None for e in result.columns.get(AUTOTUNE_ERROR, []))
     if as_json:  # a metric with no value (n/a) is null, as in simulate's metrics.json
         from loopworks.sim.report import json_text
@@ -632,22 +632,29 @@ def sweep(
             "instances": len(set(result.columns["point"])), "runs": len(result),
             "not_run": failed, "design": result.design, "varied": result.varied,
             "seconds": result.seconds, "metric": chosen,
-            "variants": {v: {"median": a, "p5": b, "p95": c, "best": d}
-                         for v, a, b, c, d in rows},
+            "variants": {v: {"median": a, "p5": b, "p95": c, "best": d, "n_a": na}
+                         for v, a, b, c, d, na in rows},
             "best": _given_values(result.best(chosen), result.metrics) if finite else None,
             "output": str(output)}), nl=False)
         return
     not_run = f" ({failed} not run: {AUTOTUNE_ERROR})" if failed else ""
     table = Table(title=escape(f"{title}: {result.design}, {len(result)} runs{not_run} in "
                                f"{result.seconds:.1f} s"))
-    for col in ("variant", f"{chosen}: median", "5 %", "95 %", "best"):
+    for col in ("variant", f"{chosen}: median", "5 %", "95 %", "best", "n/a"):
         table.add_column(escape(col), justify="right")
-    for v, a, b, c, d in rows:
+    for v, a, b, c, d, na in rows:
         table.add_row(escape(v), *(f"{x:.4g}" if math.isfinite(x) else "n/a"
-                                   for x in (a, b, c, d)))
+                                   for x in (a, b, c, d)), str(na))
     console.print(table)
     console.print(f"wrote {output / 'results.parquet'}, results.csv and summary.html",
                   markup=False)
+
+
+def _sweep_command(argv: list[str]) -> str:
+    """The sweep's command line as summary.html shows it, quoted to paste into a shell
+    (`--vary pid.k=uniform(1,2)` unquoted is a syntax error in bash, and `--metric PV std`
+    two arguments; found by an outside audit)."""
+    return shlex.join(["loopworks", "sweep", *argv[2:]])
 
 
 @app.command()

@@ -449,7 +449,10 @@ def test_a_metric_with_no_value_is_null_in_json_and_na_in_the_table(scenario: Pa
     assert done.exit_code == 0, done.output
     data = json.loads(done.stdout)
     assert data["best"] is None
-    assert data["variants"]["base"] == {"median": None, "p5": None, "p95": None, "best": None}
+    # each variant's runs with no value are counted (they were left out silently; found by
+    # an outside audit)
+    assert data["variants"]["base"] == {"median": None, "p5": None, "p95": None, "best": None,
+                                        "n_a": 2}
     done = CliRunner().invoke(app, [*args[:-1], str(tmp_path / "b")])
     assert done.exit_code == 0, done.output
     assert "n/a" in done.output and "nan" not in done.output
@@ -768,7 +771,9 @@ def test_a_swept_velocity_scores_each_instances_output_as_it_is(tmp_path: Path) 
     travel = []
     for i in range(2):
         row = {k: col[i] for k, col in result.columns.items()}
-        text = S5_LOOP.replace("velocity = false", f"velocity = {row['s5.velocity']}")
+        assert isinstance(row["s5.velocity"], bool)  # the parameter's type
+        text = S5_LOOP.replace("velocity = false",
+                               f"velocity = {str(row['s5.velocity']).lower()}")
         one = tmp_path / f"point{i}.toml"
         one.write_text(text.replace("[simulation]\n", f"[simulation]\nseed = {row['seed']}\n"),
                        encoding="utf-8")
@@ -798,3 +803,96 @@ def test_a_whole_number_parameter_refuses_a_continuous_distribution(tmp_path: Pa
     typed = sweep(path, {"s5.k": "400.0,600"}, workers=1)
     assert typed.columns["s5.k"] == [400, 600]
     assert {type(v) for v in typed.columns["s5.k"]} == {int}
+
+
+def test_a_combination_a_block_refuses_is_refused_before_anything_runs(
+        scenario: Path) -> None:
+    """`pid.out_lo=0,10,150` against the scenario's out_hi = 100: refused only when the batch
+    of point 2 loaded, after the other instances had run, nothing written; with [autotune]
+    taken for a relay test that identified no gain, the sweep ending well (found by an
+    outside audit). Every point's values are checked together first."""
+    ran: list[int] = []
+    with pytest.raises(InputError, match=r"--vary: point 2 \(pid\.out_lo = 150\.0\) in "
+                                         r"variant 'base': pid: parameter 'out_hi' = 100 must "
+                                         r"be greater than out_lo = 150"):
+        sweep(scenario, ["pid.out_lo=0,10,150"], workers=1,
+              progress=lambda done, total: ran.append(done))
+    assert ran == []
+    # [autotune] (the built-in scenario): refused before its relay tests, not n/a rows
+    tests: list[int] = []
+    with pytest.raises(InputError, match=r"point 1 \(pid\.ff_scale_eu_0 = 200\.0\) .*"
+                                         r"'ff_scale_eu_100' = 100 must be greater"):
+        sweep(None, ["pid.ff_scale_eu_0=0,200"], workers=1,
+              relay_progress=lambda done, total: tests.append(done))
+    assert tests == []
+
+
+def test_text_and_bool_columns_have_their_parameters_type(tmp_path: Path) -> None:
+    """A text parameter's numbers are text (`process.num=2,3` was refused: "'num' = 2 must
+    be text"), a bool parameter's true/yes/1 are one bool column (they made a string or an
+    int64 column by how they were typed; found by an outside audit)."""
+    path = tmp_path / "tf.toml"
+    path.write_text(SCENARIO.replace('kind = "process.fopdt"\ngain = 1.0\ntime_constant = '
+                                     '10.0\ndead_time = 1.0\nu0 = 50.0',
+                                     'kind = "process.tf"\nnum = "1"\nden = "10, 1"\nu0 = 50.0\n'
+                                     'sample_time = 0.5'
+                                     ).replace('[compare.faster]\n"pid.ti" = 10.0\n', ''))
+    result = sweep(path, ["process.num=2,3"], workers=1)
+    assert result.columns["process.num"] == ["2", "3"]
+    path.write_text(S5_LOOP)
+    for typed in ("true,false", "1,0", "yes,no"):
+        result = sweep(path, [f"s5.velocity={typed}"], workers=1)
+        assert result.columns["s5.velocity"] == [True, False], typed
+
+
+def test_plot_removes_no_file_of_the_users(scenario: Path, tmp_path: Path) -> None:
+    """`.plot()` wrote into the current directory and removed every figure name it did not
+    draw: a user's own pareto.png and histograms.png there were deleted (found by an outside
+    audit). Only a sweep's report directory (-o DIR) is cleaned of an earlier sweep's."""
+    theirs = tmp_path / "mine"
+    theirs.mkdir()
+    for name in ("heatmap.png", "pareto.png", "histograms.png"):
+        (theirs / name).write_text("my own figure")
+    result = sweep(scenario, ["pid.k=0.5,1,2"], variant="base", workers=1)
+    drawn = result.plot(directory=theirs)
+    for name in ("heatmap.png", "pareto.png", "histograms.png"):
+        path = theirs / name
+        assert path.exists(), name
+        if path not in drawn:
+            assert path.read_text() == "my own figure"
+
+
+def test_the_summarys_command_is_quoted_for_a_shell() -> None:
+    from loopworks.cli import _sweep_command
+
+    argv = ["/venv/bin/loopworks", "sweep", "loop.toml", "--vary", "pid.k=uniform(1,2)",
+            "--metric", "PV std"]
+    assert _sweep_command(argv) == ("loopworks sweep loop.toml --vary 'pid.k=uniform(1,2)' "
+                                    "--metric 'PV std'")
+
+
+def test_a_range_keeps_its_ends_and_refuses_values_it_cannot_tell_apart() -> None:
+    """a:b:n rounded its ends to 15 digits (0.1234567890123456 became 0.123456789012346) and
+    1:1.000000000000001:3 made three runs of 1.0 (found by an outside audit)."""
+    axis = parse_vary("pid.k=0.1234567890123456:0.2:3")
+    assert axis.values[0] == 0.1234567890123456 and axis.values[-1] == 0.2
+    assert parse_vary("pid.k=1:2:11").values[7] == 1.7  # the inner values' decimals, as before
+    with pytest.raises(InputError, match=r"3 values from 1\.0 to 1\.000000000000001 are not "
+                                         r"all different"):
+        parse_vary("pid.k=1:1.000000000000001:3")
+
+
+def test_a_sweep_too_large_or_a_count_of_the_wrong_type_is_refused(scenario: Path) -> None:
+    """A grid of 1e20 values or 1e13 samples was a numpy traceback (out of memory);
+    samples=2.5, workers=2.0 a bare TypeError; trajectories=[True] point 1 (found by an
+    outside audit)."""
+    with pytest.raises(InputError, match=r"n = 1e20 values: a sweep runs at most 10,000,000"):
+        parse_vary("pid.k=1:2:1e20")
+    with pytest.raises(InputError, match=r"would run 20,000,000,000,000 instances"):
+        sweep(scenario, ["pid.k=uniform(1,2)"], samples=10**13, workers=1)
+    for kwargs, message in (({"samples": 2.5}, "--samples 2.5: expected a whole number"),
+                            ({"samples": "3"}, "--samples '3': expected a whole number"),
+                            ({"workers": 2.0}, "--workers 2.0: expected a whole number"),
+                            ({"trajectories": [True]}, "--trajectory True: no such point")):
+        with pytest.raises(InputError, match=re.escape(message)):
+            sweep(scenario, ["pid.k=uniform(1,2)"], **{"samples": 2, "workers": 1, **kwargs})

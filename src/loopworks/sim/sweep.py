@@ -69,6 +69,10 @@ Value = float | int | str
 _RANGE = re.compile(r"^\s*([^:]+):([^:]+):([^:]+)\s*$")
 _CALL = re.compile(r"^\s*([a-z]+)\s*\((.*)\)\s*$", re.IGNORECASE)
 DISTRIBUTIONS = ("uniform", "loguniform", "normal", "choice")
+#: the most instances a sweep runs (points × variants) [ours: ten million instances of the
+#: smallest loop take an hour on two cores; a grid of 1e20 values or 1e13 samples is a typo,
+#: and was a traceback from numpy, out of memory]
+MAX_INSTANCES = 10_000_000
 
 
 @dataclass(frozen=True)
@@ -168,10 +172,20 @@ def parse_vary(text: str) -> Axis:
         if not (math.isfinite(n_value) and n_value >= 1 and n_value.is_integer()):  # 3, 3.0
             raise InputError(f"{where}: in a:b:n, n = '{n_text}' must be a whole number >= 1")
         n = int(n_value)
+        if n > MAX_INSTANCES:
+            raise InputError(f"{where}: n = {n_text} values: a sweep runs at most "
+                             f"{MAX_INSTANCES:,} instances")
         if n == 1 and a != b:
             raise InputError(f"{where}: a:b:1 is one value, a = {a:g}, and drops b = {b:g}: "
                              "give n >= 2, or the one value")
-        values = (a,) if n == 1 else tuple(_decimal(float(v)) for v in np.linspace(a, b, n))
+        if n == 1:
+            return Axis(name, values=(a,))
+        # the ends as given (a, b), the values between them as the decimals they stand for
+        inner = [_decimal(float(v)) for v in np.linspace(a, b, n)[1:-1]]
+        values = (a, *inner, b)
+        if len(set(values)) < n:
+            raise InputError(f"{where}: {n} values from {a!r} to {b!r} are not all different "
+                             f"in floating point: give fewer values or a wider range")
         return Axis(name, values=values)
     if ":" in spec:
         raise InputError(f"{where}: a range is a:b:n, three parts (n values from a to b), "
@@ -455,6 +469,11 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
         raise InputError("nothing to vary: give at least one --vary NAME=SPEC")
     if plan not in ("auto", "compiled", "fused"):
         raise InputError(f"plan = {plan!r} is not allowed: expected auto, compiled or fused")
+    for what, number in (("samples", samples), ("workers", workers)):
+        if what == "workers" and number is None:
+            continue
+        if isinstance(number, bool) or not isinstance(number, int | np.integer):
+            raise InputError(f"--{what} {number!r}: expected a whole number >= 1")
     axes = [parse_vary(t) for t in texts]
     axes = [replace(a, name=".".join(split_ref(a.name))) for a in axes]  # the column name
     names = [a.name for a in axes]
@@ -491,15 +510,22 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer)):
         raise InputError(f"--seed {seed!r}: expected a whole number")
     sweep_seed = (sc.seed if sc.seed is not None else 0) if seed is None else int(seed)
+    count = math.prod(len(a.values) for a in axes if not a.sampled)
+    count *= len(variants) * (samples if any(a.sampled for a in axes) else 1)
+    if count > MAX_INSTANCES:
+        raise InputError(f"the sweep would run {count:,} instances (grid × samples × "
+                         f"variants): at most {MAX_INSTANCES:,}")
     points = design(axes, samples, sweep_seed)
     for i, point in enumerate(points):
         for name, value in point.items():
             _check_value(sc, name, value, variants, f"instance {i}")
+    _check_points(sc, points, names, variants)
     tuned, untuned = _autotune_points(sc, points, names, relay_progress)
     from loopworks.plant.sensor import mix_seed
 
     for keep in trajectories:
-        if not (isinstance(keep, int) and 0 <= keep < len(points)):
+        if not (isinstance(keep, int | np.integer) and not isinstance(keep, bool)
+                and 0 <= keep < len(points)):
             raise InputError(f"--trajectory {keep}: no such point; points are 0 to "
                              f"{len(points) - 1}")
     seeds = [mix_seed(sweep_seed, i) for i in range(len(points))]
@@ -599,6 +625,48 @@ def _autotune_points(sc: Any, points: Sequence[Mapping[str, Value]], names: Sequ
     return out, failed
 
 
+def _check_points(sc: Any, points: Sequence[Mapping[str, Value]], names: Sequence[str],
+                  variants: list[str]) -> None:
+    """Every point's values together, in every swept variant, before anything runs: each
+    block's parameters as the point sets them are the block's own ``set_params`` check (a
+    range, a combination such as out_lo < out_hi, a transfer function's text), on a template
+    set back after each point; a point that changes a parameter sizing a block's state (a
+    delay line) builds its module. An InputError names the point and its values (found by
+    an outside audit: a combination was refused only when its batch loaded, after other
+    instances had run and with nothing written, or, with ``[autotune]``, taken for a relay
+    test that failed, the sweep ending well)."""
+    from loopworks.sim.batch import fixed_names
+    from loopworks.sim.scenario import split_ref
+
+    for variant in variants:
+        module = sc.template(variant)
+        fixed = set(fixed_names(module, names))
+        F, S = module._F.copy(), module._S.copy()
+        saved = {n: (b.given, b.params) for n, b in module.blocks.items()}
+        for i, point in enumerate(points):
+            per_block: dict[str, dict[str, Value]] = {}
+            for name, value in point.items():
+                block, param = split_ref(name)
+                if param not in module.blocks[block]._in_index:  # an input: checked alone
+                    per_block.setdefault(block, {})[param] = value
+            try:
+                if fixed & set(point):
+                    sc.template(variant, dict(point))
+                    continue
+                for block, changes in per_block.items():
+                    b = module.blocks[block]
+                    try:
+                        b.set_params(**changes)
+                    finally:
+                        b.given, b.params = saved[block]
+                        module._F[:] = F
+                        module._S[:] = S
+            except LoopworksError as exc:
+                values = ", ".join(f"{k} = {v!r}" for k, v in point.items())
+                where = f" in variant '{variant}'" if len(variants) > 1 else ""
+                raise InputError(f"--vary: point {i} ({values}){where}: {exc}") from None
+
+
 def _check_axis(sc: Any, axis: Axis, variants: list[str]) -> None:
     """The varied name is a parameter or an input of a block of the scenario."""
     from loopworks.catalog import block_class
@@ -648,8 +716,9 @@ def _typed(sc: Any, axis: Axis, variants: list[str]) -> Axis:
     type follows the parameter and not how its values were typed (``1,2`` made an int64
     column and ``1.0,2`` a float64 one, and two sweeps of one parameter had two Parquet
     schemas; found by an outside audit): a float parameter's or a numeric input's whole
-    numbers become floats, an int parameter's whole floats ints. A value of another type
-    is left for the checks to refuse."""
+    numbers become floats, an int parameter's whole floats ints, a bool parameter's true,
+    yes or 1 True, a text parameter's numbers text (``process.num=2,3``: the text "2" and
+    "3"). A value of another type is left for the checks to refuse."""
     from loopworks.catalog import block_class
     from loopworks.sim.scenario import split_ref
 
@@ -660,8 +729,15 @@ def _typed(sc: Any, axis: Axis, variants: list[str]) -> Axis:
     kind = spec.type if spec is not None else ("" if port is None or port.choices else "float")
 
     def cast(v: Value) -> Value:
+        if kind == "bool" and spec is not None:  # true, yes, 1: one bool column
+            try:
+                return bool(spec.check(v))
+            except LoopworksError:
+                return v  # for the checks to refuse
         if isinstance(v, bool) or not isinstance(v, int | float):
             return v
+        if kind == "text":  # a transfer function's "2" was read as the number 2
+            return str(v)
         if kind == "float":
             return float(v)
         if kind == "int" and float(v).is_integer():

@@ -75,8 +75,13 @@ def pareto(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return np.array(front, dtype=int)
 
 
-def figures(result: SweepResult, directory: Path, metric: str | None = None) -> list[Path]:
-    """Write the sweep's figures (module docstring) into ``directory``; their paths."""
+def figures(result: SweepResult, directory: Path, metric: str | None = None,
+            clean: bool = False) -> list[Path]:
+    """Write the sweep's figures (module docstring) into ``directory``; their paths. With
+    ``clean`` (a sweep's report directory, reused by the next sweep), a figure this sweep
+    does not draw is removed, as an earlier sweep's; without it (``SweepResult.plot()``, by
+    default into the current directory) no file is removed (found by an outside audit:
+    ``.plot()`` deleted a user's own heatmap.png there)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -219,7 +224,7 @@ def figures(result: SweepResult, directory: Path, metric: str | None = None) -> 
             ax.grid(True, alpha=0.3)
             ax.legend(fontsize=8)
             paths.append(_save(fig, directory / "pareto.png"))
-    for name in FIGURES:  # an earlier sweep's figure in this directory is not this sweep's
+    for name in FIGURES if clean else ():  # an earlier sweep's figure is not this sweep's
         if directory / name not in paths:
             (directory / name).unlink(missing_ok=True)
     return paths
@@ -255,9 +260,11 @@ def write_results(result: SweepResult, directory: Path) -> list[Path]:
 
 
 def summary_table(result: SweepResult, metric: str) -> list[tuple[str, float, float, float,
-                                                                    float]]:
-    """(variant, median, 5th percentile, 95th percentile, best) of ``metric``; the best is
-    the smallest, of a signed metric the nearest 0 (``metrics.SIGNED``)."""
+                                                                    float, int]]:
+    """(variant, median, 5th percentile, 95th percentile, best, n/a) of ``metric``: the
+    figures over the runs where it has a value, and how many runs it has none (left out,
+    and counted: they were left out silently; found by an outside audit); the best is the
+    smallest, of a signed metric the nearest 0 (``metrics.SIGNED``)."""
     from loopworks.sim.metrics import SIGNED
 
     rows = []
@@ -266,12 +273,13 @@ def summary_table(result: SweepResult, metric: str) -> list[tuple[str, float, fl
     signed = metric.rpartition(": ")[2] in SIGNED
     for v in dict.fromkeys(result.columns["variant"]):
         d = values[(vcol == v) & np.isfinite(values)]
+        na = int(np.count_nonzero(vcol == v)) - int(d.size)
         if d.size:
             best = float(d[np.argmin(np.abs(d))]) if signed else float(d.min())
             rows.append((v, float(np.median(d)), float(np.percentile(d, 5)),
-                         float(np.percentile(d, 95)), best))
+                         float(np.percentile(d, 95)), best, na))
         else:
-            rows.append((v, math.nan, math.nan, math.nan, math.nan))
+            rows.append((v, math.nan, math.nan, math.nan, math.nan, na))
     return rows
 
 
@@ -289,16 +297,17 @@ def write_summary(result: SweepResult, directory: Path, title: str, command: str
     """``summary.html``: what was swept, a per-variant table of the chosen metric (and valve
     travel), the best instance, and the figures."""
     chosen = _metric(result, metric)
-    images = figures(result, directory, chosen)
+    images = figures(result, directory, chosen, clean=True)
     shown = [chosen] + [m for m in [_travel(result)] if m is not None and m != chosen]
     tables = []
     for m in shown:
         body = "".join(
             f"<tr><td>{html.escape(v)}</td>" + "".join(
                 f"<td>{'n/a' if math.isnan(x) else f'{x:.4g}'}</td>" for x in (a, b, c, d))
-            + "</tr>" for v, a, b, c, d in summary_table(result, m))
+            + f"<td>{na}</td></tr>" for v, a, b, c, d, na in summary_table(result, m))
         tables.append(f"<h2>{html.escape(m)}</h2><table><tr><th>variant</th><th>median</th>"
-                      f"<th>5 %</th><th>95 %</th><th>best</th></tr>{body}</table>")
+                      f"<th>5 %</th><th>95 %</th><th>best</th><th>runs n/a (left out)</th>"
+                      f"</tr>{body}</table>")
     try:
         best = result.best(chosen)
         best_html = ("<p>Best instance by " + html.escape(chosen) + ": "
