@@ -395,7 +395,31 @@ def test_the_valve_fit_vote(s: float, gain: float, vote: str) -> None:
     r2_lin = 0.5
     fit = ValveFit(s, 0.0, 0.0, s, {"model": "fopdt"}, r2_lin + gain * (1.0 - r2_lin), r2_lin,
                    "", True)
-    assert _valve_fit_vote(fit).vote == vote
+    assert _valve_fit_vote(fit, 1.0).vote == vote
+
+
+def test_a_fit_that_does_not_resolve_the_loop_does_not_vote_against_stiction() -> None:
+    """A flow loop of T = 10 s recorded every 5 s, its valve sticky by S = 3 %, J = 1 %: the
+    fit put T at 2.8 s, K at a fifth of the truth and S at 0.43 %, and the loop was called
+    no_stiction (found by an outside audit). A time constant shorter than the record's
+    period does not resolve the response: the fit abstains from voting against; a band it
+    finds still votes for."""
+    r2_lin = 0.5
+    for tau, dt, gain, vote in ((2.8, 5.0, 0.003, "undetermined"), (2.8, 1.0, 0.003,
+                                "no_stiction"), (2.8, 5.0, 0.2, "stiction")):
+        fit = ValveFit(1.0 if vote == "stiction" else 0.1, 0.0, 0.0, 0.1,
+                       {"model": "fopdt", "time_constant_s": tau},
+                       r2_lin + gain * (1.0 - r2_lin), r2_lin, "", True)
+        evidence = _valve_fit_vote(fit, dt)
+        assert evidence.vote == vote, (tau, dt, gain)
+        if vote == "undetermined":
+            assert "shorter than the record's sample period, 5 s" in evidence.reason
+    from loopworks.analysis.synthetic import simulate_loop
+
+    sticky = simulate_loop(valve="choudhury", s=3.0, j=1.0, noise=0.1, walk_std=0.05, seed=3)
+    d = diagnose(dataclasses.replace(sticky.data, position=None), recommend=False)
+    assert d.verdict != "no_stiction"
+    assert d.evidence[-1].key == "valve_fit" and "abstains" in d.evidence[-1].reason
 
 
 def test_a_real_sticky_flow_loop_that_barely_cycles() -> None:
