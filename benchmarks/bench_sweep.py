@@ -109,6 +109,30 @@ def sweep_memory(path: Path, n: int) -> tuple[float, float]:
     return float(out[0]), float(out[1])
 
 
+def batch_alone(sc: object, kc: np.ndarray) -> dict[str, float]:
+    """Instances/s of the compiled batch alone, every instance in one call, recording
+    nothing, the rows made beforehand and no metrics: the ceiling of what the sweep's
+    plumbing could reach with its kernels (``"batch"`` and ``"batch_fused"``)."""
+    from loopworks.blocks.plan import BATCH_SIGNATURE, entry
+    from loopworks.sim.batch import Batch
+
+    template = sc.template("base")  # type: ignore[attr-defined]
+    batch = Batch(template, [])
+    batch.load([{"pid.k": float(k)} for k in kc])
+    n = round(sc.duration / sc.dt)  # type: ignore[attr-defined]
+    empty = np.empty((kc.size, 0, n))
+    none = np.empty((kc.size, 0, n), dtype=np.uint8)
+    index = np.zeros(0, dtype=np.int64)
+    out = {}
+    for what in ("batch", "batch_fused"):
+        run = entry(template._slots, what, BATCH_SIGNATURE)
+        F, S = batch.F.copy(), batch.S.copy()
+        start = time.perf_counter()
+        run(F, S, DT, 0, n, empty, index, none, index, 0)
+        out[what] = kc.size / (time.perf_counter() - start)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--instances", type=int, default=10_000)
@@ -138,6 +162,7 @@ def main() -> None:
         before, rss = sweep_memory(path, n)
         ours = len(result) / result.seconds  # the instances' run (workers included)
         sc = load_scenario(path)
+        alone = batch_alone(sc, kc)
         m = args.python_instances
         start = time.perf_counter()
         for gain in kc[:m]:
@@ -154,6 +179,9 @@ def main() -> None:
           "loaded from the cache)")
     print(f"  Python loop over Module.run      {python_loop:12.0f} instances/s  sweep / loop "
           f"{ours / python_loop:.2f}")
+    for what, rate in alone.items():
+        print(f"  {what + ' alone':32s} {rate:12.0f} instances/s  ratio {rate / anchor:.4f} "
+              "(one call, no rows, record or metrics: the sweep's ceiling)")
 
     b = args.builtin_instances
     loopworks.sweep(None, ["valve.resolution=uniform(0.2,0.8)"], samples=1, workers=1)  # warm
