@@ -329,6 +329,16 @@ def test_isa_ti_at_the_word_8_bound_is_refused() -> None:
                                              r"allowed \(0.030518, inf\] s"):
         loopworks.create_block("ge.pid_isa", ti=1000.0 / 32767.5)
     assert words_of(loopworks.create_block("ge.pid_isa", ti=1000.0 / 32767.4))[8] == 32767
+    # the upper bound: 1000/Ti rounds to word 1 up to Ti = 2000 s; convert's refusal said
+    # "word 8 = 1000/ti >= 1", which 2000 s does not meet (found by an outside audit)
+    from loopworks.tuning.convert import convert
+
+    assert words_of(loopworks.create_block("ge.pid_isa", ti=2000.0))[8] == 1
+    assert convert("pid", {"k": 2.0, "ti": 2000.0}, "ge.pid_isa").params["word8"] == 1
+    with pytest.raises(ParameterError) as info:
+        convert("pid", {"k": 2.0, "ti": 2001.0}, "ge.pid_isa")
+    assert ("'ti' = 2001 s is out of range: allowed up to 2000 s (word 8 = 1000/ti rounds to "
+            "at least 1: 1000/ti >= 0.5) or inf") in str(info.value)
 
 
 def test_a_dead_band_that_rounds_to_no_dead_band_is_refused_and_messages_give_the_value(

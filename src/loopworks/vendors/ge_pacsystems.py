@@ -1012,8 +1012,8 @@ class GEPIDBlock(Controller, Block):
             w8 = 0 if ideal.ti == math.inf else word("word8", 1000.0 / ideal.ti, kind)
             if ideal.ti != math.inf and w8 == 0:
                 raise ParameterError(f"{kind}: parameter 'ti' = {ideal.ti:g} s is out of "
-                                     "range: allowed up to 2000 s (word 8 = 1000/ti >= 1) or "
-                                     "inf")
+                                     "range: allowed up to 2000 s (word 8 = 1000/ti rounds "
+                                     "to at least 1: 1000/ti >= 0.5) or inf")
             if native:
                 out.update(kc=w6 / 100.0, ti=math.inf if w8 == 0 else 1000.0 / w8,
                            td=w7 / 100.0)
