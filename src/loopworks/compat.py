@@ -165,6 +165,17 @@ class PID:
         self.reset()
         self._integral = clamp_limits(starting_output, self.output_limits)
 
+    def __copy__(self) -> PID:
+        """A shallow copy, as simple-pid's: the same settings and a controller state of its
+        own (the kernel's block is copied; simple-pid keeps its state in plain numbers, so
+        its shallow copy updates apart from the original: found by an outside audit)."""
+        import copy
+
+        new = type(self).__new__(type(self))
+        new.__dict__.update(self.__dict__)
+        new._block = copy.deepcopy(self._block)
+        return new
+
     # -- the block -----------------------------------------------------------------------
     def _settings(self) -> tuple[Any, ...]:
         return (self.Kp, self.Ki, self.Kd, self._min_output, self._max_output,

@@ -296,3 +296,26 @@ def test_a_clock_gone_back_with_a_sample_time_returns_the_last_output() -> None:
     for t, x in [(0.1, 0.0), (0.2, 0.3), (0.19, 0.2), (0.3, 0.25)]:
         ca.t = cb.t = t
         assert b(x) == pytest.approx(a(x), rel=1e-12), t
+
+
+@pytest.mark.parametrize("jit", [None, False])
+def test_copies_and_pickles_update_apart_from_the_original(jit: bool | None) -> None:
+    """copy.deepcopy of a compiled PID kept the original's buffer addresses: the copy's calls
+    returned the output from before the copy and moved the original instead; a shallow copy
+    shared the state; pickling raised (found by an outside audit). Each is now a controller
+    of its own, as simple-pid's are."""
+    import copy
+    import pickle
+
+    def made(cls: Any, **extra: Any) -> Any:
+        pid = cls(1.0, 0.5, 0.1, setpoint=1.0, sample_time=None, **extra)
+        pid(0.0, 0.1)
+        return pid
+
+    theirs = made(simple_pid.PID)
+    expected = [theirs(pv, 0.1) for pv in (0.5, 0.8)]
+    for how in (copy.deepcopy, copy.copy, lambda p: pickle.loads(pickle.dumps(p))):
+        ours = made(PID, jit=jit)
+        twin = how(ours)
+        assert [twin(pv, 0.1) for pv in (0.5, 0.8)] == pytest.approx(expected, rel=1e-12)
+        assert [ours(pv, 0.1) for pv in (0.5, 0.8)] == pytest.approx(expected, rel=1e-12)

@@ -488,3 +488,35 @@ def test_every_run_from_the_start_sees_the_same_parameters() -> None:
     module.blocks["pid"].set_params(k=4.0)  # between runs: kept
     third = module.run(1.0, 0.1, plan="python")
     assert third["pid.out"][0] == pytest.approx(4.0 * 1.0 + 0.1 * 4.0 / 10.0)
+
+
+def test_a_copied_or_pickled_module_and_block_run_on_numbers_of_their_own() -> None:
+    """copy.deepcopy of a module ran its plan on buffers its copied blocks no longer held,
+    and a copied block's scans wrote into the original's buffers (raw addresses copied; found
+    by an outside audit through loopworks.compat). A copy runs as the original would, and
+    leaves the original as it was."""
+    import copy
+    import pickle
+
+    import loopworks
+
+    def made() -> Module:
+        return Module({"pid": loopworks.create_block("pid", k=1.5, ti=4.0),
+                       "p": loopworks.create_block("process.first_order", time_constant=3.0)},
+                      wires={"p.u": "pid.out", "pid.pv": "p.y"}, inputs={"pid": {"sp": 1.0}})
+
+    fresh = made().run(3.0, 0.1).values["p.y"]
+    for how in (copy.deepcopy, lambda m: pickle.loads(pickle.dumps(m))):
+        original = made()
+        original.run(3.0, 0.1)
+        twin = how(original)
+        np.testing.assert_array_equal(twin.run(3.0, 0.1).values["p.y"], fresh)
+        twin.scan(0.1)
+        assert twin.blocks["p"].y[0] != original.blocks["p"].y[0]  # the twin moved alone
+    block = loopworks.create_block("pid", k=1.0, ti=2.0)
+    block.step(0.1, sp=1.0, pv=0.0)
+    before = block.outputs()["out"].value
+    for how in (copy.deepcopy, copy.copy, lambda b: pickle.loads(pickle.dumps(b))):
+        twin = how(block)
+        assert twin.step(0.1, sp=1.0, pv=0.5)["out"].value == pytest.approx(0.575, rel=1e-12)
+        assert block.outputs()["out"].value == before

@@ -243,6 +243,27 @@ class Block:
         self._fa: int = F.ctypes.data
         self._sa: int = S.ctypes.data
 
+    def __getstate__(self) -> dict[str, Any]:
+        """What a copy or a pickle keeps: the parameters and the numbers, not the compiled
+        entries (closures, which cannot be pickled) nor the buffers' addresses, which
+        :meth:`__setstate__` binds again (found by an outside audit: ``copy.deepcopy`` of a
+        block kept the original's addresses, so the copy's scans wrote into the original's
+        buffers, or into freed memory once the original was gone)."""
+        state = dict(self.__dict__)
+        for key in ("_run", "_packed", "_fa", "_sa"):
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """A copied or unpickled block: buffers of its own (a module's copy gives its blocks
+        views of its own again: ``Module.__setstate__``), entries bound on its first scan."""
+        self.__dict__.update(state)
+        self._F, self._S = np.array(self._F), np.array(self._S)
+        self._module = None
+        self._bind()
+        self._run = self._run_first
+        self._packed = self._packed_first
+
     def adopt(self, F: FloatArray, S: IntArray) -> None:
         """Move the block's buffers into ``F`` and ``S``, views of a plan's flat buffers of
         this block's sizes: everything the block holds is copied there, and from now on its

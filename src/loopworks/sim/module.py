@@ -283,6 +283,23 @@ class Module:
         self._rec_s = np.array([i for sl in slots for i in range(sl.s0, sl.s1)], dtype=np.int64)
         self._scans: Any = None
 
+    def __getstate__(self) -> dict[str, Any]:
+        """A copy or a pickle: everything but the compiled plan, loaded again on the next run."""
+        state = dict(self.__dict__)
+        state["_scans"] = None
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        """A copied or unpickled module: its blocks (copied with buffers of their own) take
+        views of the module's copied buffers again, as :meth:`_lay_out` gave them, so the
+        plan and the blocks work on the same numbers (a deep copy ran its plan on buffers its
+        blocks no longer held)."""
+        self.__dict__.update(state)
+        for slot, name in zip(self._slots, self.order, strict=True):
+            block = self.blocks[name]
+            block.adopt(self._F[slot.f0:slot.f1], self._S[slot.s0:slot.s1])
+            block._module = self._token
+
     def _check_blocks(self) -> None:
         """InputError when a block of this module was put into another module since: it
         moved its buffers there (a block belongs to one module), and this module would run
