@@ -191,6 +191,11 @@ def test_replay_params_file_and_p_override(tmp_path: Path, simple_csv: Path) -> 
     header, rows = table(result.stdout)
     assert column(header, rows, "out")[0] == 30.0  # out_hi from the file still applies
     assert int(rows[0][-1]) == 130
+    # in any letter case (-p K=4 beside the file's k was refused as a parameter given twice)
+    result = invoke("replay", "pid", str(simple_csv), "--params", str(params), "-p", "K=4",
+                    "-p", "OUT_HI=100")
+    assert result.exit_code == 0, result.output
+    assert column(*table(result.stdout), "out")[0] == pytest.approx(40.4)
 
 
 def test_replay_params_file_unknown_parameter(tmp_path: Path, simple_csv: Path) -> None:

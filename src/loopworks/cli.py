@@ -267,7 +267,8 @@ def replay(
     kind: Annotated[str, typer.Argument(help="block kind, e.g. pid")],
     input_csv: Annotated[Path, typer.Argument(metavar="INPUT.csv", help="recorded inputs")],
     param: Annotated[list[str] | None, typer.Option(
-        "--param", "-p", metavar="NAME=VALUE", help="a block parameter (repeatable)")] = None,
+        "--param", "-p", metavar="NAME=VALUE", help="a block parameter (repeatable; it "
+        "replaces the same parameter of --params, in any letter case)")] = None,
     params: Annotated[Path | None, typer.Option(
         "--params", metavar="FILE.toml", help="block parameters from a TOML table")] = None,
     output: Annotated[Path | None, typer.Option(
@@ -292,7 +293,7 @@ def replay(
     values: dict[str, Any] = {}
     if params is not None:
         values.update(read_params_file(params, cls.kind))
-    values.update(_pairs(param, "-p"))
+    values.update(_pairs(param, "-p"))  # -p replaces the file's (a block reads any case)
     from loopworks.errors import ParameterError
 
     try:
@@ -402,7 +403,7 @@ def tune(
         loop = default_loop(module)
     relay: dict[str, Any] = {}
     if test is not None and loop.lower() in ("", test.loop):  # the scenario's own test
-        loop, module, relay = test.loop, test.build(), dict(test.relay)
+        loop, module, relay = test.loop, test.build(None, sc.seed), dict(test.relay)
     given = {"amplitude": amplitude, "hysteresis": hysteresis, "start": start,
              "bias_ratio": bias_ratio, "offset": offset}
     relay.update({k: v for k, v in given.items() if v is not None})

@@ -339,3 +339,26 @@ def test_a_loop_keeps_its_colour_in_every_trend_panel() -> None:
         assert len(same) == 1, (name, same)
     assert colour["comp_knocker op_out"] == colour["pid_knocker OUT"]
     assert len({colour[f"pid_{n} OUT"] for n in ("none", "knocker", "dither_kicker")}) == 3
+
+
+def test_a_reused_directory_loses_the_earlier_reports_files_only(tmp_path: Path) -> None:
+    """A report written where another scenario's was kept that one's autotune.json and
+    variants beside it (found by an outside audit). The earlier report's files this one
+    does not replace are removed; the user's own files, and a directory that holds no
+    report, are left alone."""
+    write(tmp_path, two_variants(), autotune={"loop": "pid", "process_gain": 1.0})
+    (tmp_path / "notes.txt").write_text("mine")
+    (tmp_path / "other.csv").write_text("t,x\n0,1\n")
+    assert {"off.csv", "on.png", "autotune.json"} <= {p.name for p in tmp_path.iterdir()}
+    write(tmp_path, {"base": loop_result(2.0, 0.01, 0.0)})
+    names = {p.name for p in tmp_path.iterdir()}
+    assert not names & {"off.csv", "off.png", "on.csv", "on.png", "autotune.json"}, names
+    assert {"base.csv", "base.png", "notes.txt", "other.csv", "report.html"} <= names
+    # no earlier report here (no report.html): a file named as a variant's stays
+    fresh = tmp_path / "fresh"
+    fresh.mkdir()
+    (fresh / "autotune.json").write_text("{}")
+    (fresh / "metrics.json").write_text('{"keep": {}}')
+    (fresh / "keep.csv").write_text("mine")
+    write(fresh, {"base": loop_result(2.0, 0.01, 0.0)})
+    assert (fresh / "keep.csv").read_text() == "mine" and (fresh / "autotune.json").exists()

@@ -145,6 +145,13 @@ def test_without_compare_there_is_one_base_variant() -> None:
     ('[compare.x]\n"nope.k" = 1.0\n', r"compare\.x: 'nope\.k' must be 'block\.parameter'"),
     ('[compare.x]\n"pid.kind" = "pid"\n', r"not the kind"),
     ('[compare.x]\n"pid.kk" = 1.0\n', r"compare\.x\).*unknown parameter 'kk'"),
+    # one parameter twice in letter cases: the last won silently; a variant named as the
+    # report's own figure lost its trend plot to it (found by an outside audit)
+    ('[compare.x]\n"pid.sp" = 60.0\n"pid.SP" = 61.0\n',
+     r"bad\.toml: compare\.x: 'pid\.SP' and 'pid\.sp' are one parameter .*give it once"),
+    ('[compare.Overview]\n"pid.k" = 2.0\n',
+     r"\[compare\.Overview\]: the report's own overview\.png has this name"),
+    ('[compare.signature]\n"pid.k" = 2.0\n', r"the report's own signature\.png"),
 ])
 def test_compare_errors_are_located(extra: str, message: str) -> None:
     with pytest.raises(FileFormatError, match=message):
@@ -468,3 +475,30 @@ value = 600.0
         batch.run(sc.duration, sc.dt)
     fits = parse_scenario(text.replace("value = 600.0", "value = 400.0"))
     assert len(fits.module.run(fits.duration, fits.dt).t) == 200
+
+
+def test_one_input_wired_twice_in_two_letter_cases_is_refused() -> None:
+    """`"process.U" = "pid.p_term"` beside `"process.u" = "pid.out"`: the module kept one
+    wire and the record the other, so the CSV's process.u was not what the process ran on
+    (found by an outside audit)."""
+    text = GOOD.replace('"pid.pv" = "process.y"', '"pid.pv" = "process.y"\n"process.U" = "pid.out"')
+    with pytest.raises(FileFormatError, match=r"bad\.toml: \[wires\]: 'process\.U' and "
+                                              r"'process\.u' are one input .*wire it once"):
+        parse_scenario(text, "bad.toml")
+
+
+def test_the_run_seed_reaches_the_autotune_relay_test(tmp_path: Path) -> None:
+    """[simulation] seed changes every noise stream of the run, the [autotune] relay test's
+    too: the identified gain was the same for every seed (found by an outside audit)."""
+    root = Path(__file__).resolve().parents[2]
+    text = (root / "examples" / "default.toml").read_text(encoding="utf-8")
+    text = text.replace("duration = 3600.0", "duration = 60.0").replace(
+        "metrics_window = [1800.0, 3600.0]", "metrics_window = [0.0, 60.0]")
+    gains = []
+    for seed in (None, 11, 12):
+        path = tmp_path / f"s{seed}.toml"
+        path.write_text(text if seed is None else text.replace(
+            "[simulation]\n", f"[simulation]\nseed = {seed}\n", 1), encoding="utf-8")
+        sc = load_scenario(path)
+        gains.append(run_autotune(sc)["process_gain"])  # type: ignore[index]
+    assert len(set(gains)) == 3, gains

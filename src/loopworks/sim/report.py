@@ -17,7 +17,9 @@ what cost. Written by ``loopworks simulate``:
                          valve position
       VARIANT.csv        every signal of the run, with .ST status columns
 
-Every JSON file is strict JSON (``json_text``): a non-finite figure is written as null.
+Every JSON file is strict JSON (``json_text``): a non-finite figure is written as null. A
+directory that holds an earlier report loses the files of it this report does not replace
+(another scenario's variants, its autotune.json); no other file in it is touched.
 """
 
 from __future__ import annotations
@@ -431,6 +433,27 @@ def forked(job: Callable[[], None]) -> Callable[[], None]:
     return wait
 
 
+def _earlier_report(directory: Path) -> set[str]:
+    """The files an earlier report left in ``directory`` that a new one may not write: its
+    variants' CSVs and trend plots (by its metrics.json), its overview and signature plots
+    and its autotune.json; none unless the directory holds a report (report.html and a
+    readable metrics.json), so no other file is touched. A reused directory kept them beside
+    the new report (an earlier scenario's autotune.json and variants; found by an outside
+    audit)."""
+    if not (directory / "report.html").is_file():
+        return set()
+    try:
+        variants = json.loads((directory / "metrics.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return set()
+    if not isinstance(variants, dict):
+        return set()
+    names = {f"{v}.{ext}" for v in variants for ext in ("csv", "png")}
+    names |= {p.name for pattern in ("overview*.png", "signature*.png")
+              for p in directory.glob(pattern)}
+    return {n for n in names | {"autotune.json"} if (directory / n).is_file()}
+
+
 def write_report(directory: Path, title: str, scenario_text: str,
                  results: dict[str, SimResult], metrics: dict[str, dict[str, float]],
                  autotune: dict[str, Any] | None = None,
@@ -439,6 +462,7 @@ def write_report(directory: Path, title: str, scenario_text: str,
     [autotune] result (autotune.json and a section of the page), ``window`` the scored
     window (s; shaded in the figures)."""
     directory.mkdir(parents=True, exist_ok=True)
+    earlier = _earlier_report(directory)
     if autotune is not None:
         (directory / "autotune.json").write_text(json_text(autotune), encoding="utf-8")
     (directory / "scenario.toml").write_text(scenario_text, encoding="utf-8")
@@ -464,6 +488,11 @@ def write_report(directory: Path, title: str, scenario_text: str,
     for variant, result in results.items():
         result.to_csv(directory / f"{variant}.csv")
     wait()
+    written = {"autotune.json"} if autotune is not None else set()
+    written |= {name for name, _ in figures}
+    written |= {f"{v}.{ext}" for v in results for ext in ("csv", "png")}
+    for name in earlier - written:  # an earlier report's file this one does not replace
+        (directory / name).unlink(missing_ok=True)
     scored = ("over the whole run" if window is None
               else f"over the scored window {window[0]:g}..{window[1]:g} s")
     overviews, signatures = ("\n".join(

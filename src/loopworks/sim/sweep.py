@@ -520,15 +520,16 @@ def sweep(scenario: str | Path | None, vary: Mapping[str, Any] | Iterable[str] |
         for name, value in point.items():
             _check_value(sc, name, value, variants, f"instance {i}")
     _check_points(sc, points, names, variants)
-    tuned, untuned = _autotune_points(sc, points, names, relay_progress)
     from loopworks.plant.sensor import mix_seed
+
+    seeds = [mix_seed(sweep_seed, i) for i in range(len(points))]
+    tuned, untuned = _autotune_points(sc, points, names, relay_progress, seeds)
 
     for keep in trajectories:
         if not (isinstance(keep, int | np.integer) and not isinstance(keep, bool)
                 and 0 <= keep < len(points)):
             raise InputError(f"--trajectory {keep}: no such point; points are 0 to "
                              f"{len(points) - 1}")
-    seeds = [mix_seed(sweep_seed, i) for i in range(len(points))]
     jobs = [Job(i, v, {**point, **tuned[i]}, seeds[i])
             for v in variants for i, point in enumerate(points)]
     runnable = [k for k, job in enumerate(jobs) if job.point not in untuned]
@@ -572,12 +573,13 @@ AUTOTUNE_ERROR = "autotune_error"
 
 
 def _autotune_points(sc: Any, points: Sequence[Mapping[str, Value]], names: Sequence[str],
-                     progress: Callable[[int, int], None] | None = None
+                     progress: Callable[[int, int], None] | None = None,
+                     seeds: Sequence[int | None] | None = None
                      ) -> tuple[list[dict[str, Value]], dict[int, str]]:
     """Per point, the ``[autotune]`` parameters with the gain its own relay test identifies
-    (the scenario with the point's values, then ``[autotune] set``, as ``simulate`` of that
-    point would run it: the test uses no run seed, so one test per distinct point); empty
-    dicts without ``[autotune]``. Varying a parameter ``[autotune]`` writes is refused (the
+    (the scenario with the point's values, then ``[autotune] set``, and the point's run seed
+    ``seeds[i]``, as ``simulate`` of that point with that ``[simulation] seed`` would run it);
+    empty dicts without ``[autotune]``. Varying a parameter ``[autotune]`` writes is refused (the
     test would overwrite the value, as in ``simulate``).
 
     A point whose test identifies no gain (a relay that did not converge on that valve) gets
@@ -596,14 +598,15 @@ def _autotune_points(sc: Any, points: Sequence[Mapping[str, Value]], names: Sequ
             raise InputError(f"--vary {name}: [autotune] writes this parameter from its relay "
                              f"test (as simulate does, it would overwrite each value); remove "
                              "[autotune] from the scenario to vary it")
-    gains: dict[tuple[tuple[str, Value], ...], float | str] = {}
+    gains: dict[tuple[tuple[str, Value | None], ...], float | str] = {}
     out: list[dict[str, Value]] = []
     failed: dict[int, str] = {}
+    seeds = [None] * len(points) if seeds is None else list(seeds)
     for i, point in enumerate(points):
-        key = tuple(sorted(point.items()))
+        key = (*sorted(point.items()), ("seed", seeds[i]))
         if key not in gains:
             try:
-                gains[key] = autotune_gain(sc, point)[0]
+                gains[key] = autotune_gain(sc, point, seed=seeds[i])[0]
             except LoopworksError as exc:
                 gains[key] = str(exc)
         gain = gains[key]
