@@ -233,7 +233,11 @@ def test_live_commands_check_duration_and_ports_before_starting() -> None:
                 (["serve", "--faceplate", "--faceplate-port", str(used)],
                  f"--faceplate-port {used}: cannot listen"),
                 (["device", "--modbus-port", str(used)], f"--modbus-port {used}: cannot listen"),
-                (["faceplate", "--port", str(used)], f"--port {used}: cannot listen")):
+                (["faceplate", "--port", str(used)], f"--port {used}: cannot listen"),
+                # a host that is no address is the host's error, not the port's (found by an
+                # outside audit)
+                (["device", "--host", "999.1.1.1", "--modbus-port", "20011"],
+                 "--host 999.1.1.1: not an address to listen on")):
             run = CliRunner().invoke(app, args)
             assert run.exit_code == 2, (args, run.output)
             assert run.output.startswith("error: ") and message in run.output, run.output

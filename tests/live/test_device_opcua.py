@@ -85,10 +85,13 @@ def test_the_device_serves_its_points_on_opcua_as_on_modbus() -> None:
             assert abs(dv.Value.Value - reg) <= 1e-6 * abs(reg)
 
             # NaN and a wrong type are refused; the plant keeps 90
-            [nan, wrong] = await client.write_values(
-                [op, op], [double(math.nan), ua.Variant(5, ua.VariantType.Int64)],
+            # a finite double beyond the float32 of the registers too (1e300 was taken, and
+            # the registers read +inf; found by an outside audit)
+            [nan, big, wrong] = await client.write_values(
+                [op, op, op], [double(math.nan), double(1e300),
+                               ua.Variant(5, ua.VariantType.Int64)],
                 raise_on_partial_error=False)
-            assert nan.name == "BadOutOfRange"
+            assert nan.name == big.name == "BadOutOfRange"
             assert wrong.name == "BadTypeMismatch"
             await device.scan()
             assert device.values["valve.op"] == 90.0

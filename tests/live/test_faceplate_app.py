@@ -292,6 +292,11 @@ def test_the_event_stream_sends_samples(setup: Setup) -> None:
 def test_a_lost_server_marks_everything_stale_and_the_link_recovers(setup: Setup) -> None:
     b = Browser(setup.base)
     assert until(lambda: state(b)["link"]["connected"])
+    operator = Browser(setup.base)  # logged in, with an OPC UA session of its own
+    status, answer = operator.call("/api/login", {"user": "op", "password": "secret"})
+    assert status == 200
+    operator.csrf = answer["csrf"]
+    assert operator.call("/api/loop/pid/write", {"name": "SP", "value": 55})[0] == 200
     setup.ua.run(setup.server.stop())
     lost = time.monotonic()
     assert until(lambda: not state(b)["link"]["connected"], 3.0)
@@ -304,6 +309,12 @@ def test_a_lost_server_marks_everything_stale_and_the_link_recovers(setup: Setup
     assert until(lambda: state(b)["link"]["connected"], 10.0)
     setup.publish({"pid.SCANS": (7, st.GOOD_NC)})  # the fake's scans move: not stale
     assert until(lambda: not state(b)["loops"]["pid"]["stale"], 3.0)
+    # the operator's session died with the server: the first change after the restart opens
+    # a new one and is made (it was refused "NotConnected" with the link up; found by an
+    # outside audit)
+    status, answer = operator.call("/api/loop/pid/write", {"name": "SP", "value": 56})
+    assert status == 200 and answer["code"] == "Good", answer
+    assert setup.ctl.writes[-1] == ("op", "operator", "pid", "SP", 56.0)
 
 
 def test_a_controller_whose_scans_stop_is_shown_stale(setup: Setup) -> None:

@@ -182,3 +182,38 @@ def test_a_refused_write_is_logged_once_with_what_the_loop_shows() -> None:
     refusals = asyncio.run(main())
     assert len(refusals) == 1 and "answered writing valve.op" in refusals[0]
     assert "OUT is Bad (no communication)" in refusals[0]
+
+
+def test_a_map_with_a_gap_between_its_points_is_read_run_by_run() -> None:
+    """sensor.pv at 0 and valve.op at 10: the controller read registers 0..11 in one request,
+    the device (which serves only the registers its map names) answered exception 2, and the
+    loop never ran: PV Bad for ever (found by an outside audit). Each run of adjacent points
+    is read on its own."""
+    import dataclasses
+
+    split = split_scenario(SC)
+    regmap = default_map(split)
+    moved = tuple(dataclasses.replace(p, address=10) if p.name == "valve.op" else p
+                  for p in regmap.points)
+    regmap = dataclasses.replace(regmap, points=moved, heartbeat_address=None,
+                                 fault_bits_address=None)
+
+    async def main() -> None:
+        device = Device(split_scenario(SC), regmap, speedup=50.0)
+        port = await device.start("127.0.0.1", 0)
+        scanning = asyncio.create_task(device.run())
+        io = ModbusIO(regmap, "127.0.0.1", port)
+        try:
+            value, status = (await io.read())["sensor.pv"]
+            assert status == st.GOOD_NC and abs(value - 50.0) < 2.0
+            assert await io.write({"valve.op": 61.25})
+            await asyncio.sleep(0.05)
+            await io.read()
+            assert io.counters.read_errors == 0 and io.counters.readback_mismatches == 0
+            assert device.applied("valve.op") == 61.25
+        finally:
+            io.close()
+            scanning.cancel()
+            await device.stop()
+
+    asyncio.run(main())

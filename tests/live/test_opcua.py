@@ -431,6 +431,19 @@ def test_a_refusal_s_reason_is_on_the_loop_s_last_refusal_node(served: Served) -
             for name in ("pid.LAST_REFUSAL", "pid.MODE_TEXT"):
                 assert await write_code(client, name, ua.Variant(
                     "x", ua.VariantType.String)) == "BadNotWritable", name
+                # and noted, as every refused write is (they were neither logged nor noted;
+                # found by an outside audit)
+                assert (await read(client, "pid.LAST_REFUSAL")).Value.Value == (
+                    f"op {name.split('.')[1]} BadNotWritable: a read-only variable")
+            # a value its writer marks Bad is no setting (SP = 53, BadDeviceFailure, was
+            # applied as a Good setpoint; found by an outside audit)
+            sp = await node(client, "pid.SP")
+            with pytest.raises(ua.UaStatusCodeError) as info:
+                await sp.write_value(ua.DataValue(double(53.0), StatusCode=ua.StatusCode(
+                    ua.StatusCodes.BadDeviceFailure)))
+            assert ua.StatusCode(info.value.code).name == "BadWriteNotSupported"
+            assert (await read(client, "pid.LAST_REFUSAL")).Value.Value.startswith(
+                "op SP BadWriteNotSupported: a value written with status BadDeviceFailure")
 
     asyncio.run(scenario())
 

@@ -82,13 +82,33 @@ WRITE_CODES = frozenset({6, 16, 22, 23})
 #: the read function code the device itself uses to reach its datastore
 _OWN_CODE = 3
 #: the largest finite float32
-_F32_MAX = 3.4028234663852886e38
+F32_MAX = 3.4028234663852886e38
+
+
+def _after_write(point: Point, start: int, address: int, set_values: list[int] | list[bool],
+                 current: list[int]) -> list[int] | None:
+    """The registers of ``point`` as a write of ``set_values`` at ``address`` leaves them
+    (``current``: the registers from address ``start``), or None when the write does not
+    touch the point. A write of one register of a float (FC6) made its pair NaN, answered
+    as a success (found by an outside audit)."""
+    lo, hi = point.address, point.address + point.count
+    if hi <= address or lo >= address + len(set_values):
+        return None
+    out = []
+    for r in range(lo, hi):
+        if address <= r < address + len(set_values):
+            out.append(int(set_values[r - address]))
+        elif 0 <= r - start < len(current):
+            out.append(int(current[r - start]))
+        else:
+            return None
+    return out
 
 
 def _f32(value: float) -> float:
     """``value`` as a float32 can hold it: beyond ±3.4e38 it is ±inf."""
     return math.copysign(math.inf, value) if math.isfinite(value) and abs(
-        value) > _F32_MAX else value
+        value) > F32_MAX else value
 
 
 class Device:
@@ -248,10 +268,10 @@ class Device:
                 log.warning("%s: a client wrote register %d, which is not a device input: "
                             "refused (illegal data address)", self._stamp(), foreign[0])
             return ExcCodes.ILLEGAL_ADDRESS
-        for point in self.regmap.inputs:  # a whole point written: its value must be finite
-            first = point.address - address
-            if first >= 0 and first + point.count <= count:
-                value = point.decode([int(r) for r in set_values[first:first + point.count]])
+        for point in self.regmap.inputs:  # a point written, whole or in part: finite
+            regs = _after_write(point, start_address, address, set_values, current_registers)
+            if regs is not None:
+                value = point.decode(regs)
                 if not math.isfinite(value):
                     if point.name not in self._refusing:  # once per run of refusals
                         self._refusing.add(point.name)

@@ -17,8 +17,9 @@ Every point is a Double node:
   A write goes to the plant like a Modbus write (:meth:`Device.write_input`): at the next
   scan, counting for the fault-state timer whichever protocol wrote it (the latest write of
   either wins, and is copied into the input's registers). A value that is not a Double is
-  refused with BadTypeMismatch (asyncua's check), a NaN or infinite one with BadOutOfRange
-  (logged; the plant keeps its input). The node shows the value the device holds (what
+  refused with BadTypeMismatch (asyncua's check), a NaN or infinite one, or one beyond the
+  float32 range its registers hold (±3.4e38), with BadOutOfRange (logged; the plant keeps
+  its input). The node shows the value the device holds (what
   either protocol wrote last).
 
 Security: NoSecurity, anonymous, and so only on a loopback address (127.0.0.1, ::1,
@@ -41,7 +42,7 @@ from asyncua.server.server import Server
 from asyncua.ua.attribute_ids import AttributeIds
 
 from loopworks.errors import InputError
-from loopworks.live.device import Device
+from loopworks.live.device import F32_MAX, Device
 from loopworks.live.opcua import _code, _is_loopback, _nid
 from loopworks.live.registers import DEVICE_NAMESPACE
 
@@ -184,9 +185,12 @@ class DeviceOpcua:
                 variant = item.Value.Value if item.Value is not None else None
                 raw = variant.Value if variant is not None else None
                 if (variant is not None and variant.VariantType == ua.VariantType.Double
-                        and isinstance(raw, float) and not math.isfinite(raw)):
-                    log.warning("t = %g s: OPC UA write %s = %r refused (BadOutOfRange): not "
-                                "finite; the plant keeps %g", self.device.plant_time, name, raw,
+                        and isinstance(raw, float) and not abs(raw) <= F32_MAX):
+                    # beyond the float32 its registers hold (1e300: +inf in them; found by an
+                    # outside audit) as a NaN or infinite value is
+                    why = "not finite" if not math.isfinite(raw) else "beyond the float32 range"
+                    log.warning("t = %g s: OPC UA write %s = %r refused (BadOutOfRange): %s; "
+                                "the plant keeps %g", self.device.plant_time, name, raw, why,
                                 self.device.values[name])
                     results.append(_code("BadOutOfRange"))
                     continue

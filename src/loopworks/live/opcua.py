@@ -536,7 +536,18 @@ class LoopServer:
                 elif node is None and item.AttributeId == AttributeIds.Value and (
                         self._kept(item.NodeId)):
                     # a node the server keeps itself (<NAME>_TEXT, LAST_REFUSAL): read-only
-                    # for everyone, so not "access denied" (asyncua checks the user first)
+                    # for everyone, so not "access denied" (asyncua checks the user first);
+                    # logged and noted as every refused write is (it was neither; found by
+                    # an outside audit)
+                    loop, what = self._kept_name(item.NodeId)
+                    raw = (item.Value.Value.Value if item.Value is not None
+                           and item.Value.Value is not None else None)
+                    who = f"{user.name} ({getattr(user, 'loop_role', None)})" if (
+                        user.name) else "anonymous"
+                    log.warning("write %s.%s = %r by %s: refused, BadNotWritable: a read-only "
+                                "variable", loop, what, raw, who)
+                    await self._note_refusal(loop, f"{user.name or 'anonymous'} {what} "
+                                                   "BadNotWritable: a read-only variable")
                     results.append(_code("BadNotWritable"))
                 elif node is None or item.AttributeId != AttributeIds.Value:
                     results += await original(ua.WriteParameters(NodesToWrite=[item]),
@@ -567,6 +578,14 @@ class LoopServer:
                 answers[i] = ua.DataValue(ua.Variant(
                     value.Value & ~ua.AccessLevel.CurrentWrite.mask, ua.VariantType.Byte))
 
+    def _kept_name(self, nodeid: ua.NodeId) -> tuple[str, str]:
+        """(loop, variable name) of a node the server keeps itself (:meth:`_kept`)."""
+        for loop, refusal in self._refusals.items():
+            if refusal == nodeid:
+                return loop, LAST_REFUSAL
+        node = next(n for n in self._nodes.values() if n.text_nodeid == nodeid)
+        return node.loop, f"{node.var.name}_TEXT"
+
     def _kept(self, nodeid: ua.NodeId) -> bool:
         """A value node the server keeps itself: a mode's ``<NAME>_TEXT`` or a loop's
         ``LAST_REFUSAL``."""
@@ -587,6 +606,11 @@ class LoopServer:
                 raise WriteRefused("BadNotWritable", "a read-only variable")
             if role != "operator":
                 raise WriteRefused("BadUserAccessDenied", "only operators may write")
+            if dv.StatusCode is not None and not dv.StatusCode.is_good():
+                # a value its writer marks Bad or Uncertain is not a setting to apply (it was
+                # applied as Good; found by an outside audit)
+                raise WriteRefused("BadWriteNotSupported", "a value written with status "
+                                   f"{dv.StatusCode.name}: the controller takes Good values")
             value = _client_value(node.var.kind, dv.Value)
             done = self.controller.write(name, role, node.loop, node.var.name, value)
             if inspect.isawaitable(done):  # a controller in another process answers later

@@ -148,23 +148,29 @@ class Faceplate:
             await self.link.write(None, loop, name, value)
             return
         async with s.lock:
-            if s.client is None:
-                s.client = await self.user_client(s.user, s.password)
-            try:
-                await self.link.write(s.client, loop, name, value, s.user)
-            except WriteError:
-                raise
-            except Exception as exc:
-                if not is_link_error(exc):
+            for attempt in (1, 2):
+                if s.client is None:
+                    s.client = await self.user_client(s.user, s.password)
+                try:
+                    await self.link.write(s.client, loop, name, value, s.user)
+                    return
+                except WriteError:
                     raise
-                await _disconnect(s.client)  # its session is gone: a new one next time
-                s.client = None
-                if isinstance(exc, TimeoutError):  # sent, never answered: not known
-                    raise WriteError("NoAnswer", f"the controller did not answer within "
-                                     f"{WRITE_TIMEOUT:g} s: the change may still be made; "
-                                     "check the value before trying again") from None
-                raise WriteError("NotConnected", "the link to the controller was lost: "
-                                 "the change was not made") from None
+                except Exception as exc:
+                    if not is_link_error(exc):
+                        raise
+                    await _disconnect(s.client)  # its session is gone: a new one
+                    s.client = None
+                    if isinstance(exc, TimeoutError):  # sent, never answered: not known
+                        raise WriteError("NoAnswer", f"the controller did not answer within "
+                                         f"{WRITE_TIMEOUT:g} s: the change may still be made; "
+                                         "check the value before trying again") from None
+                    # not sent (the session died with a controller that restarted since):
+                    # once more on a new session, as the link is up again (the operator's
+                    # first change after a restart was refused; found by an outside audit)
+                    if attempt == 2:
+                        raise WriteError("NotConnected", "the link to the controller was "
+                                         "lost: the change was not made") from None
 
 
 async def _disconnect(client: Client | None) -> None:
