@@ -825,3 +825,16 @@ def test_a_warning_is_one_line() -> None:
     text = _warning_line(RuntimeWarning("loopworks: the plan cache /x cannot be written"),
                          RuntimeWarning, "/some/file.py", 12, "warnings.warn(...)")
     assert text == "warning: the plan cache /x cannot be written\n"
+
+
+def test_convert_json_keeps_numbers_given_as_text_numbers() -> None:
+    """`-p pv_scale_eu_100=200` passed through as the JSON string "200" (found by an outside
+    audit): a numeric parameter is a JSON number."""
+    import json
+
+    result = invoke("convert", "--from", "deltav.pid", "--to", "deltav.pid", "-p", "gain=2",
+                    "-p", "reset=16", "-p", "pv_scale_eu_100=200", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["pv_scale_eu_100"] == 200 and not isinstance(data["pv_scale_eu_100"], str)
+    assert all(not isinstance(data[k], str) for k in ("gain", "reset", "pv_scale_eu_0"))

@@ -326,6 +326,17 @@ def replay(
                    f"through {cls.kind}; wrote {output}", err=True)
 
 
+def _number_of(value: Any) -> Any:
+    """``value`` as a number when it is the text of one (an int when whole), else as it is."""
+    if not isinstance(value, str):
+        return value
+    try:
+        x = float(value)
+    except ValueError:
+        return value
+    return int(x) if x.is_integer() and "." not in value and "e" not in value.lower() else x
+
+
 def _pairs(items: list[str] | None, option: str) -> dict[str, str]:
     """NAME=VALUE options into a dict (names lower-cased); a name given twice (in any letter
     case) is an error, not the last one silently winning."""
@@ -413,6 +424,20 @@ def tune(
             options[k] = float(v)
         except ValueError:
             _fail(f"--option {k}={v!r}: expected a number (s)")
+    # before the test (found by an outside audit: a wrong --rule, --controller or -O was told
+    # after a test of minutes, or never when the test was refused; --symmetric dropped
+    # --bias-ratio and --offset silently; a dead time longer than the delay line read as a
+    # Bad PV)
+    from loopworks.tuning.rules import check_request
+
+    check_request(rule, controller, options)
+    if symmetric:
+        dropped = [f"--{k.replace('_', '-')}" for k in ("bias_ratio", "offset")
+                   if given[k] is not None]
+        if dropped:
+            _fail(f"--symmetric with {' and '.join(dropped)}: a symmetric test has no bias "
+                  "or shift; leave out one or the other")
+    module.check_dt(sc.dt)
     try:
         report = tune_loop(module, loop, sc.dt, rule=rule, controller=controller.upper(),
                            options=options, biased=not symmetric, **relay)
@@ -478,7 +503,14 @@ def convert(
     result = run_convert(from_kind, _pairs(param, "-p"), to_kind, sample_time=sample_time,
                          target=_pairs(target, "-t"))
     if as_json:
-        data = {**dict(result.params), "exact": result.exact, "note": result.note,
+        from loopworks.catalog import block_class
+
+        # a number given as text (-p pv_scale_eu_100=200) passed through as the text "200"
+        # (found by an outside audit): a numeric parameter is a JSON number
+        types = {p.name: p.type for p in block_class(to_kind).PARAMS}
+        params = {k: _number_of(v) if types.get(k) in ("float", "int") else v
+                  for k, v in result.params.items()}
+        data = {**params, "exact": result.exact, "note": result.note,
                 "response_errors": [{"omega": w, "error": e}
                                     for w, e in result.response_errors],
                 "unmodelled": list(result.unmodelled)}

@@ -648,3 +648,35 @@ def test_a_large_hysteresis_read_as_integrating_says_so() -> None:
     assert lag and "ε = 1.2" in lag[0] and "a smaller --hysteresis" in lag[0], lag
     assert tune_loop(sc.module, "ctl", sc.dt, hysteresis=1.0).identification.process_type \
         == "self_regulating"
+
+
+def test_options_a_test_cannot_use_are_refused_before_it_runs(tmp_path: Path) -> None:
+    """`--rule bogus`, `--controller X`, `-O bogus=1`, `--rule pessen --controller PI` were
+    told only after the relay test (minutes), or never when the test was refused; a dead
+    time longer than the delay line was reported as a Bad PV after the test; `--symmetric`
+    dropped `--bias-ratio` and `--offset` silently (found by an outside audit). Each is one
+    error line before the test."""
+    from typer.testing import CliRunner
+
+    from loopworks.cli import app
+
+    path = tmp_path / "loop.toml"
+    path.write_text(
+        "[simulation]\ndt = 0.1\nduration = 10.0\n\n[blocks.pid]\nkind = \"pid\"\nk = 1.0\n"
+        "ti = 10.0\nsp = 50.0\n\n[blocks.process]\nkind = \"process.fopdt\"\ngain = 1.0\n"
+        "time_constant = 20.0\ndead_time = 101.0\nu0 = 50.0\n\n[wires]\n"
+        "\"process.u\" = \"pid.out\"\n\"pid.pv\" = \"process.y\"\n", encoding="utf-8")
+    cases = (
+        (["--rule", "bogus"], "rule = 'bogus' is unknown"),
+        (["--controller", "X"], "controller = 'X' is not allowed: one of P, PI, PID"),
+        (["--rule", "simc", "-O", "bogus=1"], "option 'bogus' is unknown for rule 'simc'"),
+        (["--rule", "pessen", "--controller", "PI"], "'PI' is not offered by rule 'pessen'"),
+        (["--rule", "simc", "-O", "tau_c=-1"], "tau_c = -1 s is out of range"),
+        (["--symmetric", "--offset", "1"], "--symmetric with --offset: a symmetric test"),
+        ([], "dead_time = 101 s at dt = 0.1 s needs 1010 scans of delay line"),
+    )
+    for args, message in cases:
+        run = CliRunner().invoke(app, ["tune", str(path), *args])
+        assert run.exit_code == 2, (args, run.output)
+        assert run.output.startswith("error: ") and message in run.output, (args, run.output)
+        assert "relay test" not in run.output, args  # refused before it ran

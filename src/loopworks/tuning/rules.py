@@ -472,6 +472,31 @@ def _options(rule: Rule, model: tuple[str, ...], controller: str,
     return out
 
 
+CONTROLLERS = ("P", "PI", "PID")
+
+
+def check_request(rule: str | None, controller: str, options: Mapping[str, float]) -> None:
+    """ParameterError for what :func:`tune` would refuse whatever the process: an unknown
+    rule, a controller it does not offer (P, PI or PID without a rule), an option it does
+    not take or one out of its range (tau_c, lam); ``loopworks tune`` checks it before its
+    relay test (a wrong --rule was told only after the test, or never when the test was
+    refused; found by an outside audit)."""
+    ctrl = str(controller).strip().upper()
+    if rule is None:
+        if ctrl not in CONTROLLERS:  # the rule, and its options, come from the data
+            raise ParameterError(f"controller = {controller!r} is not allowed: one of "
+                                 + ", ".join(CONTROLLERS))
+        return
+    r = _rule_for(rule)
+    if ctrl not in r.controllers:
+        raise ParameterError(f"controller = {controller!r} is not offered by rule {r.name!r}: "
+                             f"one of {', '.join(r.controllers)}")
+    for name, raw in options.items():
+        if name == "t2":
+            continue  # its range needs the identified time constant
+        _options(r, (), ctrl, {}, {name: raw})
+
+
 def tune(rule: str, data: ProcessData, controller: str = "PI", **options: float) -> Tuning:
     """Settings from tuning rule ``rule`` (a name in ``RULES``) for a ``controller`` ("P",
     "PI" or "PID", any case) from the process ``data``; ``options``: ``tau_c`` (SIMC, s,
