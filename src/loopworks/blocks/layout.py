@@ -24,6 +24,7 @@ every name before it has the same index in every instance.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 from collections import namedtuple
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -117,10 +118,8 @@ def _names_of(entries: tuple[Entry, ...]) -> tuple[str, ...]:
 def _declared(entries: Sequence[Entry]) -> tuple[str, ...]:
     """The entries' names (a kind's layout is a tuple: its names are worked out once)."""
     if isinstance(entries, tuple):
-        try:
+        with contextlib.suppress(TypeError):  # an entry that cannot be hashed: worked out
             return _names_of(entries)
-        except TypeError:  # an entry that cannot be hashed
-            pass
     return tuple(_name(e) for e in entries)
 
 
