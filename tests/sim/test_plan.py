@@ -246,6 +246,42 @@ def test_the_fused_plan_equals_the_interpreted_run() -> None:
 
 
 
+def test_every_kind_runs_fused_with_its_coefficients_as_a_tuple(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A fused plan hands each kernel its coefficients as a tuple read before the scan loop
+    (``plan._coefficients``: a quarter less time per scan of pid + fopdt), where a block has
+    at most ``TUPLE_COEFFICIENTS`` of them. A kernel that wrote its coefficients or sliced
+    them at run time would not compile so: one module of every kind, fused, gives the
+    numbers and statuses of the same module's compiled plan, which hands the kernels slices
+    of the buffer (the plan compiles once per machine, about three minutes, then loads)."""
+    from loopworks.catalog import create_block, kinds
+
+    def every_kind() -> Module:
+        return Module({kind.replace(".", "_"): create_block(
+            kind, **({"sample_time": 0.1} if kind == "process.tf" else {}))
+            for kind in sorted(kinds())})
+
+    fused = every_kind()
+    text = plan.source(fused._slots, ["fused"])[0]
+    tuples = [i for i, slot in enumerate(fused._slots) if 0 < slot.n_p <= plan.TUPLE_COEFFICIENTS]
+    assert len(tuples) >= 20  # the kinds with more (deltav.calc, process.tf) take slices
+    for i in tuples:
+        assert f"    P{i} = (F[" in text and f"(dt, P{i}, F[" in text
+    got = fused.run(5.0, 0.1, plan="fused")
+    assert fused._scans[0] == "fused"
+    from loopworks.sim import module as module_mod
+
+    monkeypatch.setattr(module_mod, "is_cached", lambda *args: False)  # not the fused plan
+    compiled = every_kind()
+    reference = compiled.run(5.0, 0.1, plan="compiled")
+    assert compiled._scans[0] == "scans"
+    assert got.values.keys() == reference.values.keys()
+    for name in reference.values:
+        np.testing.assert_array_equal(got.values[name], reference.values[name], err_msg=name)
+        np.testing.assert_array_equal(got.status[name], reference.status[name], err_msg=name)
+
+
+
 def test_a_long_run_takes_the_fused_plan_only_when_it_pays_for_its_compilation(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """Fusing saves tens of ns per block-scan; compiling it cost 63 s for the built-in

@@ -115,6 +115,19 @@ def _names_of(entries: tuple[Entry, ...]) -> tuple[str, ...]:
     return tuple(_name(e) for e in entries)
 
 
+@functools.lru_cache(maxsize=256)
+def _scalars_of(entries: tuple[Entry, ...]) -> bool:
+    return not any(isinstance(e, Array) for e in entries)
+
+
+def _scalars(entries: tuple[Entry, ...]) -> bool:
+    """True when no entry is an Array (worked out once per layout)."""
+    try:
+        return _scalars_of(entries)
+    except TypeError:  # an entry that cannot be hashed
+        return not any(isinstance(e, Array) for e in entries)
+
+
 def _declared(entries: Sequence[Entry]) -> tuple[str, ...]:
     """The entries' names (a kind's layout is a tuple: its names are worked out once)."""
     if isinstance(entries, tuple):
@@ -136,6 +149,8 @@ def pack(entries: Sequence[Entry], values: Mapping[str, Any], what: str,
                          f"{', '.join(sorted(missing)) or 'nothing'} missing")
     # the floats in order, an Array's values as one array among them (a scalar layout, the
     # common case, is one conversion of a list)
+    if isinstance(entries, tuple) and _scalars(entries):
+        return np.array([float(values[name]) for name in declared], dtype=np.float64)
     parts: list[Any] = []
     arrays = False
     for entry, name in zip(entries, declared, strict=True):

@@ -79,8 +79,11 @@ class Param:
             if not isinstance(value, str):
                 raise ParameterError(f"{where}parameter '{self.name}' = {value!r} must be text")
             return value
-        x = _to_float(value, self.name, where,
-                      f": allowed {self.range_text()}" + (f" {self.unit}" if self.unit else ""))
+        if type(value) is float or type(value) is int:  # the common case: no message made
+            x = float(value)
+        else:
+            x = _to_float(value, self.name, where, f": allowed {self.range_text()}"
+                          + (f" {self.unit}" if self.unit else ""))
         if self.type == "int" and math.isfinite(x) and x != int(x):
             raise ParameterError(
                 f"{where}parameter '{self.name}' = {value!r} must be an integer: allowed "

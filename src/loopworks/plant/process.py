@@ -370,12 +370,21 @@ def line_push(x: FloatArray, base: int, cap: int, value: float, dt: float) -> No
 
 
 def line_initial(cap: int, u0: float) -> FloatArray:
-    """An empty line (the history before it is u0): head at the last slot, no entries."""
+    """An empty line (the history before it is u0): head at the last slot, no entries. Read
+    only, made once per (cap, u0) (-0.0 apart from 0.0): every reset copies it into a
+    block's state."""
+    return _line_initial(cap, u0, math.copysign(1.0, u0))
+
+
+@functools.lru_cache(maxsize=64)
+def _line_initial(cap: int, u0: float, sign: float) -> FloatArray:
     data = np.zeros(2 * cap)
     data[:cap] = u0
-    return layout.pack(LINE_ENTRIES, {"head": cap - 1.0, "count": 0.0, "run_dt": 0.0,
+    line = layout.pack(LINE_ENTRIES, {"head": cap - 1.0, "count": 0.0, "run_dt": 0.0,
                                       "run_len": 0.0, "data": data},
                        "delay line", {"delay_capacity": cap})
+    line.flags.writeable = False
+    return line
 
 
 @primitive
