@@ -10,14 +10,16 @@ import subprocess
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pytest
 
 import loopworks
 from loopworks.blocks import plan
+from loopworks.blocks.block import Block
 from loopworks.blocks.kernel import run_rows
+from loopworks.blocks.params import Port
 from loopworks.errors import InputError
 from loopworks.sim.module import Event, Module
 from loopworks.sim.result import SimResult
@@ -246,40 +248,40 @@ def test_the_fused_plan_equals_the_interpreted_run() -> None:
 
 
 
-def test_every_kind_runs_fused_with_its_coefficients_as_a_tuple(
-        monkeypatch: pytest.MonkeyPatch) -> None:
+def adapting_kernel(dt: float, p: Any, x: Any, u: Any, us: Any, y: Any, ys: Any) -> None:
+    """y = p[0]·u, then p[0] doubles (a kernel that writes its coefficients: no vendor's,
+    but a kind may)."""
+    y[0] = p[0] * u[0]
+    ys[0] = 128
+    p[0] = 2.0 * p[0]
+
+
+class Adapting(Block):
+    kind = "test.adapting"
+    kernel = staticmethod(adapting_kernel)
+    INPUTS: ClassVar[tuple[Port, ...]] = (Port("u", 1.0, status=True),)
+    OUTPUTS: ClassVar[tuple[Port, ...]] = (Port("y", 0.0, status=True),)
+    COEFFS: ClassVar[tuple[str, ...]] = ("gain",)
+
+    def coefficients(self) -> dict[str, float]:
+        return {"gain": 1.0}
+
+
+def test_a_fused_plan_reads_coefficients_as_a_tuple_and_falls_back_for_a_kernel_that_writes_them(
+        ) -> None:
     """A fused plan hands each kernel its coefficients as a tuple read before the scan loop
-    (``plan._coefficients``: a quarter less time per scan of pid + fopdt), where a block has
-    at most ``TUPLE_COEFFICIENTS`` of them. A kernel that wrote its coefficients or sliced
-    them at run time would not compile so: one module of every kind, fused, gives the
-    numbers and statuses of the same module's compiled plan, which hands the kernels slices
-    of the buffer (the plan compiles once per machine, about three minutes, then loads)."""
-    from loopworks.catalog import create_block, kinds
-
-    def every_kind() -> Module:
-        return Module({kind.replace(".", "_"): create_block(
-            kind, **({"sample_time": 0.1} if kind == "process.tf" else {}))
-            for kind in sorted(kinds())})
-
-    fused = every_kind()
-    text = plan.source(fused._slots, ["fused"])[0]
-    tuples = [i for i, slot in enumerate(fused._slots) if 0 < slot.n_p <= plan.TUPLE_COEFFICIENTS]
-    assert len(tuples) >= 20  # the kinds with more (deltav.calc, process.tf) take slices
-    for i in tuples:
-        assert f"    P{i} = (F[" in text and f"(dt, P{i}, F[" in text
-    got = fused.run(5.0, 0.1, plan="fused")
-    assert fused._scans[0] == "fused"
-    from loopworks.sim import module as module_mod
-
-    monkeypatch.setattr(module_mod, "is_cached", lambda *args: False)  # not the fused plan
-    compiled = every_kind()
-    reference = compiled.run(5.0, 0.1, plan="compiled")
-    assert compiled._scans[0] == "scans"
-    assert got.values.keys() == reference.values.keys()
-    for name in reference.values:
-        np.testing.assert_array_equal(got.values[name], reference.values[name], err_msg=name)
-        np.testing.assert_array_equal(got.status[name], reference.status[name], err_msg=name)
-
+    (``plan._coefficients``: a quarter less time per scan of pid + fopdt, 2026-12-08); a
+    kernel that writes them does not compile so, and the plan is compiled with slices of the
+    buffer instead: the same numbers as the compiled plan (y doubles every scan)."""
+    m = retuned_loop()
+    text = plan.source(m._slots, ["fused", "batch_fused"])[0]
+    for i in range(len(m._slots)):
+        assert text.count(f"P{i} = (F[") == 2 and f"(dt, P{i}, F[" in text
+    assert "P0 = (F[" not in plan.source(m._slots, ["scans", "batch"])[0]
+    got = Module({"a": Adapting()}).run(0.5, 0.1, plan="fused")
+    assert got.values["a.y"].tolist() == [1.0, 2.0, 4.0, 8.0, 16.0]
+    reference = Module({"a": Adapting()}).run(0.5, 0.1, plan="compiled")
+    np.testing.assert_array_equal(got.values["a.y"], reference.values["a.y"])
 
 
 def test_a_long_run_takes_the_fused_plan_only_when_it_pays_for_its_compilation(
@@ -477,6 +479,7 @@ RACE = """
 import sys, time
 from pathlib import Path
 from loopworks.blocks import plan
+from loopworks.blocks.block import Block
 from tests.sim.test_plan import doubling_kernel
 slots = plan.layout([(doubling_kernel, 0, 1, 3, 1, True)])
 Path(sys.argv[1]).touch()
@@ -642,11 +645,13 @@ STALE = """
 import sys
 import numpy as np
 from loopworks.blocks import plan
+from loopworks.blocks.block import Block
 from tests.sim.test_plan import doubling_kernel
 if sys.argv[1] == "old":  # the kind entries under the names of a source since edited
     made = plan._name
-    plan._name = lambda slots, what, usual=None: (
-        (lambda n, t, i: (n + "old" if what == "call" else n, t, i))(*made(slots, what, usual)))
+    plan._name = lambda slots, what, usual=None, tuples=True: (
+        (lambda n, t, i: (n + "old" if what == "call" else n, t, i))(
+            *made(slots, what, usual, tuples)))
 slots = plan.layout([(doubling_kernel, 0, 1, 3, 1, True), (doubling_kernel, 0, 1, 3, 1, True)])
 scans = plan.entry(slots, "scans", plan.SCANS_SIGNATURE)
 F, S = np.zeros(slots[-1].f1), np.zeros(slots[-1].s1, dtype=np.int64)

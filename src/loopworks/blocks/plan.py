@@ -325,8 +325,11 @@ def _coefficients(slots: Sequence[Slot], pad: str) -> tuple[list[str], dict[int,
     row), and values in a tuple are values the compiler knows no store in the loop can
     change, so what a kernel derives from them alone (exp(-dt/T) of a lag) is worked out once
     per call instead of once per scan: a quarter less time per scan of pid + fopdt. A kernel
-    written for arrays reads a tuple alike (``p[P.kp]``); one that cannot (slicing p at
-    run time) would not compile, which ``tests/blocks/test_plan.py`` checks for every kind."""
+    written for arrays reads a tuple alike (``p[P.kp]``); one that cannot (writing p, slicing
+    it at run time) does not compile so, and :func:`entry` compiles that plan with slices
+    instead. Every kind of loopworks compiles with tuples (checked 2026-12-08: one module of
+    every kind, fused, gave its compiled plan's numbers; three minutes of compiling, too long
+    for the suite, which checks pid + fopdt and the fallback)."""
     lines, names = [], {}
     for i, slot in enumerate(slots):
         if 0 < slot.n_p <= TUPLE_COEFFICIENTS:
@@ -417,7 +420,7 @@ def _record(usual: Record | None) -> tuple[list[str], list[str]]:
 
 
 def source(slots: Sequence[Slot], entries: Sequence[str],
-           usual: Record | None = None) -> tuple[str, list[Any]]:
+           usual: Record | None = None, tuples: bool = True) -> tuple[str, list[Any]]:
     """The Python source of a plan's entry points (``scans``, ``step``, ``rows``; the last
     two for a one-block plan), and the kernels it needs injected (those not importable).
     ``usual``: the record a module's ``scans``/``fused`` write at literal offsets."""
@@ -433,14 +436,15 @@ def source(slots: Sequence[Slot], entries: Sequence[str],
     # fixed order: the source is hashed into the cache key.
     before, inside = _record(usual)
     for what in [w for w in ("scans", "fused") if w in entries]:
-        read, tuples = _coefficients(slots, "    ") if what == "fused" else ([], {})
+        read, named = (_coefficients(slots, "    ") if what == "fused" and tuples
+                       else ([], {}))
         lines += ["", "", deco,
                   f"def {what}(F0, S0, dt, t0, k0, n, T, RF, RS, IF, IS, at):", *_UNCOUNTED,
                   *before, *read,
                   "    for k in range(n):",
                   "        t = t0 if k == 0 else (k0 + k) * dt",
                   "        T[at + k] = t"]
-        lines += _scan(slots, kernels, " " * 8, tuples)
+        lines += _scan(slots, kernels, " " * 8, named)
         lines += inside
     # ``batch_fused``: the batch with every kernel inlined (as ``fused`` is to ``scans``)
     for what in [w for w in ("batch", "batch_fused") if w in entries]:
@@ -453,12 +457,12 @@ def source(slots: Sequence[Slot], entries: Sequence[str],
                   "    for i in numba.prange(F0.shape[0]):",
                   "        F = numba.carray(float64_at(fa + i * nf * 8), nf)",
                   "        S = numba.carray(int64_at(sa + i * ns * 8), ns)"]
-        read, tuples = (_coefficients(slots, " " * 8) if what == "batch_fused"
-                        else ([], {}))
+        read, named = (_coefficients(slots, " " * 8) if what == "batch_fused" and tuples
+                       else ([], {}))
         lines += [*read,
                   "        for k in range(m):",
                   "            t = (k0 + k) * dt"]
-        lines += _scan(slots, kernels, " " * 12, tuples)
+        lines += _scan(slots, kernels, " " * 12, named)
         lines += ["            for j in range(IR.shape[0]):",
                   "                R[i, j, at + k] = F[IR[j]]",
                   "                RS[i, j, at + k] = numba.uint8(S[IS[j]])"]
@@ -554,10 +558,10 @@ def _module(name: str, text: str, injected: list[Any]) -> Any:
     return mod
 
 
-def _name(slots: Sequence[Slot], what: str,
-          usual: Record | None = None) -> tuple[str, str, list[Any]]:
+def _name(slots: Sequence[Slot], what: str, usual: Record | None = None,
+          tuples: bool = True) -> tuple[str, str, list[Any]]:
     """(module name, source, injected kernels) of a plan's entry point."""
-    text, injected = source(slots, (what,), usual)
+    text, injected = source(slots, (what,), usual, tuples)
     key = hashlib.sha256((_kernels_hash(tuple(dict.fromkeys(slot.kernel for slot in slots)))
                           + text).encode()).hexdigest()[:20]
     return f"lw_plan_{key}", text, injected
@@ -599,11 +603,27 @@ def _machine_code_dir(path: Path) -> Path:
     return path.parent / "__pycache__"
 
 
-def entry(slots: Sequence[Slot], what: str, signature: str, usual: Record | None = None) -> Any:
+def entry(slots: Sequence[Slot], what: str, signature: str, usual: Record | None = None,
+          tuples: bool = True) -> Any:
     """The compiled entry point ``what`` ("scans", "fused", "step", "rows", "batch" or
     "batch_fused") of a plan laid out as ``slots``, loaded from the cache or compiled (once
-    per process, once per machine)."""
-    name, text, injected = _name(slots, what, usual)
+    per process, once per machine). A fused entry whose kernels do not all compile with
+    their coefficients as tuples (:func:`_coefficients`: a kernel that writes or slices
+    them) is compiled again with slices of the buffer."""
+    if tuples and what in ("fused", "batch_fused"):
+        import numba
+
+        try:
+            return _entry(slots, what, signature, usual, True)
+        except numba.core.errors.TypingError:
+            return _entry(slots, what, signature, usual, False)
+    return _entry(slots, what, signature, usual, tuples)
+
+
+def _entry(slots: Sequence[Slot], what: str, signature: str, usual: Record | None,
+           tuples: bool) -> Any:
+    """:func:`entry` with the coefficients as tuples or not."""
+    name, text, injected = _name(slots, what, usual, tuples)
     mod = _loaded.get(name)
     if mod is None:
         mod = _loaded[name] = _module(name, text, injected)
