@@ -568,7 +568,8 @@ def sweep(
     variant: Annotated[str | None, typer.Option(
         "--variant", help="sweep only this [compare] variant")] = None,
     workers: Annotated[int | None, typer.Option(
-        "--workers", help="processes (default: 1, whose batch runs on every core)")] = None,
+        "--workers", help="processes (default: one per core, at most 4, for 50,000 "
+        "instances or more, else 1, whose batch runs on every core)")] = None,
     scheduler: Annotated[str | None, typer.Option(
         "--scheduler", help="a Dask distributed scheduler address (tcp://HOST:PORT)")] = None,
     metric: Annotated[str | None, typer.Option(
@@ -641,7 +642,8 @@ def sweep(
                        rate=f"{rate:.1f} instances/s")
 
         result = run_sweep(scenario, vary or [], samples=samples, seed=seed, variant=variant,
-                           workers=workers, scheduler=scheduler, progress=tick,
+                           workers="auto" if workers is None else workers,
+                           scheduler=scheduler, progress=tick,
                            trajectories=trajectory or (), relay_progress=relay_tick)
     if metric is not None and metric not in result.metrics:
         _fail(f"--metric '{metric}': no such metric; metrics: {', '.join(result.metrics)}")

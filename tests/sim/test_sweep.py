@@ -896,3 +896,43 @@ def test_a_sweep_too_large_or_a_count_of_the_wrong_type_is_refused(scenario: Pat
                             ({"trajectories": [True]}, "--trajectory True: no such point")):
         with pytest.raises(InputError, match=re.escape(message)):
             sweep(scenario, ["pid.k=uniform(1,2)"], **{"samples": 2, "workers": 1, **kwargs})
+
+
+def test_the_cli_runs_a_large_sweep_in_one_process_per_core(
+        scenario: Path, monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """One process makes each instance's row and metrics in Python on one core while its
+    batch's scans use every core: the CLI's default (``workers="auto"``) runs a sweep of
+    ``AUTO_WORKERS_INSTANCES`` or more in one process per core (at most ``AUTO_WORKERS``),
+    with the numbers of one process; below that, and from Python by default (a script
+    without a ``__main__`` guard cannot start processes), in this one."""
+    from concurrent.futures import ProcessPoolExecutor
+
+    from loopworks.sim import sweep as sweep_mod
+
+    started: list[int] = []
+
+    class Counted(ProcessPoolExecutor):
+        def __init__(self, n: int, **kwargs: Any) -> None:
+            started.append(n)
+            super().__init__(n, **kwargs)
+
+    monkeypatch.setattr(sweep_mod, "ProcessPoolExecutor", Counted)
+    monkeypatch.setattr(sweep_mod.os, "cpu_count", lambda: 8)
+    monkeypatch.setattr(sweep_mod, "AUTO_WORKERS_INSTANCES", 12)
+    vary = ["pid.k=uniform(0.5,1.5)"]
+    one = sweep(scenario, vary, samples=6, seed=3)  # 12 instances: two variants
+    assert started == []
+    auto = sweep(scenario, vary, samples=6, seed=3, workers="auto")
+    assert started == [sweep_mod.AUTO_WORKERS] == [4]
+    same_table(one.columns, auto.columns)
+    sweep(scenario, vary, samples=5, seed=3, workers="auto")  # 10 instances: here
+    assert started == [4]
+    seen: list[Any] = []
+    monkeypatch.setattr(sweep_mod, "sweep", lambda *a, **k: seen.append(k["workers"]) or one)
+    for args, workers in (([], "auto"), (["--workers", "2"], 2)):
+        got = CliRunner().invoke(app, ["sweep", str(scenario), "--vary", vary[0], "-q",
+                                       "-o", str(tmp_path / "out"), *args])
+        assert got.exit_code == 0, got.output
+        assert seen[-1] == workers
+    with pytest.raises(InputError, match=r"--workers 'two': expected a whole number"):
+        sweep(scenario, vary, workers="two")
