@@ -636,3 +636,39 @@ def test_a_ramped_setpoint_has_no_step_figures() -> None:
     later = np.where(t >= 200.0, 61.0, ramp)
     y = np.where(t >= 200.0, 61.0 - np.exp(-(t - 200.0) / 5.0), pv)
     assert metrics.loop_metrics(t, later, y, out)["step size"] == pytest.approx(1.0)
+
+
+def _decay_by_masks(x: np.ndarray, band: float) -> float:
+    """The decay ratio by its definition (spec 4.1), with numpy masks: the first lobe above
+    +band, the undershoot below -band after it, the next lobe above +band, each lobe's peak."""
+    idx = np.arange(len(x))
+    over = np.flatnonzero(x > band)
+    if not over.size:
+        return math.nan
+    under = np.flatnonzero((x < -band) & (idx > over[0]))
+    if not under.size:
+        return math.nan
+    again = np.flatnonzero((x > band) & (idx > under[0]))
+    if not again.size:
+        return math.nan
+    later = np.flatnonzero((x < -band) & (idx > again[0]))
+    second = float(x[again[0]:later[0] if later.size else len(x)].max())
+    return second / float(x[over[0]:under[0]].max())
+
+
+def test_the_decay_ratio_loop_finds_the_lobes_the_definition_gives() -> None:
+    """``decay_ratio`` scans the excursion once per lobe (compiled; numpy's masks over the
+    whole record were a fifth of a sweep's metrics): on 3,000 random records, NaN samples
+    and bands of 0 included, the same value as the definition's masks, bit for bit."""
+    rng = np.random.default_rng(5)
+    found = 0
+    for _ in range(3000):
+        n = int(rng.integers(0, 60))
+        x = rng.normal(0.0, 1.0, n) * rng.choice([0.1, 1.0, 3.0])
+        if n and rng.random() < 0.2:
+            x[rng.integers(0, n)] = math.nan
+        band = float(rng.choice([0.0, 0.05, 0.5, 1.0]))
+        want, got = _decay_by_masks(x, band), metrics.decay_ratio(x, band)
+        assert got == want or (math.isnan(got) and math.isnan(want)), (x, band)
+        found += math.isfinite(want)
+    assert found > 1000  # most records have two lobes

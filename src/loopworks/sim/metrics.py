@@ -260,20 +260,48 @@ def decay_ratio(excursion: np.ndarray, band: float) -> float:
     lobe above +band after the response went below -band (an undershoot). NaN when there is
     no overshoot beyond the band, or no second peak beyond it (a decay the ±band cannot
     resolve from noise; the ratio is then below band / first peak)."""
-    x = np.asarray(excursion, dtype=np.float64)
-    over = np.flatnonzero(x > band)
-    if not over.size:
+    from loopworks.sim.arrays import compiled_arg
+
+    return float(_decay_loop()(compiled_arg(np.asarray(excursion, dtype=np.float64)),
+                               float(band)))
+
+
+def _decay_scan(x: np.ndarray, band: float) -> float:
+    """:func:`decay_ratio`'s loop (runs interpreted and compiled): the lobes found by one
+    pass each, their peaks as numpy's max takes them (a NaN in a lobe is its peak)."""
+    n = len(x)
+
+    def first(k: int, above: bool) -> int:  # the first sample from k beyond +band / -band
+        while k < n and not (x[k] > band if above else x[k] < -band):
+            k += 1
+        return k
+
+    def peak(a: int, b: int) -> float:
+        m = x[a]
+        for k in range(a + 1, b):
+            if x[k] > m or x[k] != x[k]:
+                m = x[k]
+        return float(m)
+
+    over = first(0, True)
+    under = first(over + 1, False) if over < n else n
+    again = first(under + 1, True) if under < n else n
+    if again >= n:
         return math.nan
-    under = np.flatnonzero((x < -band) & (np.arange(len(x)) > over[0]))
-    if not under.size:
-        return math.nan
-    again = np.flatnonzero((x > band) & (np.arange(len(x)) > under[0]))
-    if not again.size:
-        return math.nan
-    first = float(x[over[0]:under[0]].max())
-    later = np.flatnonzero((x < -band) & (np.arange(len(x)) > again[0]))
-    second = float(x[again[0]:later[0] if later.size else len(x)].max())
-    return second / first
+    later = first(again + 1, False)
+    return peak(again, later) / peak(over, under)
+
+
+@cache
+def _decay_loop() -> Any:
+    """:func:`_decay_scan`, compiled (cached on disk) unless ``LOOPWORKS_JIT=0``."""
+    from loopworks.blocks.kernel import jit_enabled
+
+    if not jit_enabled():
+        return _decay_scan
+    import numba
+
+    return numba.njit(cache=True, nogil=True)(_decay_scan)
 
 
 def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
@@ -300,35 +328,84 @@ def _step_rows(t: np.ndarray, y: np.ndarray, r: np.ndarray, start: np.ndarray,
         return size, over, rise, settle, decay
     sel = np.flatnonzero(moves)
     y, r, start, y0, d = y[sel], r[sel], start[sel], y0[sel], dr[sel]
-    sgn = np.where(d > 0, 1.0, -1.0)[:, None]
-    mag = np.abs(d)
-    tol = band * mag
-    after = k >= start[:, None]
-    with np.errstate(invalid="ignore"):
-        frac = (y - y0[:, None]) * sgn / mag[:, None]  # 0 at the start, 1 at the setpoint
-    has10, i10 = _first(after & (frac >= 0.1))
-    has90, i90 = _first(after & (frac >= 0.9))
-    rise[sel] = np.where(has90 & has10, t[i90] - t[i10], nan)
     m = np.maximum(2, (n - start) // 20)  # the tail: the last 5 % of the response, >= 2
-    tail = k >= (n - m)[:, None]
     yinf = np.empty(len(y))
     for mi in np.unique(m):  # the rows whose tails are as long, at once
         same = m == mi
         yinf[same] = _per_row(np.mean, y[same, n - mi:])
-    dev = np.abs(y - yinf[:, None])
-    settled = ~(tail & (dev > tol[:, None])).any(axis=1) & (np.abs(r - yinf) <= tol)
-    outside = after & (dev > tol[:, None])
-    any_out = outside.any(axis=1)
-    last = n - 1 - outside[:, ::-1].argmax(axis=1)
-    t_end = t[np.minimum(last + 1, n - 1)]
-    # stayed inside the band to the end for at least STAY times as long as it took to get in
-    settled &= ~any_out | (t[n - 1] - t_end >= STAY * (t_end - t[start]))
-    peak = np.where(after, (y - yinf[:, None]) * sgn, -math.inf).max(axis=1)
-    over[sel] = np.where(settled, np.maximum(0.0, peak) / mag * 100.0, nan)
-    settle[sel] = np.where(settled, np.where(any_out, t_end - t[start], 0.0), nan)
-    for j in np.flatnonzero(settled & (peak > tol)):  # an overshoot beyond the band
-        decay[sel[j]] = decay_ratio((y[j, start[j]:] - yinf[j]) * sgn[j, 0], float(tol[j]))
+    y = np.ascontiguousarray(y)
+    figures = np.empty((len(y), 4))
+    _step_loop()(np.ascontiguousarray(t, dtype=np.float64), y, np.asarray(r, dtype=np.float64),
+                 d, np.asarray(start, dtype=np.int64), y0, yinf, float(band), float(STAY),
+                 figures)
+    over[sel], rise[sel], settle[sel] = figures[:, 0], figures[:, 1], figures[:, 2]
+    for j in np.flatnonzero(figures[:, 3]):  # settled, with an overshoot beyond the band
+        sgn = 1.0 if d[j] > 0 else -1.0
+        decay[sel[j]] = decay_ratio((y[j, start[j]:] - yinf[j]) * sgn,
+                                    float(band * abs(d[j])))
     return size, over, rise, settle, decay
+
+
+def _step_figures(t: np.ndarray, y: np.ndarray, r: np.ndarray, d: np.ndarray,
+                  start: np.ndarray, y0: np.ndarray, yinf: np.ndarray, band: float,
+                  stay: float, out: np.ndarray) -> None:
+    """:func:`_step_rows`' figures of responses that move (runs interpreted and compiled):
+    row i of ``y`` from sample ``start[i]`` on, a step of ``d[i]`` from ``y0[i]`` toward
+    ``r[i]``, its final value ``yinf[i]`` (the tail's mean, taken by numpy row by row);
+    out[i] = (overshoot %,
+    rise time s, settling time s, 1 where the decay ratio is to be worked out). One pass per
+    figure over the response, not numpy's temporaries of every row (a sweep's chunk spent
+    most of its metrics' time so); each comparison and each expression as the figures'
+    definitions give them, so the numbers are the same."""
+    nan = math.nan
+    n = y.shape[1]
+    for i in range(y.shape[0]):
+        s = start[i]
+        sgn = 1.0 if d[i] > 0 else -1.0
+        mag = abs(d[i])
+        tol = band * mag
+        i10 = -1
+        i90 = -1
+        for k in range(s, n):  # the first samples 10 % and 90 % of the way
+            frac = (y[i, k] - y0[i]) * sgn / mag
+            if i10 < 0 and frac >= 0.1:
+                i10 = k
+            if frac >= 0.9:
+                i90 = k
+                break
+        out[i, 1] = t[i90] - t[i10] if i10 >= 0 and i90 >= 0 else nan
+        yi = yinf[i]
+        m = max(2, (n - s) // 20)
+        settled = abs(r[i] - yi) <= tol  # it ends at the setpoint
+        for k in range(n - m, n):  # the tail stays in the band
+            if abs(y[i, k] - yi) > tol:
+                settled = False
+        last = -1
+        peak = -math.inf
+        for k in range(s, n):
+            if abs(y[i, k] - yi) > tol:
+                last = k
+            v = (y[i, k] - yi) * sgn
+            if v > peak:
+                peak = v
+        t_end = t[min(last + 1, n - 1)]
+        if last >= 0:  # stayed in the band to the end for STAY times as long as it took
+            settled = settled and t[n - 1] - t_end >= stay * (t_end - t[s])
+        out[i, 0] = (peak if peak > 0.0 else 0.0) / mag * 100.0 if settled else nan
+        out[i, 2] = (t_end - t[s] if last >= 0 else 0.0) if settled else nan
+        out[i, 3] = 1.0 if settled and peak > tol else 0.0
+
+
+@cache
+def _step_loop() -> Any:
+    """:func:`_step_figures`, compiled (cached on disk) unless ``LOOPWORKS_JIT=0``."""
+    from loopworks.blocks.kernel import jit_enabled
+
+    if not jit_enabled():
+        return _step_figures
+    import numba
+
+    return numba.njit(cache=True, nogil=True)(_step_figures)
 
 
 def _count_reversals(y: np.ndarray, threshold: float) -> int:
